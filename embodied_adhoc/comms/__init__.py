@@ -1,0 +1,1 @@
+"""comms layer (see docs/architecture in README)."""

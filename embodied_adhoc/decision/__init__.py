@@ -1,0 +1,1 @@
+"""decision layer (see docs/architecture in README)."""

@@ -1,0 +1,1 @@
+"""domains layer (see docs/architecture in README)."""

@@ -1,0 +1,1 @@
+"""teammates layer (see docs/architecture in README)."""
