@@ -1,0 +1,254 @@
+"""A thin episode recorder over rerun-sdk 0.41: one ``rr.RecordingStream`` saved to ``episode.rrd``.
+
+No viewer is spawned and nothing touches the global recording; open the file afterwards with
+``rerun episode.rrd`` (the ``rerun`` binary ships in the rerun-sdk wheel). A default blueprint (3D lab view,
+belief bars, entropy plot, text logs, camera) is stored in the file.
+
+Entity paths (the documented contract; ``tests/record`` reads them back):
+
+===============================  =================  ==========================================================
+entity                           archetype          content
+===============================  =================  ==========================================================
+``world/lab/outline``            LineStrips3D       lab walls outline (static)
+``world/lab/areas``              LineStrips3D       one closed polygon per area, labelled (static)
+``world/lab/waypoints``          Points3D           node waypoints, labelled with node index and name (static)
+``world/lab/edges``              LineStrips3D       topological graph edges between waypoints (static)
+``world/robot``                  Transform3D        ground-truth robot pose (x, y, yaw)
+``world/robot/body``             Boxes3D            robot footprint (static, in the robot frame)
+``world/human``                  Points3D           ground-truth human position
+``world/balls``                  Points3D           ball positions, coloured and labelled
+``world/odometry``               Points3D           dead-reckoning (odometry) robot position
+``world/tracks/ground_truth``    LineStrips3D       ground-truth robot track so far
+``world/tracks/odometry``        LineStrips3D       odometry track so far (beside the ground truth)
+``belief/task``                  BarChart           task posterior over the task library
+``belief/entropy``               Scalars            normalised entropy of the task posterior
+``metrics/odometry_error``       Scalars            distance between odometry and ground-truth position (m)
+``log/observations``             TextLog            decoded observation after each macro step
+``log/actions``                  TextLog            macro action chosen at each step
+``log/utterances``               TextLog            robot and human speech (question, transcript, reply)
+``log/events``                   TextLog            episode events (RFID reads, task identified, outcome)
+``speech/audio``                 AssetAudio         WAV of the human's reply (``speech="audio"`` only)
+``camera/<name>``                EncodedImage       JPEG camera frames (e.g. ``camera/overhead``)
+===============================  =================  ==========================================================
+
+Timelines: ``step`` (macro step, sequence) and ``sim_time`` (simulated seconds, duration).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from embodied_adhoc.record.atomic import publish, temporary_sibling
+
+ENTITY_PATHS: tuple[str, ...] = (
+    "world/lab/outline",
+    "world/lab/areas",
+    "world/lab/waypoints",
+    "world/lab/edges",
+    "world/robot",
+    "world/robot/body",
+    "world/human",
+    "world/balls",
+    "world/odometry",
+    "world/tracks/ground_truth",
+    "world/tracks/odometry",
+    "belief/task",
+    "belief/entropy",
+    "metrics/odometry_error",
+    "log/observations",
+    "log/actions",
+    "log/utterances",
+    "log/events",
+    "speech/audio",
+    "camera",
+)
+TEXT_CHANNELS = ("observations", "actions", "utterances", "events")
+BALL_COLOURS = ((220, 50, 47), (38, 139, 210), (133, 153, 0), (181, 137, 0), (108, 113, 196))
+
+
+def _closed_strip(polygon: np.ndarray, z: float) -> np.ndarray:
+    points = np.asarray(polygon, dtype=np.float64).reshape(-1, 2)
+    closed = np.vstack([points, points[:1]])
+    return np.column_stack([closed, np.full(len(closed), z)])
+
+
+def _default_blueprint():
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Vertical(
+                rrb.Spatial3DView(name="lab", origin="/world"),
+                rrb.TextLogView(name="log", origin="/log"),
+                row_shares=[3, 1],
+            ),
+            rrb.Vertical(
+                rrb.Spatial2DView(name="camera", origin="/camera"),
+                rrb.BarChartView(name="task belief", origin="/belief/task"),
+                rrb.TimeSeriesView(
+                    name="entropy and odometry error", contents=["/belief/entropy", "/metrics/**"]
+                ),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+class RerunRecorder:
+    """Record one episode into ``path`` (an ``.rrd``), published atomically on :meth:`close`.
+
+    Call :meth:`set_time` before logging each macro step's data; static map data goes through
+    :meth:`log_lab`. All ``log_*`` methods take plain numpy data, so the recorder knows nothing of MuJoCo.
+    """
+
+    def __init__(self, path: str | Path, recording_name: str = "episode", jpeg_quality: int = 75):
+        import rerun as rr
+
+        self._rr = rr
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.jpeg_quality = int(jpeg_quality)
+        self._temporary = temporary_sibling(self.path)
+        self._stream = rr.RecordingStream("embodied-adhoc", make_default=False, make_thread_default=False)
+        self._stream.set_log_tick_enabled(False)
+        self._stream.set_log_time_enabled(False)
+        self._stream.save(self._temporary, default_blueprint=_default_blueprint())
+        self._stream.send_recording_name(recording_name)
+        self._ground_truth_track: list[np.ndarray] = []
+        self._odometry_track: list[np.ndarray] = []
+        self._closed = False
+
+    # -- time ---------------------------------------------------------------------------------------------
+    def set_time(self, step: int, sim_time: float) -> None:
+        """Position subsequent logs on the ``step`` (macro step) and ``sim_time`` (seconds) timelines."""
+        self._stream.set_time("step", sequence=int(step))
+        self._stream.set_time("sim_time", duration=float(sim_time))
+
+    # -- static map -----------------------------------------------------------------------------------------
+    def log_lab(
+        self,
+        outline: np.ndarray,
+        areas: Mapping[str, np.ndarray],
+        waypoints: Sequence[tuple[float, float]],
+        node_names: Sequence[str],
+        edges: Sequence[tuple[int, int]],
+        robot_size: tuple[float, float, float] = (0.5, 0.5, 0.4),
+    ) -> None:
+        """Log the lab map once: outline polygon, area polygons, node waypoints, graph edges, robot footprint."""
+        rr = self._rr
+        self._stream.log(
+            "world/lab/outline",
+            rr.LineStrips3D([_closed_strip(outline, 0.0)], colors=[(200, 200, 200)], radii=0.03),
+            static=True,
+        )
+        self._stream.log(
+            "world/lab/areas",
+            rr.LineStrips3D(
+                [_closed_strip(polygon, 0.01) for polygon in areas.values()],
+                labels=list(areas.keys()),
+                radii=0.015,
+            ),
+            static=True,
+        )
+        points = np.array([[x, y, 0.02] for x, y in waypoints])
+        labels = [f"{index} {name}" for index, name in enumerate(node_names)]
+        self._stream.log("world/lab/waypoints", rr.Points3D(points, labels=labels, radii=0.08), static=True)
+        self._stream.log(
+            "world/lab/edges",
+            rr.LineStrips3D([points[[a, b]] for a, b in edges], colors=[(120, 120, 120)], radii=0.01),
+            static=True,
+        )
+        self._stream.log(
+            "world/robot/body",
+            rr.Boxes3D(
+                sizes=[robot_size],
+                centers=[(0.0, 0.0, robot_size[2] / 2)],
+                colors=[(90, 90, 100)],
+                labels=["robot"],
+            ),
+            static=True,
+        )
+
+    # -- per step -----------------------------------------------------------------------------------------
+    def log_poses(
+        self,
+        robot_pose: Sequence[float],
+        odometry_pose: Sequence[float],
+        human_position: Sequence[float],
+        ball_positions: np.ndarray,
+        ball_labels: Sequence[str] | None = None,
+    ) -> None:
+        """Log ground-truth robot pose (x, y, yaw), odometry pose (x, y, yaw), human (x, y[, z]) and balls (n, 3)."""
+        rr = self._rr
+        x, y, yaw = (float(v) for v in robot_pose[:3])
+        ox, oy = float(odometry_pose[0]), float(odometry_pose[1])
+        self._stream.log(
+            "world/robot",
+            rr.Transform3D(
+                translation=(x, y, 0.0), rotation=rr.RotationAxisAngle(axis=(0, 0, 1), radians=yaw)
+            ),
+        )
+        self._stream.log("world/odometry", rr.Points3D([(ox, oy, 0.05)], colors=[(255, 140, 0)], radii=0.07))
+        human = np.zeros(3)
+        human[: len(human_position)] = human_position
+        human[2] = 0.9 if len(human_position) < 3 else human[2]
+        self._stream.log(
+            "world/human", rr.Points3D([human], colors=[(230, 180, 150)], radii=0.25, labels=["human"])
+        )
+        balls = np.asarray(ball_positions, dtype=np.float64).reshape(-1, 3)
+        colours = [BALL_COLOURS[i % len(BALL_COLOURS)] for i in range(len(balls))]
+        labels = list(ball_labels) if ball_labels is not None else [f"ball {i}" for i in range(len(balls))]
+        self._stream.log("world/balls", rr.Points3D(balls, colors=colours, radii=0.06, labels=labels))
+        self._ground_truth_track.append(np.array([x, y, 0.03]))
+        self._odometry_track.append(np.array([ox, oy, 0.04]))
+        if len(self._ground_truth_track) >= 2:
+            self._stream.log(
+                "world/tracks/ground_truth",
+                rr.LineStrips3D([np.array(self._ground_truth_track)], colors=[(0, 170, 0)], radii=0.02),
+            )
+            self._stream.log(
+                "world/tracks/odometry",
+                rr.LineStrips3D([np.array(self._odometry_track)], colors=[(255, 140, 0)], radii=0.02),
+            )
+        self._stream.log("metrics/odometry_error", rr.Scalars(math.hypot(x - ox, y - oy)))
+
+    def log_belief(self, probabilities: np.ndarray, entropy: float) -> None:
+        """Log the task posterior as bars and its (normalised) entropy as a scalar."""
+        self._stream.log("belief/task", self._rr.BarChart(np.asarray(probabilities, dtype=np.float64)))
+        self._stream.log("belief/entropy", self._rr.Scalars(float(entropy)))
+
+    def log_text(self, channel: str, text: str, level: str = "INFO") -> None:
+        """Log a line on ``log/<channel>``; channel is one of observations, actions, utterances, events."""
+        if channel not in TEXT_CHANNELS:
+            raise ValueError(f"text channel '{channel}' unknown; use one of {TEXT_CHANNELS}")
+        self._stream.log(f"log/{channel}", self._rr.TextLog(text, level=level))
+
+    def log_camera(self, name: str, frame: np.ndarray) -> None:
+        """Log an RGB frame as a JPEG-encoded image on ``camera/<name>`` (keeps the .rrd small)."""
+        image = self._rr.Image(np.ascontiguousarray(frame)).compress(jpeg_quality=self.jpeg_quality)
+        self._stream.log(f"camera/{name}", image)
+
+    def log_audio(self, wav_bytes: bytes) -> None:
+        """Log a WAV clip (e.g. the human's synthesised reply) on ``speech/audio``."""
+        self._stream.log("speech/audio", self._rr.AssetAudio(contents=wav_bytes, media_type="audio/wav"))
+
+    # -- finish -------------------------------------------------------------------------------------------
+    def close(self) -> Path:
+        """Flush and publish the ``.rrd`` under its final name (idempotent; call it in ``finally``)."""
+        if not self._closed:
+            self._closed = True
+            self._stream.flush()
+            self._stream.disconnect()
+            publish(self._temporary, self.path)
+        return self.path
+
+    def __enter__(self) -> RerunRecorder:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
