@@ -1,0 +1,150 @@
+"""``embodied-adhoc trials DOMAIN ...``: run agents over the same episodes, print statistics, write CSVs and plots.
+
+Each registered trial domain (``embodied_adhoc.experiments.registry``) is a sub-command with the common flags
+below plus its own (e.g. ``toxic-waste --human-epsilon``); see ``docs/trials.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from embodied_adhoc.experiments.registry import get_trial_domain, trial_domain_names
+
+EPILOG = """\
+With --out DIR the run is stored and resumable: config.json, trials.csv (one row per finished trial, appended as
+it finishes), steps.csv (per-step entropy and task posterior), summary.json, steps.png (Fig. 7.8 analogue) and
+entropy.png (Fig. 7.9 analogue). Re-running the same command resumes (finished trials are skipped); more
+--agents or --episodes extend the run; other options in the same DIR are refused.
+"""
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "trials",
+        help="run agents over the same episodes of a domain: statistics, Welch tests, CSVs and plots",
+        description="Run every agent on the same episodes (tasks and start states drawn once from --seed), "
+        "print steps to finish (mean, 95 % CI), success rate, steps to identify the task (thesis Metric 2), "
+        "final task-belief entropy and Welch t-tests between agents.",
+    )
+    domains = parser.add_subparsers(dest="domain", metavar="DOMAIN")
+    for name in trial_domain_names():
+        domain = get_trial_domain(name)
+        sub = domains.add_parser(
+            name,
+            help=domain.description,
+            description=domain.description,
+            epilog=EPILOG,
+            formatter_class=argparse.RawDescriptionHelpFormatter,
+        )
+        _add_common_arguments(sub, domain)
+        domain.add_arguments(sub)
+        sub.set_defaults(func=handle, _trial_domain=name)
+    parser.set_defaults(_parser=parser)
+
+
+def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
+    from embodied_adhoc.experiments.executors import EXECUTORS
+    from embodied_adhoc.experiments.runner import DEFAULT_MAX_STEPS
+
+    parser.add_argument(
+        "--backend",
+        choices=domain.backends,
+        default=domain.backends[0],
+        help=f"world that runs the episodes (default {domain.backends[0]})",
+    )
+    parser.add_argument(
+        "--agents",
+        default=",".join(domain.default_agents),
+        metavar="A,B,...",
+        help=f"comma-separated agents from {{{', '.join(domain.agent_names)}}} "
+        f"(default {','.join(domain.default_agents)})",
+    )
+    parser.add_argument("--episodes", type=int, default=32, help="episodes per agent (default 32)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the whole sweep (default 0)")
+    parser.add_argument(
+        "--max-steps",
+        type=int,
+        default=DEFAULT_MAX_STEPS,
+        help=f"step cap per episode (default {DEFAULT_MAX_STEPS}, as the thesis)",
+    )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="parallel worker processes (default 1; 0 = one per CPU); results do not depend on it",
+    )
+    parser.add_argument(
+        "--executor",
+        choices=EXECUTORS,
+        default="local",
+        help="local process pool (default) or Ray (pip install 'embodied-adhoc[ray]')",
+    )
+    parser.add_argument(
+        "--out", default=None, metavar="DIR", help="store (and resume) the run in DIR, with plots"
+    )
+    parser.add_argument("--json", action="store_true", help="print only the JSON summary on stdout")
+
+
+def parse_agents(text: str) -> tuple[str, ...]:
+    return tuple(name.strip() for name in text.split(",") if name.strip())
+
+
+def handle(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+    from embodied_adhoc.experiments.storage import atomic_write_text
+    from embodied_adhoc.experiments.summary import summary_json
+    from embodied_adhoc.experiments.tables import summary_table, welch_table
+
+    domain = get_trial_domain(args._trial_domain)
+    config = SweepConfig(
+        domain=domain.name,
+        backend=args.backend,
+        options=domain.options_from_args(args),
+        agents=parse_agents(args.agents),
+        episodes=args.episodes,
+        seed=args.seed,
+        max_steps=args.max_steps,
+    )
+    result = run_sweep(
+        config, out=args.out, workers=args.workers, executor=args.executor, progress=not args.json
+    )
+    summary = result.summary()
+    document = summary_json(summary, config.describe())
+    written = []
+    if args.out:
+        from embodied_adhoc.experiments.plots import plot_entropy, plot_steps
+
+        out = Path(args.out)
+        atomic_write_text(out / "summary.json", json.dumps(document, indent=2) + "\n")
+        title = f"{domain.name} ({config.backend}), {config.episodes} episodes"
+        written.append(plot_steps(summary, out / "steps.png", title=f"Steps to finish / identify: {title}"))
+        curves = result.curves_by_agent()
+        if curves:
+            written.append(plot_entropy(curves, out / "entropy.png", title=f"Task-belief entropy: {title}"))
+    if args.json:
+        print(json.dumps(document))
+        return 0
+    resumed = len(result.records) - result.new_trials
+    print(
+        f"{domain.name} on {config.backend}: {len(config.agents)} agent(s) x {config.episodes} episode(s), "
+        f"seed {config.seed}, cap {config.max_steps} steps; options {json.dumps(dict(config.options))}"
+    )
+    print(
+        f"{result.new_trials} trial(s) run in {result.wall_time_s:.2f} s"
+        + (f", {resumed} resumed" if resumed else "")
+    )
+    print()
+    print(summary_table(summary))
+    print()
+    print(welch_table(summary))
+    if args.out:
+        print(
+            f"\nwrote {args.out}/: config.json trials.csv steps.csv summary.json "
+            + " ".join(p.name for p in written)
+        )
+    sys.stdout.flush()
+    return 0

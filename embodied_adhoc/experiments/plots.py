@@ -1,0 +1,134 @@
+"""PNG plots of sweeps (matplotlib, Agg backend, files written atomically): analogues of thesis Figs. 7.8, 7.9, 7.11.
+
+* :func:`plot_steps` (Fig. 7.8): per agent, mean steps to finish and to identify the task, 95 % t-CI error bars.
+* :func:`plot_entropy` (Fig. 7.9): mean normalised task-belief entropy per time step with a 95 % CI band.
+* :func:`plot_settings` (Fig. 7.11): steps to finish per agent under several settings (e.g. with and without
+  communication), grouped bars with 95 % CI error bars.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from embodied_adhoc.experiments.stats import SampleSummary, mean_curve
+from embodied_adhoc.experiments.summary import RunSummary
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(figure, path: Path) -> Path:
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
+    os.close(handle)
+    try:
+        figure.savefig(temporary, dpi=120, bbox_inches="tight")
+        os.replace(temporary, path)
+    finally:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        _pyplot().close(figure)
+    return path
+
+
+def _mean_and_error(sample: SampleSummary) -> tuple[float, float]:
+    mean = 0.0 if math.isnan(sample.mean) else sample.mean
+    return mean, (0.0 if math.isnan(sample.ci_half_width) else sample.ci_half_width)
+
+
+def _save_bars(figure, axes, names: list[str], ylabel: str, title: str, path: Path) -> Path:
+    axes.set_xticks(np.arange(len(names)), names)
+    axes.set_ylabel(ylabel)
+    axes.set_title(title)
+    axes.legend()
+    axes.grid(axis="y", alpha=0.3)
+    return _save(figure, path)
+
+
+def plot_steps(
+    summary: RunSummary, path: Path, title: str = "Steps to finish and to identify the task"
+) -> Path:
+    """Fig. 7.8 analogue: two bars per agent (finish, identify) with 95 % CI error bars."""
+    plt = _pyplot()
+    names = list(summary.agents)
+    x = np.arange(len(names))
+    width = 0.38
+    figure, axes = plt.subplots(figsize=(1.6 * len(names) + 2.5, 4.0))
+    for offset, label, key in (
+        (-width / 2, "steps to finish", "steps"),
+        (width / 2, "steps to identify", "identify"),
+    ):
+        values = [_mean_and_error(getattr(summary.agents[n], key)) for n in names]
+        present = [not math.isnan(getattr(summary.agents[n], key).mean) for n in names]
+        axes.bar(
+            x[present] + offset,
+            [v[0] for v, p in zip(values, present, strict=True) if p],
+            width,
+            yerr=[v[1] for v, p in zip(values, present, strict=True) if p],
+            capsize=4,
+            label=label,
+        )
+    return _save_bars(figure, axes, names, "steps (mean, 95% CI)", title, path)
+
+
+def plot_entropy(
+    curves_by_agent: Mapping[str, Sequence[Sequence[float]]],
+    path: Path,
+    title: str = "Task-belief entropy per time step",
+) -> Path:
+    """Fig. 7.9 analogue: mean normalised entropy per step (finished trials hold their last value), 95 % CI band."""
+    plt = _pyplot()
+    figure, axes = plt.subplots(figsize=(6.5, 4.0))
+    for name, curves in curves_by_agent.items():
+        curve = mean_curve(curves)
+        if not curve["step"].size:
+            continue
+        axes.plot(curve["step"], curve["mean"], label=f"{name} (n={int(curve['n'][0])})")
+        if np.all(np.isfinite(curve["low"])):
+            axes.fill_between(curve["step"], curve["low"], curve["high"], alpha=0.25)
+    axes.set_xlabel("time step")
+    axes.set_ylabel("normalised entropy of the task belief")
+    axes.set_ylim(-0.02, 1.05)
+    axes.set_title(title)
+    axes.legend()
+    axes.grid(alpha=0.3)
+    return _save(figure, path)
+
+
+def plot_settings(
+    summaries: Mapping[str, RunSummary], path: Path, title: str = "Steps to finish by setting"
+) -> Path:
+    """Fig. 7.11 analogue: for each agent, one bar per setting (e.g. "communication", "no communication")."""
+    plt = _pyplot()
+    settings = list(summaries)
+    names = list(dict.fromkeys(name for s in summaries.values() for name in s.agents))
+    x = np.arange(len(names))
+    width = 0.8 / max(len(settings), 1)
+    figure, axes = plt.subplots(figsize=(1.6 * len(names) + 2.5, 4.0))
+    for index, setting in enumerate(settings):
+        agents = summaries[setting].agents
+        present = [n in agents for n in names]
+        values = [_mean_and_error(agents[n].steps) for n in names if n in agents]
+        offset = (index - (len(settings) - 1) / 2) * width
+        axes.bar(
+            x[present] + offset,
+            [v[0] for v in values],
+            width,
+            yerr=[v[1] for v in values],
+            capsize=4,
+            label=setting,
+        )
+    return _save_bars(figure, axes, names, "steps to finish (mean, 95% CI)", title, path)

@@ -1,0 +1,123 @@
+"""Trial domains: the plug-in protocol through which every domain (and backend) reaches the one trial runner.
+
+A *trial* is one episode of one agent: the runner resets a Gymnasium env with the episode's spec, resets the
+agent, then alternates ``agent.act()`` -> ``env.step(action)`` -> ``agent.observe(action, z, state=...)`` until the
+env terminates (success) or the step cap is hit. ``z`` is ``info["observation_index"]`` (or the session's
+:meth:`TrialSession.observation_index`); ``state=info["state"]`` is given only to agents with
+``observes_state`` (see :mod:`embodied_adhoc.decision.agents.base`). Nothing else of ``info`` reaches an agent.
+
+Plugging a domain in
+--------------------
+Register it by name with an import string (so that importing the registry, and ``embodied-adhoc --help``, imports
+nothing heavy)::
+
+    register_trial_domain("foraging", "embodied_adhoc.experiments.foraging:DOMAIN")
+
+The object behind the string implements :class:`TrialDomain`; its module must import only light modules
+(argparse, dataclasses, numpy) at top level, because the CLI imports it to build ``trials <domain> --help``.
+Heavy work (building and solving models, creating MuJoCo envs) happens in :meth:`TrialDomain.open_session`,
+which the runner calls once per worker process and caches.
+
+:class:`TrialDomain` (light, one per domain)
+    ``name``, ``description``, ``backends`` (e.g. ``("abstract", "mujoco")``), ``agent_names`` (what
+    ``make_agent`` accepts), ``default_agents``;
+    ``add_arguments(parser)``: the domain's own CLI flags (e.g. ``--human-epsilon``, ``--team``);
+    ``options_from_args(args) -> dict``: those flags as a JSON-able dict (validated; raise ``ConfigError``);
+    ``episode_spec(options, rng) -> dict``: one episode's draw (task, start positions, ...) as flat JSON scalars,
+    including the key ``"task"`` (the true task index); drawn once per episode and shared by every agent;
+    ``open_session(backend, options) -> TrialSession``.
+
+:class:`TrialSession` (heavy, cached per process and per (domain, backend, options))
+    ``task_names``: names of the task library (posterior columns);
+    ``make_env() -> gymnasium.Env`` (created once per process, reused across trials; backend chosen here by env
+    id/kwargs: e.g. ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` vs ``EmbodiedAdhoc/ToxicWaste-v0``);
+    ``reset_options(spec) -> dict``: the ``options`` of ``env.reset`` that impose the spec;
+    ``make_agent(name, spec, seed) -> Agent``: a fresh agent (``spec["task"]`` only for agents defined to know it);
+    ``observation_index(observation, info) -> int``: the flat observation index the agents consume.
+
+Everything a trial needs is derived from ``(seed, episode, agent)`` (see :mod:`embodied_adhoc.experiments.seeding`),
+so results are identical whatever the number of workers or the executor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+
+@runtime_checkable
+class TrialSession(Protocol):
+    task_names: tuple[str, ...]
+
+    def make_env(self) -> Any: ...
+
+    def reset_options(self, spec: dict) -> dict: ...
+
+    def make_agent(self, name: str, spec: dict, seed: int) -> Any: ...
+
+    def observation_index(self, observation: Any, info: dict) -> int: ...
+
+
+@runtime_checkable
+class TrialDomain(Protocol):
+    name: str
+    description: str
+    backends: tuple[str, ...]
+    agent_names: tuple[str, ...]
+    default_agents: tuple[str, ...]
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None: ...
+
+    def options_from_args(self, args: argparse.Namespace) -> dict: ...
+
+    def episode_spec(self, options: dict, rng: np.random.Generator) -> dict: ...
+
+    def open_session(self, backend: str, options: dict) -> TrialSession: ...
+
+
+_DOMAINS: dict[str, str | Callable[[], TrialDomain] | TrialDomain] = {}
+_LOADED: dict[str, TrialDomain] = {}
+
+
+def register_trial_domain(name: str, factory: str | Callable[[], TrialDomain] | TrialDomain) -> None:
+    """Register a domain under ``name``: an import string ``"module:attribute"``, a zero-argument factory or
+    the domain object itself. Re-registering a name replaces it (tests register fakes this way)."""
+    _DOMAINS[name] = factory
+    _LOADED.pop(name, None)
+
+
+def trial_domain_names() -> tuple[str, ...]:
+    return tuple(_DOMAINS)
+
+
+def get_trial_domain(name: str) -> TrialDomain:
+    """The domain registered as ``name`` (imported on first use); ConfigError listing the names otherwise."""
+    if name in _LOADED:
+        return _LOADED[name]
+    if name not in _DOMAINS:
+        raise ConfigError(
+            f"unknown trial domain '{name}'; registered domains: {', '.join(_DOMAINS) or 'none'}"
+        )
+    factory = _DOMAINS[name]
+    if isinstance(factory, str):
+        module_name, _, attribute = factory.partition(":")
+        obj = getattr(importlib.import_module(module_name), attribute)
+        domain = obj() if callable(obj) and not isinstance(obj, TrialDomain) else obj
+    elif isinstance(factory, TrialDomain):
+        domain = factory
+    else:
+        domain = factory()
+    if not isinstance(domain, TrialDomain):
+        raise TypeError(f"trial domain '{name}' ({factory!r}) does not implement the TrialDomain protocol")
+    _LOADED[name] = domain
+    return domain
+
+
+# Built-in domains. Other areas append theirs here (one line each) or call register_trial_domain at import.
+register_trial_domain("toxic-waste", "embodied_adhoc.experiments.toxic_waste:DOMAIN")

@@ -1,0 +1,185 @@
+"""The toxic-waste (HOTSPOT lab) trial domain: ``embodied-adhoc trials toxic-waste --backend abstract|mujoco``.
+
+Episode spec (drawn once per episode from ``(seed, episode)``, shared by every agent): ``task`` uniform over the
+task library (or fixed by ``--task``; the draw is made either way, so start nodes do not depend on ``--task``),
+``robot_node`` and ``human_node`` uniform over the lab's nodes (the models' initial belief: uniform over the 25
+node pairs, all balls on the ground).
+
+Backends (same kwargs, same ``reset`` options, same observation encoding):
+
+* ``abstract``: ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` (the lab engineer's tabular simulator);
+* ``mujoco``: ``EmbodiedAdhoc/ToxicWaste-v0`` (the env engineer's physics env). Extension point: the runner
+  needs only that this id is registered, accepts the kwargs ``tasks``, ``human_epsilon``, ``communication``,
+  ``confusion``, takes ``reset(seed=..., options={"task", "robot_node", "human_node"})``, and puts
+  ``info["observation_index"]`` (flat :class:`LabObservation` index) and ``info["state"]`` (index in the library's
+  shared state space) in every ``reset``/``step`` info. Nothing in this module changes when it lands.
+
+Agents come from ``embodied_adhoc.decision.agents.factory.make_agent``; only ``known-task`` and ``oracle`` are
+given the true task (at construction), as their definitions require.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+ENV_IDS = {"abstract": "EmbodiedAdhoc/ToxicWasteAbstract-v0", "mujoco": "EmbodiedAdhoc/ToxicWaste-v0"}
+AGENTS_GIVEN_THE_TASK = ("known-task", "oracle")
+DEFAULT_TASKS = ((0, 1, 2), (1, 2, 3))  # the thesis's two ball placements (as the lab's DEFAULT_TASKS)
+N_NODES = 5  # the lab graph's areas (the CLI does not change the graph)
+
+
+def parse_tasks(text: str) -> list[list[int]]:
+    """``"0,1,2;1,2,3"`` -> ``[[0, 1, 2], [1, 2, 3]]`` (ball nodes per task, tasks separated by ';')."""
+    try:
+        tasks = [[int(node) for node in part.split(",")] for part in text.split(";") if part.strip()]
+    except ValueError as error:
+        raise ConfigError(f"--tasks '{text}': expected ball nodes like '0,1,2;1,2,3' ({error})") from None
+    if not tasks:
+        raise ConfigError(f"--tasks '{text}': give at least one task, e.g. '0,1,2;1,2,3'")
+    return tasks
+
+
+class ToxicWasteSession:
+    """Models built and solved once per process for one option set; envs and agents made from them."""
+
+    def __init__(self, backend: str, options: dict):
+        import gymnasium
+
+        import embodied_adhoc.envs  # noqa: F401  (registers the env ids)
+        from embodied_adhoc.decision.agents.factory import make_agent
+        from embodied_adhoc.domains.lab import build_lab_library
+        from embodied_adhoc.domains.lab_observations import LabObservation
+
+        env_id = ENV_IDS[backend]
+        if env_id not in gymnasium.registry:
+            raise ConfigError(
+                f"--backend {backend} needs the env '{env_id}', which is not registered in this installation"
+            )
+        self.backend = backend
+        self.env_id = env_id
+        self.env_kwargs = {
+            "tasks": [list(t) for t in options["tasks"]],
+            "human_epsilon": options["human_epsilon"],
+            "communication": options["communication"],
+            "confusion": options["confusion"],
+        }
+        self.library = build_lab_library(
+            tasks=options["tasks"],
+            human_epsilon=options["human_epsilon"],
+            communication=options["communication"],
+            confusion=options["confusion"],
+        )
+        self.task_names = tuple(
+            "[" + ",".join(str(node) for node in task) + "]" for task in self.library.tasks
+        )
+        self._make_agent = make_agent
+        self._observation = LabObservation
+
+    def make_env(self):
+        import gymnasium
+
+        return gymnasium.make(self.env_id, disable_env_checker=True, **self.env_kwargs)
+
+    def reset_options(self, spec: dict) -> dict:
+        return {"task": spec["task"], "robot_node": spec["robot_node"], "human_node": spec["human_node"]}
+
+    def make_agent(self, name: str, spec: dict, seed: int):
+        true_task = int(spec["task"]) if name in AGENTS_GIVEN_THE_TASK else None
+        return self._make_agent(name, self.library, true_task=true_task, rng_seed=seed)
+
+    def observation_index(self, observation, info: dict) -> int:
+        if "observation_index" in info:
+            return int(info["observation_index"])
+        return self._observation.from_vector(observation, self.library.graph.n_nodes).encode()
+
+
+class ToxicWasteDomain:
+    name = "toxic-waste"
+    description = (
+        "HOTSPOT lab: a robot helps a human put three toxic-waste balls in its container (thesis ch. 7)"
+    )
+    backends = ("abstract", "mujoco")
+    agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
+    default_agents = ("hotspot", "known-task", "oracle", "random")
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        group = parser.add_argument_group("toxic-waste options")
+        group.add_argument(
+            "--human-epsilon",
+            type=float,
+            default=0.05,
+            metavar="E",
+            help="probability that the human fails to act in a step (default 0.05)",
+        )
+        group.add_argument(
+            "--no-communication",
+            action="store_true",
+            help="ablation of Fig. 7.11: no 'locate human' action; the human is seen only when co-located",
+        )
+        group.add_argument(
+            "--task",
+            type=int,
+            default=None,
+            metavar="K",
+            help="fix the true task to library index K (default: uniform per episode)",
+        )
+        group.add_argument(
+            "--tasks",
+            type=parse_tasks,
+            default=None,
+            metavar="NODES",
+            help="task library as ball nodes per task, e.g. '0,1,2;1,2,3' (the default)",
+        )
+        group.add_argument(
+            "--confusion",
+            default="thesis",
+            metavar="thesis|measured|PATH",
+            help="speech confusion matrix of 'locate human' (default: the thesis's)",
+        )
+
+    def options_from_args(self, args: argparse.Namespace) -> dict:
+        return self.options(
+            human_epsilon=args.human_epsilon,
+            communication=not args.no_communication,
+            task=args.task,
+            tasks=args.tasks,
+            confusion=args.confusion,
+        )
+
+    def options(
+        self,
+        human_epsilon: float = 0.05,
+        communication: bool = True,
+        task: int | None = None,
+        tasks=None,
+        confusion: str = "thesis",
+    ) -> dict:
+        """Validated, JSON-ready options (what identifies a run in its ``config.json``)."""
+        tasks = [list(map(int, t)) for t in (tasks if tasks is not None else DEFAULT_TASKS)]
+        if not 0.0 <= float(human_epsilon) <= 1.0:
+            raise ConfigError(f"--human-epsilon must lie in [0, 1], got {human_epsilon}")
+        if task is not None and not 0 <= int(task) < len(tasks):
+            raise ConfigError(f"--task {task} is outside the task library 0..{len(tasks) - 1} ({tasks})")
+        return {
+            "human_epsilon": float(human_epsilon),
+            "communication": bool(communication),
+            "task": None if task is None else int(task),
+            "tasks": tasks,
+            "confusion": str(confusion),
+        }
+
+    def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
+        drawn_task = int(rng.integers(len(options["tasks"])))
+        robot_node, human_node = (int(n) for n in rng.integers(N_NODES, size=2))
+        task = drawn_task if options.get("task") is None else int(options["task"])
+        return {"task": task, "robot_node": robot_node, "human_node": human_node}
+
+    def open_session(self, backend: str, options: dict) -> ToxicWasteSession:
+        return ToxicWasteSession(backend, options)
+
+
+DOMAIN = ToxicWasteDomain()
