@@ -1,0 +1,122 @@
+"""Episode metrics accumulated step by step and written to ``metrics.json`` (atomically).
+
+``metrics.json`` fields (schema version 1):
+
+=====================  ===============================================================================
+field                  meaning
+=====================  ===============================================================================
+``success``            all balls were disposed before the step cap
+``outcome``            ``"success"``, ``"truncated"`` (step cap) or ``"interrupted"`` (Ctrl-C / error)
+``steps``              macro steps taken
+``identify_step``      thesis Metric 2: first step from which the true task is the posterior's strict argmax
+                       to the end (0 = already at the prior); null if never, or the agent keeps no posterior
+``final_entropy``      normalised entropy of the final task posterior (null without posterior)
+``wall_time_s``        wall-clock seconds of the whole episode (rendering and recording included)
+``macro_step_time_s``  mean / median / max wall seconds per macro step, and the per-step list
+``sim_time_s``         simulated seconds
+``per_step``           list of {step, action, observation, reward, entropy, sim_time_s, wall_time_s}
+``config``             the run's configuration (agent, seed, task, env kwargs, ...)
+=====================  ===============================================================================
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from embodied_adhoc.experiments.stats import identify_step
+from embodied_adhoc.record.atomic import write_json_atomic
+
+SCHEMA_VERSION = 1
+
+
+@dataclass
+class EpisodeMetrics:
+    """Accumulates one episode's per-step records; :meth:`summary` gives the ``metrics.json`` payload."""
+
+    config: dict[str, Any] = field(default_factory=dict)
+    true_task: int | None = None
+    per_step: list[dict[str, Any]] = field(default_factory=list)
+    task_posteriors: list[np.ndarray] = field(default_factory=list)
+    success: bool = False
+    outcome: str = "interrupted"
+    sim_time_s: float = 0.0
+    _started: float = field(default_factory=time.perf_counter)
+    _step_started: float = field(default_factory=time.perf_counter)
+
+    def start_episode(self, prior: np.ndarray | None) -> None:
+        """Record the agent's task prior (row 0 of the posterior history) and restart the wall clock."""
+        self._started = time.perf_counter()
+        self.task_posteriors = [] if prior is None else [np.asarray(prior, dtype=np.float64).copy()]
+
+    def start_step(self) -> None:
+        """Mark the start of a macro step (its wall time runs until :meth:`end_step`)."""
+        self._step_started = time.perf_counter()
+
+    def end_step(
+        self,
+        action: int,
+        observation: str,
+        reward: float,
+        sim_time_s: float,
+        task_posterior: np.ndarray | None,
+        entropy: float | None,
+    ) -> float:
+        """Record the step just finished; returns its wall time in seconds."""
+        elapsed = time.perf_counter() - self._step_started
+        self.sim_time_s = float(sim_time_s)
+        if task_posterior is not None:
+            self.task_posteriors.append(np.asarray(task_posterior, dtype=np.float64).copy())
+        self.per_step.append(
+            {
+                "step": len(self.per_step) + 1,
+                "action": int(action),
+                "observation": observation,
+                "reward": float(reward),
+                "entropy": None if entropy is None else float(entropy),
+                "sim_time_s": round(float(sim_time_s), 4),
+                "wall_time_s": round(elapsed, 4),
+            }
+        )
+        return elapsed
+
+    def finish(self, success: bool, truncated: bool) -> None:
+        """Set the episode's outcome (call once the env reports termination or truncation)."""
+        self.success = bool(success)
+        self.outcome = "success" if success else ("truncated" if truncated else "failure")
+
+    @property
+    def identify_step(self) -> int | None:
+        if self.true_task is None or not self.task_posteriors:
+            return None
+        return identify_step(np.stack(self.task_posteriors), self.true_task)
+
+    def summary(self) -> dict[str, Any]:
+        step_times = np.array([record["wall_time_s"] for record in self.per_step], dtype=np.float64)
+        entropies = [record["entropy"] for record in self.per_step if record["entropy"] is not None]
+        return {
+            "schema_version": SCHEMA_VERSION,
+            "success": self.success,
+            "outcome": self.outcome,
+            "steps": len(self.per_step),
+            "identify_step": self.identify_step,
+            "final_entropy": entropies[-1] if entropies else None,
+            "true_task": self.true_task,
+            "wall_time_s": round(time.perf_counter() - self._started, 3),
+            "sim_time_s": round(self.sim_time_s, 3),
+            "macro_step_time_s": {
+                "mean": round(float(step_times.mean()), 4) if len(step_times) else None,
+                "median": round(float(np.median(step_times)), 4) if len(step_times) else None,
+                "max": round(float(step_times.max()), 4) if len(step_times) else None,
+            },
+            "config": self.config,
+            "per_step": self.per_step,
+        }
+
+    def write(self, path: str | Path) -> Path:
+        """Write ``metrics.json`` atomically."""
+        return write_json_atomic(Path(path), self.summary())
