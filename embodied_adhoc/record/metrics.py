@@ -21,6 +21,7 @@ field                  meaning
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from embodied_adhoc.experiments.stats import identify_step
-from embodied_adhoc.record.atomic import write_json_atomic
+from embodied_adhoc.experiments.storage import atomic_write_text
 
 SCHEMA_VERSION = 1
 
@@ -119,4 +120,7 @@ class EpisodeMetrics:
 
     def write(self, path: str | Path) -> Path:
         """Write ``metrics.json`` atomically."""
-        return write_json_atomic(Path(path), self.summary())
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")
+        return path
