@@ -22,6 +22,11 @@ class EnvSpec:
 ENV_SPECS: list[EnvSpec] = [
     # Each area appends its envs here, e.g.
     # EnvSpec("EmbodiedAdhoc/ToxicWaste-v0", "embodied_adhoc.envs.toxic_waste:ToxicWasteEnv", "...", backend="mujoco"),
+    EnvSpec(
+        "EmbodiedAdhoc/ToxicWasteAbstract-v0",
+        "embodied_adhoc.envs.toxic_waste_abstract:ToxicWasteAbstractEnv",
+        "HOTSPOT toxic-waste lab, abstract (5 nodes, 2 tasks, speech confusion matrix); truncated at 100 steps",
+    ),
 ]
 
 

@@ -1,0 +1,67 @@
+"""Reference agents: ``oracle`` (sees the state, knows the task) and ``random``.
+
+The third baseline, ``known-task`` (optimal under partial observability), is TEBOPA given the true task: a
+:class:`~embodied_adhoc.decision.agents.hotspot.HotspotAgent` whose prior is one-hot on it (see ``factory``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from embodied_adhoc.decision.agents.hotspot import pick_best
+from embodied_adhoc.errors import ConfigError
+
+__all__ = ["OracleAgent", "RandomAgent"]
+
+
+class OracleAgent:
+    """Greedy on ``Q*`` (value iteration) of the true task's teammate-averaged MDP; observes the state."""
+
+    observes_state = True
+
+    def __init__(self, q_values: np.ndarray, name: str = "oracle") -> None:
+        self.q_values = np.asarray(q_values, dtype=np.float64)
+        self.name = name
+        self.state: int | None = None
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
+        if state is None:
+            raise ConfigError(f"agent '{self.name}' observes the state: the runner must pass state= to reset()")
+        self.rng, self.state = rng, int(state)
+
+    def act(self) -> int:
+        return pick_best(self.q_values[self.state], self.rng)
+
+    def observe(self, action: int, observation: int, state: int | None = None) -> None:
+        if state is None:
+            raise ConfigError(f"agent '{self.name}' observes the state: the runner must pass state= to observe()")
+        self.state = int(state)
+
+    @property
+    def task_posterior(self) -> None:
+        return None
+
+
+class RandomAgent:
+    """Uniformly random actions."""
+
+    observes_state = False
+
+    def __init__(self, n_actions: int, name: str = "random") -> None:
+        self.n_actions = int(n_actions)
+        self.name = name
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
+        self.rng = rng
+
+    def act(self) -> int:
+        return int(self.rng.integers(self.n_actions))
+
+    def observe(self, action: int, observation: int, state: int | None = None) -> None:
+        return None
+
+    @property
+    def task_posterior(self) -> None:
+        return None

@@ -1,0 +1,154 @@
+"""The abstract toxic-waste lab (HOTSPOT, thesis section 7.1) as a fast Gymnasium env."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+
+from embodied_adhoc.domains.lab import DEFAULT_GRAPH, DEFAULT_TASKS, LabGraph, apply_step, build_lab_library
+from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND
+from embodied_adhoc.errors import ConfigError
+
+__all__ = ["ToxicWasteAbstractEnv"]
+
+
+class ToxicWasteAbstractEnv(gymnasium.Env):
+    """A robot container helps a human drop waste balls into it, on the lab's topological map.
+
+    ## Description
+    Five areas (0 door, 1 open space, 2 robot station, 3 single workbench, 4 double workbench; passages 0-1, 1-2,
+    1-3, 3-4). A task places the balls (default tasks: nodes [0, 1, 2] and [1, 2, 3]). The human
+    (``teammates.lab_human``) knows the task, walks to the nearest ball on the ground, picks it up, and waits
+    holding it until the robot is at the same node and stays or asks; then the ball goes into the container.
+    With probability ``human_epsilon`` a human move or pick fails. The robot knows neither the task nor where
+    the human is. Dynamics, observations and reward are those of ``domains.lab`` (sampled from the rules).
+
+    ## Action space
+    ``Discrete(5)`` (``Discrete(4)`` without communication):
+
+    | action | meaning |
+    |---|---|
+    | 0, 1, 2 | move to the 1st / 2nd / 3rd lowest-index neighbour (beyond the degree: the lowest) |
+    | 3 | stay (hands a held ball over when co-located with the human) |
+    | 4 | locate human: ask where the human is (also hands over); absent without communication |
+
+    ## Observation space
+    ``MultiDiscrete([6, 6, 2])`` = ``[robot node, human node, rfid]`` with 5 = unknown/none
+    (``domains.lab_observations.LabObservation``): robot node from dead reckoning, right with probability
+    ``robot_node_accuracy`` else unknown; human node after "locate human" from the speech confusion matrix
+    ("failed" = none), or without communication the robot's node when co-located; rfid = 1 when a ball entered
+    the container in this step (missed with probability ``rfid_miss``). ``info["observation_index"]`` is the
+    flat index the agents consume.
+
+    ## Rewards
+    Before each step: -1 per ball on the ground, -2 per ball held, 0 per ball disposed.
+
+    ## Episode end
+    Terminated when every ball is in the container; truncated after ``max_episode_steps`` (100) steps.
+
+    ## Arguments
+    ``task`` (fixed task index, default: drawn uniformly at each reset), ``tasks`` (ball placements),
+    ``human_epsilon`` (0.05), ``communication`` (True), ``confusion`` ("thesis", "measured" or a JSON path),
+    ``robot_node_accuracy`` (0.99), ``rfid_miss`` (0.0), ``max_episode_steps`` (100), ``graph`` (``LabGraph``).
+    ``reset(options={"task": k, "robot_node": i, "human_node": j})`` fixes the episode's start (default:
+    uniform nodes, all balls on the ground).
+
+    ## Info (ground truth, for evaluation only)
+    ``state`` (shared state index of the lab library), ``task``, ``robot_node``, ``human_node``,
+    ``ball_status`` (0 ground, 1 held, 2 disposed), ``disposed_this_step``, ``observation_index``.
+
+    ## Version history
+    v0: first version.
+    """
+
+    metadata = {"render_modes": ["ansi"]}
+
+    def __init__(
+        self,
+        task: int | None = None,
+        tasks: Sequence[Sequence[int]] = DEFAULT_TASKS,
+        human_epsilon: float = 0.05,
+        communication: bool = True,
+        confusion: str | os.PathLike = "thesis",
+        robot_node_accuracy: float = 0.99,
+        rfid_miss: float = 0.0,
+        max_episode_steps: int = 100,
+        graph: LabGraph = DEFAULT_GRAPH,
+        render_mode: str | None = None,
+    ) -> None:
+        self.library = build_lab_library(
+            graph, tasks, human_epsilon, communication, confusion, robot_node_accuracy, rfid_miss
+        )
+        if task is not None and not 0 <= int(task) < self.library.n_tasks:
+            raise ConfigError(f"task={task} outside 0..{self.library.n_tasks - 1}")
+        if max_episode_steps < 1:
+            raise ConfigError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
+        if render_mode not in (None, "ansi"):
+            raise ConfigError(f"render_mode must be None or 'ansi', got {render_mode!r}")
+        self.task, self.max_episode_steps, self.render_mode = task, int(max_episode_steps), render_mode
+        n = self.library.graph.n_nodes
+        self.action_space = spaces.Discrete(self.library.n_actions)
+        self.observation_space = spaces.MultiDiscrete([n + 1, n + 1, 2])
+        self._reward_table = np.array([self.library.config.reward.ground, self.library.config.reward.held, self.library.config.reward.disposed])
+        self._robot = self._human = self._task = self._steps = 0
+        self._status: tuple[int, ...] = ()
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        options = dict(options or {})
+        unknown = set(options) - {"task", "robot_node", "human_node"}
+        if unknown:
+            raise ConfigError(f"reset options {sorted(unknown)} not understood; use task, robot_node, human_node")
+        n, lib = self.library.graph.n_nodes, self.library
+        task = options.get("task", self.task)
+        self._task = int(self.np_random.integers(lib.n_tasks)) if task is None else int(task)
+        if not 0 <= self._task < lib.n_tasks:
+            raise ConfigError(f"reset option task={self._task} outside 0..{lib.n_tasks - 1}")
+        self._robot = int(options.get("robot_node", self.np_random.integers(n)))
+        self._human = int(options.get("human_node", self.np_random.integers(n)))
+        if not (0 <= self._robot < n and 0 <= self._human < n):
+            raise ConfigError(f"reset options robot_node/human_node must lie in 0..{n - 1}")
+        self._status = (GROUND,) * len(lib.tasks[0])
+        self._steps = 0
+        return self._observe(lib.stay_action, False)
+
+    def step(self, action):
+        if self._steps >= self.max_episode_steps or not self._status:
+            raise ConfigError("step() called on a finished episode; call reset() first")
+        action = int(action)
+        if not 0 <= action < self.library.n_actions:
+            raise ConfigError(f"action {action} outside 0..{self.library.n_actions - 1}")
+        reward = float(self._reward_table[list(self._status)].sum())
+        human = self.library.humans[self._task].step(self.np_random, self._human, self._status)
+        self._robot, self._human, self._status, disposed = apply_step(
+            self.library.graph, self._robot, self._human, self._status, action, human
+        )
+        self._steps += 1
+        observation, info = self._observe(action, disposed)
+        terminated = all(s == DISPOSED for s in self._status)
+        truncated = not terminated and self._steps >= self.max_episode_steps
+        return observation, reward, terminated, truncated, info
+
+    def _observe(self, action: int, disposed: bool):
+        lab_observation = self.library.observation_model.sample(self.np_random, self._robot, self._human, disposed, action)
+        info = {
+            "state": self.library.states.fast_index(self._robot, self._human, self._status, disposed),
+            "task": self._task,
+            "robot_node": self._robot,
+            "human_node": self._human,
+            "ball_status": self._status,
+            "disposed_this_step": disposed,
+            "observation_index": lab_observation.encode(),
+        }
+        return lab_observation.to_vector(), info
+
+    def render(self) -> str | None:
+        if self.render_mode != "ansi":
+            return None
+        names = {0: "ground", 1: "held", 2: "disposed"}
+        balls = ", ".join(f"ball {i} at {self.library.tasks[self._task][i]}: {names[s]}" for i, s in enumerate(self._status))
+        return f"step {self._steps} task {self._task}: robot at {self._robot}, human at {self._human}; {balls}"
