@@ -1,0 +1,104 @@
+"""Offline speech recognition with pocketsphinx, constrained by the generated reply grammar.
+
+The decoder uses the English acoustic model shipped in the pocketsphinx wheel, the generated JSGF grammar and the
+small generated dictionary (``assets/speech/``, see :mod:`embodied_adhoc.comms.grammar`): no network, no
+downloads, and transcripts are always in-vocabulary. Building a decoder is the expensive part, so one
+:class:`Recognizer` per process is shared (:func:`shared_recognizer`).
+
+Each utterance is decoded independently of the previous ones (batch cepstral mean normalisation, and a fixed
+dither), so a transcript depends only on the audio: the same audio gives the same transcript in any order and
+in any worker process.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from embodied_adhoc.comms.grammar import DICTIONARY_FILE, GRAMMAR_FILE, asset_path
+from embodied_adhoc.errors import SpeechError
+
+DITHER_LSB = 10.0
+"""Standard deviation of the fixed dither added to 16-bit samples. espeak-ng writes exact digital silence
+between words; its log-energy features are degenerate and make the decoder drop words, so a tiny, fixed noise
+floor (as a real microphone has) is added. Its pattern is the same for every utterance (deterministic)."""
+
+
+@dataclass(frozen=True)
+class DecoderSettings:
+    """pocketsphinx search settings (its option names). Defaults: pocketsphinx's, with batch CMN."""
+
+    beam: float = 1e-48
+    wbeam: float = 7e-29
+    pbeam: float = 1e-48
+    wip: float = 0.65
+    lw: float = 6.5
+    extra: dict = field(default_factory=dict)
+
+
+class Recognizer:
+    """A pocketsphinx decoder over the reply grammar. ``transcribe(audio)`` -> lower-case transcript ("" = nothing)."""
+
+    def __init__(self, settings: DecoderSettings = DecoderSettings(), sample_rate: int = 16_000) -> None:
+        import pocketsphinx
+
+        self.sample_rate = sample_rate
+        options = dict(
+            hmm=str(asset_path_model()),
+            dict=str(asset_path(DICTIONARY_FILE)),
+            jsgf=str(asset_path(GRAMMAR_FILE)),
+            lm=None,
+            samprate=sample_rate,
+            cmn="batch",
+            loglevel="FATAL",
+            beam=settings.beam,
+            wbeam=settings.wbeam,
+            pbeam=settings.pbeam,
+            wip=settings.wip,
+            lw=settings.lw,
+            **settings.extra,
+        )
+        try:
+            self._decoder = pocketsphinx.Decoder(pocketsphinx.Config(**options))
+        except (RuntimeError, KeyError, ValueError) as error:
+            raise SpeechError(f"pocketsphinx decoder could not be configured ({error}); "
+                              "regenerate the grammar with `embodied-adhoc speech grammar`") from None
+        self._dither: np.ndarray = np.zeros(0)
+
+    def _fixed_dither(self, length: int) -> np.ndarray:
+        if len(self._dither) < length:
+            self._dither = np.random.default_rng(0).standard_normal(max(length, 2 * len(self._dither))) * DITHER_LSB
+        return self._dither[:length]
+
+    def transcribe(self, audio: np.ndarray) -> str:
+        """The best grammar path for ``audio`` (mono float at the recogniser's rate), normalised lower-case text."""
+        audio = np.asarray(audio, dtype=np.float64)
+        if audio.ndim != 1 or len(audio) == 0:
+            raise SpeechError(f"audio must be a non-empty mono waveform, got shape {audio.shape}")
+        samples = audio * 32767.0 + self._fixed_dither(len(audio))
+        # Beyond 16-bit full scale a microphone saturates: that is what the decoder would hear.
+        pcm = np.clip(np.rint(samples), -32768, 32767).astype(np.int16).tobytes()
+        self._decoder.start_utt()
+        self._decoder.process_raw(pcm, no_search=False, full_utt=True)
+        self._decoder.end_utt()
+        hypothesis = self._decoder.hyp()
+        return hypothesis.hypstr.strip() if hypothesis is not None else ""
+
+
+def asset_path_model():
+    """Folder of the English acoustic model inside the pocketsphinx wheel."""
+    import pocketsphinx
+    from pathlib import Path
+
+    path = Path(pocketsphinx.get_model_path()) / "en-us" / "en-us"
+    if not path.is_dir():
+        raise SpeechError(f"pocketsphinx English model not found at {path}; reinstall pocketsphinx (bash scripts/bootstrap.sh)")
+    return path
+
+
+@functools.cache
+def shared_recognizer() -> Recognizer:
+    """The process's one :class:`Recognizer` with default settings (configuring a decoder is expensive)."""
+    return Recognizer()
