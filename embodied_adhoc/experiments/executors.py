@@ -19,7 +19,7 @@ from embodied_adhoc.experiments.trial import TrialJob, TrialResult, run_trial
 EXECUTORS = ("local", "ray")
 
 _SESSIONS: dict[str, object] = {}
-_ENVS: dict[tuple[str, int], object] = {}
+_ENVS: dict[tuple[str, int, int], object] = {}
 
 
 def _key(domain_name: str, backend: str, options: dict) -> str:
@@ -37,11 +37,11 @@ def open_session(domain_name: str, backend: str, options: dict):
     return _SESSIONS[key]
 
 
-def _env(domain_name: str, backend: str, options: dict):
+def _env(domain_name: str, backend: str, options: dict, max_steps: int):
     # Envs (physics, renderers) are never shared across a fork: one per process.
-    key = (_key(domain_name, backend, options), os.getpid())
+    key = (_key(domain_name, backend, options), int(max_steps), os.getpid())
     if key not in _ENVS:
-        _ENVS[key] = open_session(domain_name, backend, options).make_env()
+        _ENVS[key] = open_session(domain_name, backend, options).make_env(max_steps)
     return _ENVS[key]
 
 
@@ -49,7 +49,7 @@ def close_sessions() -> None:
     """Close the envs this process opened and forget every session (e.g. to measure model building again)."""
     pid = os.getpid()
     while _ENVS:
-        (_, owner), env = _ENVS.popitem()
+        (_, _, owner), env = _ENVS.popitem()
         if owner == pid:
             env.close()
     _SESSIONS.clear()
@@ -57,7 +57,7 @@ def close_sessions() -> None:
 
 def execute_job(job: TrialJob) -> TrialResult:
     session = open_session(job.domain, job.backend, job.options)
-    return run_trial(session, _env(job.domain, job.backend, job.options), job)
+    return run_trial(session, _env(job.domain, job.backend, job.options, job.max_steps), job)
 
 
 def resolve_workers(workers: int) -> int:

@@ -89,10 +89,15 @@ def plot_entropy(
     path: Path,
     title: str = "Task-belief entropy per time step",
 ) -> Path:
-    """Fig. 7.9 analogue: mean normalised entropy per step (finished trials hold their last value), 95 % CI band."""
+    """Fig. 7.9 analogue: mean normalised entropy per step (finished trials hold their last value), 95 % CI band.
+
+    Agents whose entropy is zero throughout (a posterior fixed on the true task) are left out.
+    """
     plt = _pyplot()
     figure, axes = plt.subplots(figsize=(6.5, 4.0))
     for name, curves in curves_by_agent.items():
+        if all(not np.any(np.asarray(c)) for c in curves):
+            continue  # a posterior fixed on one task (known-task) has zero entropy throughout: nothing to show
         curve = mean_curve(curves)
         if not curve["step"].size:
             continue

@@ -4,7 +4,7 @@
 * Metric 2 ("steps to identify the correct task"): the first step ``T`` from which the true task has the highest
   posterior probability and keeps it until the end of the trial. :func:`identify_step`.
 * Metric 3 ("entropy in TEBOPA's belief over tasks"): the normalised entropy of the task posterior,
-  :func:`normalised_entropy` (Sec. 7.1, the normalised entropy ``H(b) / log |M|`` that drives the action choice).
+  :func:`normalised_entropies` (Sec. 7.1's ``H̄(b) = H(b) / log |M|``, the one that drives the action choice).
 """
 
 from __future__ import annotations
@@ -94,19 +94,12 @@ def pairwise_welch(samples: dict[str, Sequence[float]], metric: str) -> list[Wel
     return tests
 
 
-def normalised_entropy(distribution: np.ndarray) -> np.ndarray:
-    """``H(p) / log K`` of a distribution over ``K`` outcomes (last axis); 0 for ``K == 1``. In [0, 1].
+def normalised_entropies(distributions: np.ndarray) -> np.ndarray:
+    """Metric 3 per row of a stack of task posteriors: the normalised entropy ``H̄`` of Sec. 7.1 (one place:
+    :func:`embodied_adhoc.decision.agents.task_beliefs.normalised_entropy`), in [0, 1]."""
+    from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
 
-    Thesis Sec. 7.1 (the normalised entropy of the task belief that weighs information gathering against
-    task completion) and Metric 3. Accepts one distribution or a stack of them.
-    """
-    p = np.asarray(distribution, dtype=np.float64)
-    k = p.shape[-1]
-    if k <= 1:
-        return np.zeros(p.shape[:-1])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        terms = np.where(p > 0.0, p * np.log(p), 0.0)
-    return -terms.sum(axis=-1) / math.log(k)
+    return np.array([normalised_entropy(row) for row in np.atleast_2d(distributions)])
 
 
 def identify_step(posteriors: np.ndarray, true_task: int) -> int | None:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from embodied_adhoc.experiments import seeding
-from embodied_adhoc.experiments.stats import identify_step, normalised_entropy
+from embodied_adhoc.experiments.stats import identify_step, normalised_entropies
 
 
 @dataclass(frozen=True)
@@ -56,7 +56,7 @@ class TrialResult:
 
     @property
     def entropies(self) -> np.ndarray | None:
-        return None if self.posteriors is None else normalised_entropy(self.posteriors)
+        return None if self.posteriors is None else normalised_entropies(self.posteriors)
 
     @property
     def identify_step(self) -> int | None:
@@ -64,7 +64,7 @@ class TrialResult:
 
     @property
     def final_entropy(self) -> float:
-        return math.nan if self.posteriors is None else float(normalised_entropy(self.posteriors[-1]))
+        return math.nan if self.posteriors is None else float(normalised_entropies(self.posteriors[-1])[0])
 
     @property
     def true_task_probability(self) -> float:

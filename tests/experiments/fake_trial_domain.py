@@ -105,7 +105,7 @@ class OracleAgent(RandomAgent):
 class Session:
     task_names = ("zero", "one")
 
-    def make_env(self):
+    def make_env(self, max_steps):
         return GuessEnv()
 
     def reset_options(self, spec):

@@ -9,7 +9,7 @@ from scipy import stats
 from embodied_adhoc.experiments.stats import (
     identify_step,
     mean_curve,
-    normalised_entropy,
+    normalised_entropies,
     pairwise_welch,
     summarise_sample,
     welch_test,
@@ -65,13 +65,12 @@ def test_pairwise_welch_covers_every_pair_in_order():
 
 
 def test_normalised_entropy():
-    assert normalised_entropy(np.array([0.5, 0.5])) == pytest.approx(1.0)
-    assert normalised_entropy(np.array([1.0, 0.0])) == 0.0
-    assert normalised_entropy(np.array([0.25] * 4)) == pytest.approx(1.0)
-    stack = normalised_entropy(np.array([[0.5, 0.5], [0.9, 0.1]]))
+    assert normalised_entropies(np.array([0.5, 0.5])) == pytest.approx([1.0])
+    assert normalised_entropies(np.array([1.0, 0.0])) == pytest.approx([0.0])
+    assert normalised_entropies(np.array([0.25] * 4)) == pytest.approx([1.0])
+    stack = normalised_entropies(np.array([[0.5, 0.5], [0.9, 0.1]]))
     expected = -(0.9 * math.log(0.9) + 0.1 * math.log(0.1)) / math.log(2)
     assert stack == pytest.approx([1.0, expected])
-    assert normalised_entropy(np.array([1.0])) == 0.0
 
 
 @pytest.mark.parametrize(
