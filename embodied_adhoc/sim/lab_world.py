@@ -1,0 +1,310 @@
+"""The embodied HOTSPOT lab: MuJoCo physics, the container robot on wheel odometry, the human, balls and RFID.
+
+``LabWorld`` is what the embodied Gymnasium env drives, one macro step (one abstract-model step) at a time::
+
+    world = LabWorld(LabWorldConfig())
+    world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
+    result = world.step_macro(robot_target=1, human_command=HumanCommand.move_to(3))
+    result.odometry_node, result.rfid_events, world.ground_truth(), world.render("overhead")
+
+During a macro step the robot drives to ``robot_target`` with the waypoint controller tracking its *odometry*
+estimate, while the human executes its command; the step ends when both are done (or at the timeout).
+Everything random (encoder noise, wheel slip, RFID misses) derives from the reset seed: same seed, same run.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from embodied_adhoc.control.waypoint_controller import ControllerConfig, WaypointController
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.sim.human import HumanCommand, HumanSenses, HumanWalker
+from embodied_adhoc.sim.lab_layout import LAB_LAYOUT, LabLayout
+from embodied_adhoc.sim.lab_model import CAMERA_ALIASES, LabIds, load_lab_model, yaw_of
+from embodied_adhoc.sim.odometry import OdometryConfig, WheelOdometry
+from embodied_adhoc.sim.sensing import RfidReader, robot_wall_contact
+
+__all__ = ["GroundTruth", "HumanCommand", "LabWorld", "LabWorldConfig", "MacroStepResult"]
+
+
+@dataclass(frozen=True)
+class LabWorldConfig:
+    """Settings of the embodied lab.
+
+    Attributes:
+        timestep: physics step (s); the scene is tuned for 2-5 ms.
+        control_period: controller/odometry/human/RFID tick (s), a whole multiple of ``timestep``.
+        controller: waypoint controller limits, gains and arrival tolerance.
+        odometry: encoder noise and wheel slip of dead reckoning.
+        rfid_miss_probability: chance that the reader misses a ball entering the container (one read per ball).
+        human_speed: walking speed of the human (m/s).
+        macro_timeout: a macro step ends after this many simulated seconds even if unfinished.
+        min_macro_seconds: a macro step lasts at least this long (a "stay" still lets time pass).
+        video_fps: rate (simulated frames per second) at which ``frame_callback`` is called.
+        render_width, render_height: default image size of ``render``.
+        scene: scene file in ``scenes/``.
+    """
+
+    timestep: float = 0.004
+    control_period: float = 0.02
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    odometry: OdometryConfig = field(default_factory=OdometryConfig)
+    rfid_miss_probability: float = 0.0
+    human_speed: float = 1.2
+    macro_timeout: float = 60.0
+    min_macro_seconds: float = 1.0
+    video_fps: float = 15.0
+    render_width: int = 640
+    render_height: int = 512
+    scene: str = "lab.xml"
+
+    def __post_init__(self) -> None:
+        if not 0.0005 <= self.timestep <= 0.01:
+            raise ConfigError(f"LabWorldConfig.timestep must be in [0.0005, 0.01] s, got {self.timestep}")
+        ratio = self.control_period / self.timestep
+        if ratio < 1 or abs(ratio - round(ratio)) > 1e-9:
+            raise ConfigError(
+                f"LabWorldConfig.control_period ({self.control_period}) must be a whole multiple of timestep "
+                f"({self.timestep})"
+            )
+        if not 0.0 <= self.rfid_miss_probability <= 1.0:
+            raise ConfigError(
+                f"LabWorldConfig.rfid_miss_probability must be in [0, 1], got {self.rfid_miss_probability}"
+            )
+        for name in ("human_speed", "macro_timeout", "video_fps"):
+            if not getattr(self, name) > 0:
+                raise ConfigError(f"LabWorldConfig.{name} must be > 0, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class MacroStepResult:
+    """Outcome of one macro step. Only ``odometry_node`` and ``rfid_events`` are robot observations; the rest is
+    ground truth / diagnostics for evaluation."""
+
+    robot_arrived: bool  # the controller reached the target within tolerance (True for "stay")
+    odometry_node: int | None  # node of the dead-reckoning pose (None outside every area)
+    rfid_events: tuple[int, ...]  # balls read by the RFID reader during this step
+    sim_seconds: float
+    wall_contact: bool  # the robot touched a wall during this step
+    true_robot_node: int | None
+    human_node: int
+    human_succeeded: bool
+    human_status: str
+    timed_out: bool
+    odometry_error: float  # metres between dead-reckoning and true position at the end of the step
+    mujoco_warnings: int  # MuJoCo warnings raised during this step (0 in a healthy run)
+
+
+@dataclass(frozen=True)
+class GroundTruth:
+    """True state of the world (for evaluation and recording, never for the ad hoc agent)."""
+
+    robot_pose: tuple[float, float, float]  # x, y, yaw
+    robot_node: int | None
+    human_pose: tuple[float, float, float]
+    human_node: int
+    ball_positions: tuple[tuple[float, float, float], ...]
+    ball_states: tuple[str, ...]  # "ground", "held", "container"
+    time: float
+
+
+class LabWorld:
+    """The MuJoCo lab world. See the module docstring for the macro-step protocol."""
+
+    def __init__(self, config: LabWorldConfig | None = None, layout: LabLayout = LAB_LAYOUT):
+        self.config = config or LabWorldConfig()
+        self.layout = layout
+        self.model = load_lab_model(self.config.scene)
+        self.model.opt.timestep = self.config.timestep
+        self.data = mujoco.MjData(self.model)
+        self.ids = LabIds.resolve(self.model)
+        self.substeps = int(round(self.config.control_period / self.config.timestep))
+        self.controller = WaypointController(self.config.controller)
+        self.human = HumanWalker(layout, speed=self.config.human_speed)
+        self.odometry = WheelOdometry(self.config.odometry, np.random.default_rng(0))
+        self.rfid = RfidReader(
+            self.model, self.ids, self.config.rfid_miss_probability, np.random.default_rng(0)
+        )
+        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        self._next_frame = 0.0
+        self._reset_done = False
+
+    # ------------------------------------------------------------------------------------------ episode
+    def reset(
+        self, seed: int, robot_node: int, human_node: int, ball_nodes: Sequence[int], robot_yaw: float = 0.0
+    ) -> GroundTruth:
+        """Place robot, human and balls (ball i on the floor of area ``ball_nodes[i]``), settle the physics and
+        start dead reckoning from the robot's known start pose. Returns the ground truth after settling."""
+        layout, ids = self.layout, self.ids
+        for node in (robot_node, human_node, *ball_nodes):
+            layout._check_node(node)
+        if len(ball_nodes) != len(ids.ball_bodies):
+            raise ConfigError(f"reset: ball_nodes needs {len(ids.ball_bodies)} nodes, got {list(ball_nodes)}")
+        odometry_seed, rfid_seed = np.random.SeedSequence(int(seed)).spawn(2)
+        self.odometry.rng = np.random.default_rng(odometry_seed)
+        self.rfid.reset(np.random.default_rng(rfid_seed))
+        mujoco.mj_resetData(self.model, self.data)
+        qpos = self.data.qpos
+        x, y = layout.node_waypoints[robot_node]
+        half_yaw = 0.5 * robot_yaw
+        qpos[ids.root_qpos : ids.root_qpos + 7] = [x, y, 0.075, np.cos(half_yaw), 0, 0, np.sin(half_yaw)]
+        for i, node in enumerate(ball_nodes):
+            # balls sharing an area lie side by side
+            repeat = sum(1 for other in ball_nodes[:i] if other == node)
+            bx, by = layout.ball_spots[node]
+            qpos[ids.ball_qpos[i] : ids.ball_qpos[i] + 7] = [bx + 0.2 * repeat, by, 0.06, 1, 0, 0, 0]
+        self.data.eq_active[:] = 0
+        self.human.reset(human_node)
+        self.human._face_now(layout.node_waypoints[human_node])
+        self._apply_human()
+        self.controller.finished = True
+        mujoco.mj_forward(self.model, self.data)
+        self._physics(int(round(0.3 / self.config.timestep)))  # let wheels and balls settle on the floor
+        self.odometry.reset(self.true_robot_pose(), self.data.qpos[ids.wheel_qpos])
+        self._next_frame = self.data.time
+        self._reset_done = True
+        return self.ground_truth()
+
+    def step_macro(
+        self,
+        robot_target: int | None,
+        human_command: HumanCommand,
+        frame_callback: Callable[[LabWorld], None] | None = None,
+    ) -> MacroStepResult:
+        """Drive the robot to ``robot_target`` (None: stay) while the human executes ``human_command``."""
+        if not self._reset_done:
+            raise ConfigError("LabWorld.step_macro called before reset()")
+        config, data = self.config, self.data
+        if robot_target is not None:
+            self.layout._check_node(robot_target)
+            route = self.layout.route_from(self.odometry.pose[:2], robot_target)
+            self.controller.start(self.odometry.pose, route)
+        else:
+            self.controller.finished, self.controller.arrived = True, True
+        self.human.start(human_command, self._senses())
+        start, warnings_before = data.time, int(sum(w.number for w in data.warning))
+        events: list[int] = []
+        wall_contact = False
+        while True:
+            elapsed = data.time - start
+            done = self.controller.finished and self.human.finished and elapsed >= config.min_macro_seconds
+            if done or elapsed >= config.macro_timeout:
+                break
+            wheels = self.controller.update(elapsed, self.odometry.pose)
+            data.ctrl[self.ids.wheel_actuators] = wheels
+            for kind, ball in self.human.tick(config.control_period, self._senses()):
+                data.eq_active[self.ids.grasp_welds[ball]] = kind == "grasp"
+            self._apply_human()
+            self._physics(self.substeps)
+            self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
+            events.extend(self.rfid.poll(data))
+            wall_contact = wall_contact or robot_wall_contact(data, self.ids)
+            if frame_callback is not None and data.time >= self._next_frame - 1e-9:
+                frame_callback(self)
+                self._next_frame += 1.0 / config.video_fps
+        data.ctrl[self.ids.wheel_actuators] = 0.0
+        truth = self.ground_truth()
+        return MacroStepResult(
+            robot_arrived=self.controller.arrived,
+            odometry_node=self.odometry_node(),
+            rfid_events=tuple(events),
+            sim_seconds=float(data.time - start),
+            wall_contact=wall_contact,
+            true_robot_node=truth.robot_node,
+            human_node=truth.human_node,
+            human_succeeded=self.human.finished and self.human.succeeded,
+            human_status=self.human.status if self.human.finished else "unfinished (timeout)",
+            timed_out=not (self.controller.finished and self.human.finished),
+            odometry_error=self.odometry_error(),
+            mujoco_warnings=int(sum(w.number for w in data.warning)) - warnings_before,
+        )
+
+    # ------------------------------------------------------------------------------------------ state
+    def true_robot_pose(self) -> tuple[float, float, float]:
+        q = self.data.qpos[self.ids.root_qpos : self.ids.root_qpos + 7]
+        return float(q[0]), float(q[1]), yaw_of(q[3:7])
+
+    def odometry_pose(self) -> tuple[float, float, float]:
+        """Dead-reckoning pose (x, y, yaw) from the wheel encoders."""
+        return tuple(float(v) for v in self.odometry.pose)  # type: ignore[return-value]
+
+    def odometry_node(self) -> int | None:
+        """Node of the dead-reckoning pose from the area polygons (None outside every area)."""
+        return self.layout.node_at(self.odometry.pose[:2])
+
+    def odometry_error(self) -> float:
+        """Distance (m) between the dead-reckoning and the true robot position."""
+        x, y, _ = self.true_robot_pose()
+        return float(np.hypot(self.odometry.pose[0] - x, self.odometry.pose[1] - y))
+
+    def ground_truth(self) -> GroundTruth:
+        ids, data = self.ids, self.data
+        robot = self.true_robot_pose()
+        balls = data.xpos[ids.ball_bodies]
+        states = tuple(
+            "held"
+            if data.eq_active[ids.grasp_welds[i]]
+            else ("container" if self.rfid.inside(data, i) else "ground")
+            for i in range(len(ids.ball_bodies))
+        )
+        return GroundTruth(
+            robot_pose=robot,
+            robot_node=self.layout.node_at(robot[:2]),
+            human_pose=(float(self.human.xy[0]), float(self.human.xy[1]), float(self.human.yaw)),
+            human_node=self.human.node,
+            ball_positions=tuple(tuple(float(v) for v in p) for p in balls),
+            ball_states=states,
+            time=float(data.time),
+        )
+
+    # ------------------------------------------------------------------------------------------ rendering
+    def render(
+        self, camera: str = "overhead", width: int | None = None, height: int | None = None
+    ) -> np.ndarray:
+        """An RGB image (uint8, H x W x 3) from a named camera ("overhead", "perspective", "robot")."""
+        width = width or self.config.render_width
+        height = height or self.config.render_height
+        name = CAMERA_ALIASES.get(camera, camera)
+        if mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, name) < 0:
+            cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
+            raise ConfigError(f"no camera '{camera}' in the lab scene; available: {cameras} (or 'robot')")
+        renderer = self._renderers.get((width, height))
+        if renderer is None:
+            renderer = mujoco.Renderer(self.model, height=height, width=width)
+            self._renderers[(width, height)] = renderer
+        renderer.update_scene(self.data, camera=name)
+        return renderer.render()
+
+    def close(self) -> None:
+        """Release the offscreen renderers (their GL contexts)."""
+        for renderer in self._renderers.values():
+            renderer.close()
+        self._renderers.clear()
+
+    def __enter__(self) -> LabWorld:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------------------------------ internals
+    def _physics(self, steps: int) -> None:
+        mujoco.mj_step(self.model, self.data, nstep=steps)
+
+    def _senses(self) -> HumanSenses:
+        ids, data = self.ids, self.data
+        return HumanSenses(
+            ball_positions=data.xpos[ids.ball_bodies].copy(),
+            container_position=data.site_xpos[ids.rfid_site].copy(),
+            robot_yaw=self.true_robot_pose()[2],
+            robot_node=self.layout.node_at(self.true_robot_pose()[:2]),
+        )
+
+    def _apply_human(self) -> None:
+        ids, data = self.ids, self.data
+        data.mocap_pos[ids.human_mocap], data.mocap_quat[ids.human_mocap] = self.human.body_pose()
+        data.mocap_pos[ids.hand_mocap], data.mocap_quat[ids.hand_mocap] = self.human.hand_pose()
