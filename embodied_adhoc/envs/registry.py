@@ -27,6 +27,12 @@ ENV_SPECS: list[EnvSpec] = [
         "embodied_adhoc.envs.toxic_waste_abstract:ToxicWasteAbstractEnv",
         "HOTSPOT toxic-waste lab, abstract (5 nodes, 2 tasks, speech confusion matrix); truncated at 100 steps",
     ),
+    EnvSpec(
+        "EmbodiedAdhoc/ToxicWaste-v0",
+        "embodied_adhoc.envs.toxic_waste:ToxicWasteEnv",
+        "HOTSPOT toxic-waste lab on MuJoCo: wheeled container robot on odometry, walking human, balls, RFID, speech",
+        backend="mujoco",
+    ),
 ]
 
 

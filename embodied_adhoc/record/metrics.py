@@ -123,4 +123,5 @@ class EpisodeMetrics:
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
         atomic_write_text(path, json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")
+        path.chmod(0o644)  # the temporary file was private (mkstemp); the result is an ordinary output file
         return path

@@ -1,0 +1,38 @@
+"""Build the MuJoCo lab world of ``EmbodiedAdhoc/ToxicWaste-v0`` from the env's kwargs (one place for the mapping)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+from embodied_adhoc.errors import ConfigError
+
+
+def make_world(
+    encoder_noise: float | None,
+    wheel_slip: float | None,
+    rfid_miss: float,
+    macro_timeout: float,
+    frame_rate: float,
+    width: int,
+    height: int,
+):
+    """A ``sim.lab_world.LabWorld`` with the env's odometry noise, RFID miss rate, timeout and frame rate."""
+    from embodied_adhoc.sim.lab_world import LabWorld, LabWorldConfig
+    from embodied_adhoc.sim.odometry import OdometryConfig
+
+    if not float(frame_rate) > 0:
+        raise ConfigError(f"frame_rate must be > 0 frames per simulated second, got {frame_rate}")
+    odometry = OdometryConfig()
+    if encoder_noise is not None:
+        odometry = dataclasses.replace(odometry, encoder_noise=float(encoder_noise))
+    if wheel_slip is not None:
+        odometry = dataclasses.replace(odometry, wheel_slip=float(wheel_slip))
+    config = LabWorldConfig(
+        odometry=odometry,
+        rfid_miss_probability=float(rfid_miss),
+        macro_timeout=float(macro_timeout),
+        video_fps=float(frame_rate),
+        render_width=int(width),
+        render_height=int(height),
+    )
+    return LabWorld(config)
