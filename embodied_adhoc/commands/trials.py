@@ -50,9 +50,10 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
 
     parser.add_argument(
         "--backend",
-        choices=domain.backends,
         default=domain.backends[0],
-        help=f"world that runs the episodes (default {domain.backends[0]})",
+        metavar="|".join(domain.backends),
+        help=f"world that runs the episodes (default {domain.backends[0]}); several, comma-separated "
+        f"(e.g. {','.join(domain.backends)}), run the same episodes on each and add Welch tests between them",
     )
     parser.add_argument(
         "--agents",
@@ -94,43 +95,56 @@ def parse_agents(text: str) -> tuple[str, ...]:
 def handle(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.runner import SweepConfig
+
+    domain = get_trial_domain(args._trial_domain)
+    backends = parse_agents(args.backend)
+    unknown = [b for b in backends if b not in domain.backends]
+    if unknown or not backends or len(set(backends)) != len(backends):
+        raise ConfigError(
+            f"--backend {args.backend!r}: choose one or more (comma-separated, once each) of {', '.join(domain.backends)}"
+        )
+    options = domain.options_from_args(args)
+    results = {}
+    for backend in backends:
+        config = SweepConfig(
+            domain.name, backend, options, parse_agents(args.agents), args.episodes, args.seed, args.max_steps
+        )
+        out = None if args.out is None else Path(args.out) / (backend if len(backends) > 1 else "")
+        results[backend] = _run_one(args, config, out)
+    if len(backends) > 1:
+        _compare_backends(args, results)
+    return 0
+
+
+def _run_one(args: argparse.Namespace, config, out):
+    """Run (or resume) one sweep; print its tables (or its JSON when it is the only one); write files to out."""
+    from embodied_adhoc.experiments.runner import run_sweep
     from embodied_adhoc.experiments.storage import atomic_write_text
     from embodied_adhoc.experiments.summary import summary_json
     from embodied_adhoc.experiments.tables import summary_table, welch_table
 
-    domain = get_trial_domain(args._trial_domain)
-    config = SweepConfig(
-        domain=domain.name,
-        backend=args.backend,
-        options=domain.options_from_args(args),
-        agents=parse_agents(args.agents),
-        episodes=args.episodes,
-        seed=args.seed,
-        max_steps=args.max_steps,
-    )
-    result = run_sweep(
-        config, out=args.out, workers=args.workers, executor=args.executor, progress=not args.json
-    )
+    result = run_sweep(config, out=out, workers=args.workers, executor=args.executor, progress=not args.json)
     summary = result.summary()
     document = summary_json(summary, config.describe())
     written = []
-    if args.out:
+    if out is not None:
         from embodied_adhoc.experiments.plots import plot_entropy, plot_steps
 
-        out = Path(args.out)
         atomic_write_text(out / "summary.json", json.dumps(document, indent=2) + "\n")
-        title = f"{domain.name} ({config.backend}), {config.episodes} episodes"
+        title = f"{config.domain} ({config.backend}), {config.episodes} episodes"
         written.append(plot_steps(summary, out / "steps.png", title=f"Steps to finish / identify: {title}"))
         curves = result.curves_by_agent()
         if curves:
             written.append(plot_entropy(curves, out / "entropy.png", title=f"Task-belief entropy: {title}"))
     if args.json:
-        print(json.dumps(document))
-        return 0
+        if "," not in args.backend:
+            print(json.dumps(document))
+        return result
     resumed = len(result.records) - result.new_trials
     print(
-        f"{domain.name} on {config.backend}: {len(config.agents)} agent(s) x {config.episodes} episode(s), "
+        f"{config.domain} on {config.backend}: {len(config.agents)} agent(s) x {config.episodes} episode(s), "
         f"seed {config.seed}, cap {config.max_steps} steps; options {json.dumps(dict(config.options))}"
     )
     print(
@@ -141,10 +155,42 @@ def handle(args: argparse.Namespace) -> int:
     print(summary_table(summary))
     print()
     print(welch_table(summary))
-    if args.out:
-        print(
-            f"\nwrote {args.out}/: config.json trials.csv steps.csv summary.json "
-            + " ".join(p.name for p in written)
-        )
+    if out is not None:
+        files = "config.json trials.csv steps.csv summary.json " + " ".join(p.name for p in written)
+        print(f"\nwrote {out}/: {files}")
+    print()
     sys.stdout.flush()
-    return 0
+    return result
+
+
+def _compare_backends(args: argparse.Namespace, results: dict) -> None:
+    """Same agents, episodes and seeds on each backend: per-agent Welch tests between backends (the thesis's
+    simulation-vs-reality comparison, here abstract vs physics)."""
+    from pathlib import Path
+
+    from embodied_adhoc.experiments.storage import atomic_write_text
+    from embodied_adhoc.experiments.summary import summary_json, welch_between_runs, welch_json
+    from embodied_adhoc.experiments.tables import welch_table
+
+    first = next(iter(results.values()))
+    tests = welch_between_runs({b: r.records for b, r in results.items()}, first.config.agents)
+    document = {
+        "backends": {b: summary_json(r.summary(), r.config.describe()) for b, r in results.items()},
+        "welch_backends": welch_json(tests),
+    }
+    if args.out is not None:
+        from embodied_adhoc.experiments.plots import plot_settings
+
+        out = Path(args.out)
+        atomic_write_text(out / "comparison.json", json.dumps(document, indent=2) + "\n")
+        plot_settings(
+            {b: r.summary() for b, r in results.items()},
+            out / "backends.png",
+            title=f"{first.config.domain}: steps to finish per backend",
+        )
+    if args.json:
+        print(json.dumps(document))
+        return
+    print(welch_table(tests))
+    if args.out is not None:
+        print(f"\nwrote {args.out}/: comparison.json backends.png (and one folder per backend)")

@@ -8,7 +8,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from embodied_adhoc.experiments.stats import SampleSummary, WelchTest, pairwise_welch, summarise_sample
+from embodied_adhoc.experiments.stats import (
+    SampleSummary,
+    WelchTest,
+    pairwise_welch,
+    summarise_sample,
+    welch_test,
+)
 from embodied_adhoc.experiments.storage import TrialRecord
 
 
@@ -55,6 +61,38 @@ def summarise_records(records: Sequence[TrialRecord], agents: Sequence[str]) -> 
     return RunSummary(summaries, welch)
 
 
+def welch_between_runs(runs: dict[str, Sequence[TrialRecord]], agents: Sequence[str]) -> list[WelchTest]:
+    """Per agent, Welch tests on steps between runs of the same episodes under different settings or backends
+    (e.g. abstract vs physics, the thesis's simulation-vs-reality comparison); ``runs`` maps a label to records."""
+    labels = list(runs)
+    tests = []
+    for agent in agents:
+        for i, first in enumerate(labels):
+            for second in labels[i + 1 :]:
+                statistic, p_value = welch_test(
+                    [r.steps for r in runs[first] if r.agent == agent],
+                    [r.steps for r in runs[second] if r.agent == agent],
+                )
+                tests.append(
+                    WelchTest(f"{agent} ({first})", f"{agent} ({second})", "steps", statistic, p_value)
+                )
+    return tests
+
+
+def welch_json(tests: Sequence[WelchTest]) -> list[dict]:
+    return [
+        {
+            "a": test.first,
+            "b": test.second,
+            "metric": test.metric,
+            "t": _number(test.statistic),
+            "p": _number(test.p_value),
+            "significant": None if math.isnan(test.p_value) else test.significant(),
+        }
+        for test in tests
+    ]
+
+
 def _number(value: float) -> float | None:
     """JSON has no NaN: undefined statistics become null."""
     return None if value is None or math.isnan(value) else float(value)
@@ -84,15 +122,4 @@ def summary_json(summary: RunSummary, config: dict) -> dict:
             "final_entropy_mean": _number(s.final_entropy.mean),
             "return_mean": _number(s.total_reward.mean),
         }
-    welch = [
-        {
-            "a": test.first,
-            "b": test.second,
-            "metric": test.metric,
-            "t": _number(test.statistic),
-            "p": _number(test.p_value),
-            "significant": None if math.isnan(test.p_value) else test.significant(),
-        }
-        for test in summary.welch
-    ]
-    return {"agents": agents, "welch": welch, "config": config}
+    return {"agents": agents, "welch": welch_json(summary.welch), "config": config}

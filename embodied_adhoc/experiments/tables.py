@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from embodied_adhoc.experiments.stats import SampleSummary
+from embodied_adhoc.experiments.stats import SampleSummary, WelchTest
 from embodied_adhoc.experiments.summary import RunSummary
 
 
@@ -91,8 +91,11 @@ def summary_table(summary: RunSummary, markdown: bool = False) -> str:
     return format_table(SUMMARY_HEADERS, summary_rows(summary), markdown)
 
 
-def welch_table(summary: RunSummary, markdown: bool = False, alpha: float = 0.05) -> str:
-    """Welch's t-test on steps to finish between every pair of agents."""
+def welch_table(
+    summary: RunSummary | Sequence[WelchTest], markdown: bool = False, alpha: float = 0.05
+) -> str:
+    """Welch's t-tests on steps to finish: between every pair of agents of a summary, or the tests given."""
+    tests = summary.welch if isinstance(summary, RunSummary) else summary
     rows = [
         [
             f"{t.first} vs {t.second}",
@@ -100,6 +103,6 @@ def welch_table(summary: RunSummary, markdown: bool = False, alpha: float = 0.05
             p_value(t.p_value),
             "n/a" if math.isnan(t.p_value) else ("yes" if t.significant(alpha) else "no"),
         ]
-        for t in summary.welch
+        for t in tests
     ]
     return format_table(("Welch t-test (steps)", "t", "p", f"p < {alpha}"), rows, markdown)

@@ -127,7 +127,7 @@ class Session:
 class GuessDomain:
     name = "guess"
     description = "test domain: find which of two actions finishes the task"
-    backends = ("abstract",)
+    backends = ("abstract", "twin")  # twin: the same env, to test backend comparisons
     agent_names = ("bayes", "known-task", "oracle", "random")
     default_agents = ("bayes", "known-task", "oracle", "random")
 

@@ -72,3 +72,31 @@ def test_bare_group_prints_help():
 def test_domain_help(domain):
     result = trials(domain, "--help")
     assert result.returncode == 0 and "--backend" in result.stdout and "--human-epsilon" in result.stdout
+
+
+def test_backend_comparison_runs_the_same_episodes_on_each(tmp_path):
+    result = trials(
+        "guess",
+        "--backend",
+        "abstract,twin",
+        "--agents",
+        "bayes,random",
+        "--episodes",
+        "5",
+        "--json",
+        "--out",
+        str(tmp_path),
+    )
+    assert result.returncode == 0, result.stderr
+    document = json.loads(result.stdout)
+    assert set(document) == {"backends", "welch_backends"}
+    assert set(document["backends"]) == {"abstract", "twin"}
+    # the twin backend is the same env: same episodes and seeds give the same trials
+    assert document["backends"]["abstract"]["agents"] == document["backends"]["twin"]["agents"]
+    assert [(t["a"], t["b"]) for t in document["welch_backends"]] == [
+        ("bayes (abstract)", "bayes (twin)"),
+        ("random (abstract)", "random (twin)"),
+    ]
+    assert {"abstract", "twin", "comparison.json", "backends.png"} <= {p.name for p in tmp_path.iterdir()}
+    bad = trials("guess", "--backend", "abstract,mujoco", "--episodes", "1")
+    assert bad.returncode == 2 and "choose one or more" in bad.stderr
