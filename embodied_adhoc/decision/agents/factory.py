@@ -26,8 +26,9 @@ __all__ = ["AGENT_NAMES", "DEFAULT_PERSEUS", "clear_cache", "hotspot_plan", "mak
 AGENT_NAMES: tuple[str, ...] = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
 """Agents ``make_agent`` builds. ``oracle`` and ``bopa`` observe the state (``observes_state = True``)."""
 
-DEFAULT_PERSEUS = {"n_beliefs": 500, "tolerance": 1e-2, "time_limit": 60.0}
-"""ATPO's Perseus settings unless ``perseus`` is given (Table 5.2 used tolerance 0.01)."""
+DEFAULT_PERSEUS = {"n_beliefs": 500, "tolerance": 1e-2, "time_limit": 60.0, "seed": 0}
+"""ATPO's Perseus settings (``PerseusConfig`` fields) unless ``perseus`` is given (Table 5.2: tolerance 0.01).
+The solver seed is part of these settings, not of ``rng_seed``, so every trial reuses the cached solution."""
 
 _CACHE: dict[tuple[int, ...], dict] = {}
 
@@ -70,13 +71,13 @@ def mdp_q_values(library) -> np.ndarray:
     return entry["q"]
 
 
-def _perseus_policies(library, settings: dict, seed: int) -> tuple:
+def _perseus_policies(library, settings: dict) -> tuple:
     from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 
     entry = _entry(_pomdps(library))
-    key = ("perseus", tuple(sorted(settings.items())), seed)
+    key = ("perseus", tuple(sorted(settings.items())))
     if key not in entry:
-        entry[key] = tuple(perseus(p, PerseusConfig(**settings, seed=seed)) for p in entry["pomdps"])
+        entry[key] = tuple(perseus(p, PerseusConfig(**settings)) for p in entry["pomdps"])
     return entry[key]
 
 
@@ -99,8 +100,15 @@ def make_agent(
 ) -> Agent:
     """An agent by name (see ``AGENT_NAMES``). ``true_task`` is required by ``known-task`` and ``oracle``.
 
-    ``rng_seed`` seeds offline solvers (Perseus belief sampling); episodes draw from the rng given to ``reset``.
+    ``rng_seed`` seeds the agent's generator until ``reset(rng)`` replaces it (episodes draw from that rng).
+    ``perseus`` overrides ATPO's solver settings (``DEFAULT_PERSEUS``).
     """
+    agent = _build(name, library, true_task, hotspot, perseus)
+    agent.rng = np.random.default_rng(rng_seed)
+    return agent
+
+
+def _build(name: str, library, true_task: int | None, hotspot: HotspotConfig | None, perseus: dict | None) -> Agent:
     pomdps = _pomdps(library)
     n_models = len(pomdps)
     if name == "hotspot":
@@ -116,6 +124,6 @@ def make_agent(
     if name == "bopa":
         return BopaAgent(pomdps, mdp_q_values(library), name=name)
     if name == "atpo":
-        policies = _perseus_policies(library, dict(DEFAULT_PERSEUS if perseus is None else perseus), rng_seed)
+        policies = _perseus_policies(library, {**DEFAULT_PERSEUS, **(perseus or {})})
         return AtpoAgent(hotspot_plan(library, hotspot).kernels, policies, name=name)
     raise ConfigError(f"unknown agent '{name}'; choose from {', '.join(AGENT_NAMES)}")
