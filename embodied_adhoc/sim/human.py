@@ -272,8 +272,13 @@ class HumanWalker:
         stand = min(stands, key=lambda p: float(np.linalg.norm(p - self.xy)))
         yield from self._walk([stand])
         yield from self._face(container[:2] + 0.15 * (container[:2] - stand))
-        container = self._senses.container_position  # the robot may have settled meanwhile
+        container = self._senses.container_position  # the robot may have moved meanwhile
         yield from self._reach(container + np.array([0.0, 0.0, 0.22]), 0.8)
+        hand_gap = float(np.hypot(*(self._to_world(self.hand)[:2] - self._senses.container_position[:2])))
+        if self._senses.robot_node != self.node or hand_gap > 0.12:
+            yield from self._reach(None, 0.6)
+            self._finish(False, f"the robot left before ball {ball} could be dropped")
+            return
         self.events.append(("release", ball))
         self.holding = None
         yield from self._wait(0.5)
