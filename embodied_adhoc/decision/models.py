@@ -45,7 +45,9 @@ def check_stochastic(matrix: sp.csr_matrix, what: str, row_names: Sequence[str] 
     if matrix.nnz and matrix.data.min() < 0.0:
         flat = int(np.argmin(matrix.data))
         row = int(np.searchsorted(matrix.indptr, flat, side="right") - 1)
-        raise ModelError(f"{what}: row {_row_label(row, row_names)} has a negative entry {matrix.data[flat]:g}")
+        raise ModelError(
+            f"{what}: row {_row_label(row, row_names)} has a negative entry {matrix.data[flat]:g}"
+        )
     sums = np.asarray(matrix.sum(axis=1)).ravel()
     bad = np.flatnonzero(np.abs(sums - 1.0) > PROBABILITY_ATOL)
     if bad.size:
@@ -85,7 +87,9 @@ class MDP:
             raise ModelError(f"rewards must be a |S| x |A| array, got shape {rewards.shape}")
         n_states, n_actions = rewards.shape
         if len(self.transitions) != n_actions:
-            raise ModelError(f"{len(self.transitions)} transition matrices for {n_actions} actions (rewards columns)")
+            raise ModelError(
+                f"{len(self.transitions)} transition matrices for {n_actions} actions (rewards columns)"
+            )
         if not np.all(np.isfinite(rewards)):
             s, a = np.argwhere(~np.isfinite(rewards))[0]
             raise ModelError(f"rewards[{s}, {a}] is not finite")
@@ -93,12 +97,8 @@ class MDP:
             raise ModelError(f"discount must lie in [0, 1], got {self.discount}")
         object.__setattr__(self, "rewards", rewards)
         object.__setattr__(self, "discount", float(self.discount))
-        object.__setattr__(
-            self, "state_names", _names(self.state_names, n_states, "state_names")
-        )
-        object.__setattr__(
-            self, "action_names", _names(self.action_names, n_actions, "action_names")
-        )
+        object.__setattr__(self, "state_names", _names(self.state_names, n_states, "state_names"))
+        object.__setattr__(self, "action_names", _names(self.action_names, n_actions, "action_names"))
         transitions = as_csr_stack(self.transitions, (n_states, n_states), "transitions")
         for a, matrix in enumerate(transitions):
             check_stochastic(matrix, f"transitions for action {self.action_label(a)}", self.state_names)
@@ -144,7 +144,9 @@ class POMDP(MDP):
         if belief.shape != (self.n_states,):
             raise ModelError(f"initial_belief has shape {belief.shape}, expected ({self.n_states},)")
         if belief.min() < 0.0 or abs(belief.sum() - 1.0) > PROBABILITY_ATOL:
-            raise ModelError(f"initial_belief must be a probability vector (min {belief.min():g}, sum {belief.sum():.8g})")
+            raise ModelError(
+                f"initial_belief must be a probability vector (min {belief.min():g}, sum {belief.sum():.8g})"
+            )
         object.__setattr__(self, "initial_belief", belief)
 
     @property
@@ -171,7 +173,9 @@ class POMDP(MDP):
         Returns ``(b', rho)``. An observation impossible under ``b`` (``rho == 0``) raises ModelError,
         since no posterior exists; callers that expect model mismatch should catch it and reset.
         """
-        unnormalised = self.observations[action][:, observation].toarray().ravel() * self.predict(belief, action)
+        unnormalised = self.observations[action][:, observation].toarray().ravel() * self.predict(
+            belief, action
+        )
         likelihood = float(unnormalised.sum())
         if likelihood <= 0.0:
             raise ModelError(

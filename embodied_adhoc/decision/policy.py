@@ -1,0 +1,139 @@
+"""Alpha-vector policies: a piecewise-linear convex value function ``V(b) = max_k alpha_k . b`` (thesis Eq. 2.5).
+
+Each vector carries the action that starts its conditional plan, so ``action(b)`` is the action of the
+maximising vector. Finite-horizon solutions are time dependent: each vector also carries ``stages[k]``, the
+number of steps to go it was computed for, and ``value``/``action`` take ``steps_to_go`` (default: the longest
+stage, i.e. the start of an episode). Infinite-horizon policies have every stage equal to 0, meaning "any".
+
+Saved as ``.npz`` (``allow_pickle=False`` on load), written atomically.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from embodied_adhoc.errors import ModelError
+
+_FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class SolverStats:
+    """How a solve went: for reports and benchmarks (not saved with the policy)."""
+
+    solver: str
+    iterations: int
+    seconds: float
+    converged: bool
+    residual: float  # last improvement (Perseus: max over beliefs; VI/QMDP: Bellman sup-norm); nan if n/a
+    n_beliefs: int = 0
+    trace: tuple[tuple[float, float], ...] = ()  # (seconds since start, value at b0) after each iteration
+
+
+@dataclass(frozen=True, eq=False)
+class AlphaVectorPolicy:
+    """``alphas`` (K, S) float64, ``actions`` (K,) ints; optional ``stages`` (K,) steps-to-go (finite horizon)."""
+
+    alphas: np.ndarray
+    actions: np.ndarray
+    stages: np.ndarray | None = None
+    stats: SolverStats | None = None
+
+    def __post_init__(self) -> None:
+        alphas = np.ascontiguousarray(self.alphas, dtype=np.float64)
+        actions = np.asarray(self.actions)
+        if alphas.ndim != 2 or alphas.shape[0] == 0:
+            raise ModelError(f"alphas must be a non-empty (K, S) array, got shape {alphas.shape}")
+        if actions.shape != (alphas.shape[0],) or not np.issubdtype(actions.dtype, np.integer):
+            raise ModelError(
+                f"actions must be {alphas.shape[0]} integers, got {actions.dtype} {actions.shape}"
+            )
+        if not np.all(np.isfinite(alphas)):
+            raise ModelError("alphas contain a non-finite entry")
+        stages = np.zeros(len(actions), dtype=np.int64) if self.stages is None else np.asarray(self.stages)
+        if stages.shape != actions.shape or not np.issubdtype(stages.dtype, np.integer) or stages.min() < 0:
+            raise ModelError(
+                f"stages must be {len(actions)} non-negative integers, got {stages.dtype} {stages.shape}"
+            )
+        object.__setattr__(self, "alphas", alphas)
+        object.__setattr__(self, "actions", actions.astype(np.int64))
+        object.__setattr__(self, "stages", stages.astype(np.int64))
+
+    @property
+    def n_vectors(self) -> int:
+        return self.alphas.shape[0]
+
+    @property
+    def n_states(self) -> int:
+        return self.alphas.shape[1]
+
+    @property
+    def horizon(self) -> int | None:
+        """The number of steps a finite-horizon policy plans for, or None for an infinite-horizon policy."""
+        top = int(self.stages.max())
+        return top if top > 0 else None
+
+    def _rows(self, steps_to_go: int | None) -> np.ndarray | slice:
+        if self.horizon is None:
+            return slice(None)
+        stage = self.horizon if steps_to_go is None else int(steps_to_go)
+        rows = np.flatnonzero(self.stages == stage)
+        if rows.size == 0:
+            raise ModelError(
+                f"this finite-horizon policy has no vectors for {stage} steps to go (1..{self.horizon})"
+            )
+        return rows
+
+    def values(self, beliefs: np.ndarray, steps_to_go: int | None = None) -> np.ndarray:
+        """``max_k alpha_k . b`` for each row of ``beliefs`` (N, S), batched."""
+        return (np.atleast_2d(beliefs) @ self.alphas[self._rows(steps_to_go)].T).max(axis=1)
+
+    def value(self, belief: np.ndarray, steps_to_go: int | None = None) -> float:
+        return float(self.values(belief, steps_to_go)[0])
+
+    def action(self, belief: np.ndarray, steps_to_go: int | None = None) -> int:
+        rows = self._rows(steps_to_go)
+        scores = self.alphas[rows] @ np.asarray(belief, dtype=np.float64)
+        return int(self.actions[rows][int(np.argmax(scores))])
+
+    # ------------------------------------------------------------------------------------------ files
+    def save(self, path: str | Path) -> Path:
+        """Write the policy to ``path`` (.npz) atomically; no pickle."""
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        handle = tempfile.NamedTemporaryFile(
+            dir=path.parent, prefix=f".{path.name}.", suffix=".npz", delete=False
+        )
+        try:
+            with handle:
+                np.savez(
+                    handle,
+                    alphas=self.alphas,
+                    actions=self.actions,
+                    stages=self.stages,
+                    format_version=np.int64(_FORMAT_VERSION),
+                )
+            os.replace(handle.name, path)
+        except BaseException:
+            Path(handle.name).unlink(missing_ok=True)
+            raise
+        return path
+
+    @classmethod
+    def load(cls, path: str | Path) -> AlphaVectorPolicy:
+        """Read a policy written by :meth:`save`; a clear ModelError for a file that is not one."""
+        try:
+            with np.load(Path(path), allow_pickle=False) as data:
+                missing = {"alphas", "actions", "stages"} - set(data.files)
+                if missing:
+                    raise ModelError(f"{path}: not an alpha-vector policy file (missing {sorted(missing)})")
+                return cls(data["alphas"], data["actions"], data["stages"])
+        except (OSError, ValueError) as error:
+            if isinstance(error, ModelError):
+                raise
+            raise ModelError(f"{path}: cannot read an alpha-vector policy ({error})") from error
