@@ -50,6 +50,7 @@ class EpisodeConfig:
 class EpisodeOutcome:
     metrics: dict[str, Any]
     files: dict[str, Path]
+    video_frames: int = 0
 
 
 def _describe_observation(library, observation_index: int) -> str:
@@ -166,7 +167,7 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
             rerun.close()
         if recording:
             files["metrics"] = metrics.write(Path(config.record_dir) / "metrics.json")
-    return EpisodeOutcome(metrics.summary(), files)
+    return EpisodeOutcome(metrics.summary(), files, 0 if video is None else video.frame_count)
 
 
 def _open_recorders(config: EpisodeConfig, files: dict[str, Path]):

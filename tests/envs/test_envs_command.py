@@ -36,3 +36,10 @@ def test_every_registered_id_is_known_to_gymnasium():
 
     for spec in ENV_SPECS:
         assert spec.id in gymnasium.registry
+
+
+def test_both_toxic_waste_backends_are_listed():
+    rows = json.loads(run_cli("envs", "--json").stdout)["envs"]
+    backends = {row["id"]: row["backend"] for row in rows}
+    assert backends["EmbodiedAdhoc/ToxicWaste-v0"] == "mujoco"
+    assert backends["EmbodiedAdhoc/ToxicWasteAbstract-v0"] == "abstract"

@@ -1,0 +1,114 @@
+"""A recorded physics episode: mp4 frame count, rerun entities (read back) and `rerun rrd verify`, metrics.json."""
+
+import json
+import subprocess
+import sys
+
+import imageio.v2 as imageio
+
+from embodied_adhoc.envs.toxic_waste_episode import EpisodeConfig, run_episode
+from embodied_adhoc.record.rerun_recorder import ENTITY_PATHS
+
+
+def test_recorded_episode_files(tmp_path):
+    from test_record_rerun import recorded_entities, rerun_binary
+
+    config = EpisodeConfig(
+        agent="hotspot",
+        seed=2,
+        task=0,
+        robot_node=1,
+        human_node=1,
+        max_steps=3,
+        record_dir=tmp_path,
+        width=64,
+        height=48,
+        video_fps=10.0,
+        video_speed=5.0,
+    )
+    outcome = run_episode(config)
+    metrics = outcome.metrics
+    assert metrics["steps"] == 3 and metrics["outcome"] in ("success", "truncated")
+    reader = imageio.get_reader(tmp_path / "episode.mp4")
+    try:
+        frames = [frame for frame in reader]
+    finally:
+        reader.close()
+    assert len(frames) == outcome.video_frames > 0
+    assert frames[0].shape == (48, 64, 3)
+    simulated = metrics["sim_time_s"] - 0.3  # the world settles for 0.3 s before the first frame
+    assert abs(len(frames) - simulated * 10.0 / 5.0) <= 2
+    entities = recorded_entities(tmp_path / "episode.rrd")
+    expected = [e for e in ENTITY_PATHS if e != "speech/audio"]  # audio only with --speech audio
+    missing = [e for e in expected if not any(n == e or n.startswith(e + "/") for n in entities)]
+    assert not missing, missing
+    result = subprocess.run(
+        [rerun_binary(), "rrd", "verify", str(tmp_path / "episode.rrd")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 0, result.stderr
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    assert written["steps"] == 3 and written["config"]["spec"]["task"] == 0
+    assert {"success", "steps", "identify_step", "wall_time_s", "macro_step_time_s"} <= set(written)
+
+
+def test_run_command_smoke(tmp_path):
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "embodied_adhoc.cli",
+            "run",
+            "toxic-waste",
+            "--seed",
+            "1",
+            "--max-steps",
+            "1",
+            "--task",
+            "0",
+            "--robot-node",
+            "0",
+            "--human-node",
+            "0",
+            "--json",
+            "--no-progress",
+            "--record",
+            str(tmp_path / "out"),
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary["steps"] == 1 and set(summary["files"]) == {"video", "rerun", "metrics"}
+    assert (tmp_path / "out" / "episode.mp4").exists()
+
+
+def test_run_command_rejects_odd_video_size(tmp_path):
+    result = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "embodied_adhoc.cli",
+            "run",
+            "toxic-waste",
+            "--max-steps",
+            "1",
+            "--no-progress",
+            "--record",
+            str(tmp_path),
+            "--width",
+            "33",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert result.returncode == 2 and "even" in result.stderr
