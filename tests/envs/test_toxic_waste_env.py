@@ -3,7 +3,6 @@
 import warnings
 
 import gymnasium
-import numpy as np
 import pytest
 
 import embodied_adhoc.envs  # noqa: F401  (registers the ids)
