@@ -29,7 +29,7 @@ def _distance_to_box(points: np.ndarray, centre: np.ndarray, half: np.ndarray) -
 def test_lab_scene_counts_are_pinned():
     model = load_lab_model()
     counts = (model.nbody, model.ngeom, model.njnt, model.nu, model.nsensor, model.nsite, model.ncam)
-    assert counts == (12, 84, 6, 2, 5, 4, 3)
+    assert counts == (12, 83, 6, 2, 5, 4, 3)
     assert model.nmocap == 2 and model.neq == 3
 
 
