@@ -14,6 +14,8 @@ is ``MultiDiscrete([N + 1, N + 1, 2])``.
 
 from __future__ import annotations
 
+import bisect
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,6 +123,8 @@ class ObservationModel:
         none = np.zeros(n_nodes + 1)
         none[n_nodes] = 1.0
         self._none = none
+        self._cumulative: dict[tuple[int, int, bool, int], list[float]] = {}
+        self._vectors = tuple(LabObservation.decode(z, n_nodes).to_vector() for z in range(2 * (n_nodes + 1) ** 2))
 
     def robot(self, robot_node: int) -> np.ndarray:
         """P(robot reading | true robot node), length N + 1 (last: unknown)."""
@@ -147,10 +151,20 @@ class ObservationModel:
         )
         return joint.ravel()
 
+    def sample_index(self, rng: np.random.Generator, robot_node: int, human_node: int, disposed: bool, action: int) -> int:
+        """Draw one flat observation index (one uniform draw from ``rng``; cumulative tables cached per case)."""
+        key = (robot_node, human_node, bool(disposed), action)
+        cumulative = self._cumulative.get(key)
+        if cumulative is None:
+            cumulative = list(itertools.accumulate(self.distribution(*key).tolist()))
+            self._cumulative[key] = cumulative
+        index = bisect.bisect_right(cumulative, rng.random() * cumulative[-1])
+        return min(index, len(cumulative) - 1)
+
+    def vector(self, index: int) -> np.ndarray:
+        """The MultiDiscrete vector of a flat index (a fresh array)."""
+        return self._vectors[index].copy()
+
     def sample(self, rng: np.random.Generator, robot_node: int, human_node: int, disposed: bool, action: int) -> LabObservation:
-        """Draw one observation (three uniform draws from ``rng``)."""
-        values = []
-        for probabilities in (self.robot(robot_node), self.human(robot_node, human_node, action), self.rfid(disposed)):
-            index = int(np.searchsorted(np.cumsum(probabilities), rng.random() * probabilities.sum(), side="right"))
-            values.append(min(index, len(probabilities) - 1))
-        return LabObservation.from_vector(values, self.n_nodes)
+        """Draw one observation as a :class:`LabObservation`."""
+        return LabObservation.decode(self.sample_index(rng, robot_node, human_node, disposed, action), self.n_nodes)

@@ -6,7 +6,6 @@ import os
 from collections.abc import Sequence
 
 import gymnasium
-import numpy as np
 from gymnasium import spaces
 
 from embodied_adhoc.domains.lab import DEFAULT_GRAPH, DEFAULT_TASKS, LabGraph, apply_step, build_lab_library
@@ -93,7 +92,8 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         n = self.library.graph.n_nodes
         self.action_space = spaces.Discrete(self.library.n_actions)
         self.observation_space = spaces.MultiDiscrete([n + 1, n + 1, 2])
-        self._reward_table = np.array([self.library.config.reward.ground, self.library.config.reward.held, self.library.config.reward.disposed])
+        reward = self.library.config.reward
+        self._reward_table = (reward.ground, reward.held, reward.disposed)
         self._robot = self._human = self._task = self._steps = 0
         self._status: tuple[int, ...] = ()
 
@@ -102,7 +102,9 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         options = dict(options or {})
         unknown = set(options) - {"task", "robot_node", "human_node"}
         if unknown:
-            raise ConfigError(f"reset options {sorted(unknown)} not understood; use task, robot_node, human_node")
+            raise ConfigError(
+                f"reset options {sorted(unknown)} not understood; use task, robot_node, human_node"
+            )
         n, lib = self.library.graph.n_nodes, self.library
         task = options.get("task", self.task)
         self._task = int(self.np_random.integers(lib.n_tasks)) if task is None else int(task)
@@ -122,7 +124,7 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         action = int(action)
         if not 0 <= action < self.library.n_actions:
             raise ConfigError(f"action {action} outside 0..{self.library.n_actions - 1}")
-        reward = float(self._reward_table[list(self._status)].sum())
+        reward = float(sum(self._reward_table[s] for s in self._status))
         human = self.library.humans[self._task].step(self.np_random, self._human, self._status)
         self._robot, self._human, self._status, disposed = apply_step(
             self.library.graph, self._robot, self._human, self._status, action, human
@@ -134,7 +136,8 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         return observation, reward, terminated, truncated, info
 
     def _observe(self, action: int, disposed: bool):
-        lab_observation = self.library.observation_model.sample(self.np_random, self._robot, self._human, disposed, action)
+        model = self.library.observation_model
+        index = model.sample_index(self.np_random, self._robot, self._human, disposed, action)
         info = {
             "state": self.library.states.fast_index(self._robot, self._human, self._status, disposed),
             "task": self._task,
@@ -142,13 +145,17 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
             "human_node": self._human,
             "ball_status": self._status,
             "disposed_this_step": disposed,
-            "observation_index": lab_observation.encode(),
+            "observation_index": index,
         }
-        return lab_observation.to_vector(), info
+        return model.vector(index), info
 
     def render(self) -> str | None:
         if self.render_mode != "ansi":
             return None
         names = {0: "ground", 1: "held", 2: "disposed"}
-        balls = ", ".join(f"ball {i} at {self.library.tasks[self._task][i]}: {names[s]}" for i, s in enumerate(self._status))
-        return f"step {self._steps} task {self._task}: robot at {self._robot}, human at {self._human}; {balls}"
+        balls = ", ".join(
+            f"ball {i} at {self.library.tasks[self._task][i]}: {names[s]}" for i, s in enumerate(self._status)
+        )
+        return (
+            f"step {self._steps} task {self._task}: robot at {self._robot}, human at {self._human}; {balls}"
+        )
