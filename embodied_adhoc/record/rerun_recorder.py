@@ -67,7 +67,8 @@ ENTITY_PATHS: tuple[str, ...] = (
     "camera",
 )
 TEXT_CHANNELS = ("observations", "actions", "utterances", "events")
-BALL_COLOURS = ((220, 50, 47), (38, 139, 210), (133, 153, 0), (181, 137, 0), (108, 113, 196))
+BALL_COLOURS = ((220, 50, 47), (235, 200, 40), (40, 110, 220), (133, 153, 0), (108, 113, 196))
+"""Marker colours of balls 0, 1, 2 (red, yellow, blue as in ``scenes/lab.xml``), then extras."""
 
 
 def _closed_strip(polygon: np.ndarray, z: float) -> np.ndarray:
