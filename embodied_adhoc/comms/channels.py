@@ -103,14 +103,14 @@ class AudioChannel:
         voices: tuple[str, ...] | None = None,
         snr_db: float | None = 20.0,
         noise: str = "babble",
-        phrase_config: PhraseConfig = PhraseConfig(),
+        phrase_config: PhraseConfig | None = None,
     ) -> None:
         from embodied_adhoc.comms import recognition, synthesis
 
         self.voices = tuple(voices) if voices else synthesis.DEFAULT_VOICES
         self.snr_db = snr_db
         self.noise = synthesis.check_noise_kind(noise)
-        self.phrase_config = phrase_config
+        self.phrase_config = phrase_config or PhraseConfig()
         synthesis.require_espeak()
         self._recognizer = recognition.shared_recognizer()
 
@@ -133,6 +133,8 @@ def make_channel(kind: str = "channel", confusion: ConfusionMatrix | str | os.Pa
     ``confusion`` (for ``"channel"``) is a :class:`ConfusionMatrix`, ``"measured"`` (ours, the default),
     ``"thesis"`` or a JSON path. ``audio_options`` go to :class:`AudioChannel`.
     """
+    if audio_options and kind != "audio":
+        raise ConfigError(f"options {sorted(audio_options)} apply only to the 'audio' speech channel, not {kind!r}")
     if kind == "perfect":
         return PerfectChannel()
     if kind == "channel":

@@ -49,8 +49,25 @@ def grammar_words() -> list[str]:
     return sorted(set(re.findall(r"(?<![<\w])[a-z]+(?:'[a-z]+)?(?![\w>])", body)) - {"public"})
 
 
+_VOWELS = frozenset("AA AE AH AO AW AY EH ER EY IH IY OW OY UH UW".split())
+
+
+def non_rhotic(phones: list[str]) -> list[str]:
+    """The non-rhotic (British, Scottish-less) reading of a CMU pronunciation: an R after a vowel and not before
+    a vowel is silent, and a final ER is a schwa ("door" D AO R -> D AO, "centre" ... T ER -> ... T AH)."""
+    result: list[str] = []
+    for index, phone in enumerate(phones):
+        following = phones[index + 1] if index + 1 < len(phones) else None
+        if phone == "R" and result and result[-1] in _VOWELS and following not in _VOWELS:
+            continue
+        result.append("AH" if phone == "ER" and following is None else phone)
+    return result
+
+
 def dictionary_text(cmudict_path: str | os.PathLike) -> str:
-    """Pronunciations of the grammar's words (all variants) taken from the CMU dictionary at ``cmudict_path``."""
+    """Pronunciations of the grammar's words taken from the CMU dictionary at ``cmudict_path``: every variant
+    listed there, plus the non-rhotic reading of each (:func:`non_rhotic`) where it differs, so that British
+    voices saying "door" as /dɔː/ are not forced onto a rhotic path."""
     wanted = set(grammar_words())
     lines: dict[str, list[str]] = {word: [] for word in wanted}
     with open(cmudict_path, encoding="utf-8") as handle:
@@ -59,6 +76,13 @@ def dictionary_text(cmudict_path: str | os.PathLike) -> str:
             word = head.split("(", 1)[0]
             if word in wanted:
                 lines[word].append(line.rstrip("\n"))
+    for word, entries in lines.items():
+        pronunciations = [entry.split()[1:] for entry in entries]
+        for phones in list(pronunciations):
+            variant = non_rhotic(phones)
+            if variant not in pronunciations:
+                pronunciations.append(variant)
+        entries[:] = [f"{word if i == 0 else f'{word}({i + 1})'} {' '.join(p)}" for i, p in enumerate(pronunciations)]
     missing = sorted(word for word, entries in lines.items() if not entries)
     if missing:
         raise SpeechError(f"words {missing} of the reply grammar are not in {cmudict_path}; "

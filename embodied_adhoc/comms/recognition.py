@@ -28,7 +28,9 @@ floor (as a real microphone has) is added. Its pattern is the same for every utt
 
 @dataclass(frozen=True)
 class DecoderSettings:
-    """pocketsphinx search settings (its option names). Defaults: pocketsphinx's, with batch CMN."""
+    """pocketsphinx search settings (its option names). Defaults: pocketsphinx's, with batch CMN.
+
+    ``extra`` holds any other pocketsphinx option (it overrides the ones set by :class:`Recognizer`)."""
 
     beam: float = 1e-48
     wbeam: float = 7e-29
@@ -58,8 +60,8 @@ class Recognizer:
             pbeam=settings.pbeam,
             wip=settings.wip,
             lw=settings.lw,
-            **settings.extra,
         )
+        options.update(settings.extra)
         try:
             self._decoder = pocketsphinx.Decoder(pocketsphinx.Config(**options))
         except (RuntimeError, KeyError, ValueError) as error:
@@ -89,8 +91,9 @@ class Recognizer:
 
 def asset_path_model():
     """Folder of the English acoustic model inside the pocketsphinx wheel."""
-    import pocketsphinx
     from pathlib import Path
+
+    import pocketsphinx
 
     path = Path(pocketsphinx.get_model_path()) / "en-us" / "en-us"
     if not path.is_dir():
