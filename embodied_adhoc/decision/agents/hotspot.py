@@ -20,6 +20,7 @@ the entropy weighting to mean anything.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -62,6 +63,12 @@ class HotspotPlan:
     q_info: np.ndarray  # (M, S, A): Q*_m,info
     info_reward: np.ndarray  # (M, S, A): r_m,info
     config: HotspotConfig
+
+    @functools.cached_property
+    def stacked_q(self) -> np.ndarray:
+        """``[Q*_m | Q*_m,info]`` as one (M * S, 2A) matrix: the action choice is one vector-matrix product."""
+        m, s, a = self.q_task.shape
+        return np.ascontiguousarray(np.concatenate([self.q_task, self.q_info], axis=2).reshape(m * s, 2 * a))
 
 
 def information_reward(
@@ -144,10 +151,13 @@ class HotspotAgent:
         tracker, plan = self.tracker, self.plan
         belief = tracker.average_belief()
         entropy = normalised_entropy(belief)
-        mixed = (1.0 - entropy) * plan.q_task + entropy * plan.q_info  # (M, S, A)
         if plan.config.belief_in_choice == "average":
-            return np.einsum("m,s,msa->a", tracker.posterior, belief, mixed)
-        return np.einsum("m,ms,msa->a", tracker.posterior, tracker.beliefs, mixed)
+            weights = np.outer(tracker.posterior, belief)  # p(m) b(x)
+        else:
+            weights = tracker.posterior[:, None] * tracker.beliefs  # p(m) b_m(x)
+        values = weights.ravel() @ plan.stacked_q
+        n_actions = values.size // 2
+        return (1.0 - entropy) * values[:n_actions] + entropy * values[n_actions:]
 
     def act(self) -> int:
         return pick_best(self.action_values(), self.rng)

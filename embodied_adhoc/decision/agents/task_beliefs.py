@@ -60,6 +60,8 @@ class LibraryKernels:
     pomdps: tuple[POMDP, ...]
     transposed: tuple[tuple[sp.csr_matrix, ...], ...]  # [m][a] = P_m[a]^T
     observation_columns: tuple  # [m] = (A, Z, S) dense array, or [m][a] CSC matrix
+    stacked: tuple[sp.csr_matrix, ...]  # [a] = block-diagonal of P_m[a]^T: all models in one product
+    stacked_columns: np.ndarray | None  # (A, Z, M * S) dense observation columns of all models, when small
 
     @classmethod
     def build(cls, pomdps: Sequence[POMDP]) -> LibraryKernels:
@@ -72,7 +74,13 @@ class LibraryKernels:
                 columns.append(np.ascontiguousarray(np.stack([m.toarray().T for m in p.observations])))
             else:
                 columns.append(tuple(m.tocsc() for m in p.observations))
-        return cls(pomdps, transposed, tuple(columns))
+        stacked = tuple(
+            sp.block_diag([transposed[m][a] for m in range(len(pomdps))], format="csr")
+            for a in range(pomdps[0].n_actions)
+        )
+        dense = all(isinstance(c, np.ndarray) for c in columns) and sum(c.size for c in columns) <= _DENSE_LIMIT
+        stacked_columns = np.ascontiguousarray(np.concatenate(columns, axis=2)) if dense else None
+        return cls(pomdps, transposed, tuple(columns), stacked, stacked_columns)
 
     @property
     def n_models(self) -> int:
@@ -106,12 +114,16 @@ class LibraryBeliefs:
     def update(self, action: int, observation: int) -> np.ndarray:
         """Apply Eq. 7.1 / 5.6 to every model and the posterior update; returns the likelihoods ``rho_m``."""
         kernels = self.kernels
-        likelihoods = np.zeros(kernels.n_models)
-        for m in range(kernels.n_models):
-            predicted = kernels.transposed[m][action] @ self.beliefs[m]
-            unnormalised = kernels.column(m, action, observation) * predicted
-            likelihoods[m] = unnormalised.sum()
-            self.beliefs[m] = unnormalised / likelihoods[m] if likelihoods[m] > 0.0 else predicted
+        n_models, n_states = self.beliefs.shape
+        predicted = (kernels.stacked[action] @ self.beliefs.ravel()).reshape(n_models, n_states)
+        if kernels.stacked_columns is not None:
+            columns = kernels.stacked_columns[action, observation].reshape(n_models, n_states)
+        else:
+            columns = np.stack([kernels.column(m, action, observation) for m in range(n_models)])
+        unnormalised = columns * predicted
+        likelihoods = unnormalised.sum(axis=1)
+        possible = likelihoods > 0.0
+        self.beliefs = np.where(possible[:, None], unnormalised / np.where(possible, likelihoods, 1.0)[:, None], predicted)
         weighted = likelihoods * self.posterior
         total = weighted.sum()
         if total > 0.0:
