@@ -1,0 +1,269 @@
+"""Grid rules of level-based foraging and predator-prey (thesis section 6.2.1), one implementation for both twins.
+
+The grid twin applies a :class:`StepPlan` directly; the MuJoCo arena executes the same plan physically and
+reads the resulting cells back from the robots' positions. Nothing here imports mujoco or gymnasium.
+
+Conventions
+-----------
+* Cells are ``(row, col)``; row 0 is the north edge, so *Up* decreases the row.
+* Actions (5): ``UP, DOWN, LEFT, RIGHT`` move one cell; ``INTERACT`` is *Forage* (LBF) or *Capture*
+  (pursuit). With ``interact_required=False`` (the two-predator variant of Fig. 7.12) ``INTERACT`` is *Stay*
+  and a target is captured as soon as the predators stand in the task's positions.
+* A move succeeds only into a cell that is inside the grid (or wraps, if ``toroidal``), free in the current
+  state (no agent, no target) and claimed by no other mover. Simultaneous claims all fail. Using the current
+  occupancy (no chains, no swaps) keeps robots from driving through each other in the physical twin.
+* Boundaries: the thesis's grids are toroidal. A physical arena cannot wrap, so both twins default to
+  boundary walls (``toroidal=False``) to stay comparable; targets then live in the interior cells so that
+  every task's positions exist around them. ``toroidal=True`` reproduces the thesis's wrap in the grid twin.
+* A task is a tuple of offsets from the target, one per agent (agent ``i`` must stand at ``target +
+  offsets[i]``), or, if ``interchangeable``, a set of offsets any agent may fill (Fig. 7.12's pairs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+UP, DOWN, LEFT, RIGHT, INTERACT = range(5)
+ACTION_NAMES = ("up", "down", "left", "right", "interact")
+MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1], [0, 0]], dtype=np.int64)
+
+OFFSETS = {
+    "N": (-1, 0), "S": (1, 0), "W": (0, -1), "E": (0, 1),
+    "NE": (-1, 1), "NW": (-1, -1), "SE": (1, 1), "SW": (1, -1),
+}
+
+
+@dataclass(frozen=True)
+class Task:
+    """Positions around a target that the team must occupy to forage/capture it."""
+
+    name: str
+    offsets: tuple[tuple[int, int], ...]
+    interchangeable: bool = False
+
+
+def rotation_tasks(n_agents: int = 4) -> tuple[Task, ...]:
+    """The four tasks of section 6.2.2: task 1 puts agents 0..3 at N, S, W, E of the target; tasks 2-4 rotate
+    that assignment by 90 degrees clockwise each (N->E->S->W). With fewer agents the first ``n_agents`` count."""
+    if not 2 <= n_agents <= 4:
+        raise ConfigError(f"n_agents={n_agents}: the N/S/W/E tasks need 2 to 4 agents")
+    clockwise = ("N", "E", "S", "W")
+    base = ("N", "S", "W", "E")
+    tasks = []
+    for turn in range(4):
+        names = tuple(clockwise[(clockwise.index(d) + turn) % 4] for d in base[:n_agents])
+        tasks.append(Task(f"task{turn + 1}:" + "".join(names), tuple(OFFSETS[d] for d in names)))
+    return tuple(tasks)
+
+
+def pair_tasks() -> tuple[Task, ...]:
+    """Fig. 7.12 / section 5.2.5 two-predator tasks: N+S, W+E, SW+NE, NW+SE, positions interchangeable."""
+    pairs = (("N", "S"), ("W", "E"), ("SW", "NE"), ("NW", "SE"))
+    return tuple(Task(f"task{i + 1}:{a}+{b}", (OFFSETS[a], OFFSETS[b]), True) for i, (a, b) in enumerate(pairs))
+
+
+@dataclass(frozen=True)
+class GridConfig:
+    """Size and rules of one grid world (shared by both twins)."""
+
+    domain: str = "foraging"  # "foraging" (apples with levels) or "pursuit" (moving prey)
+    rows: int = 5
+    cols: int = 5
+    n_agents: int = 4
+    n_targets: int = 1
+    toroidal: bool = False
+    interact_required: bool = True  # False: INTERACT means Stay and capture is automatic (Fig. 7.12)
+    max_agent_level: int = 2  # LBF: agent levels drawn uniformly from 1..max_agent_level
+    prey_stay_probability: float = 0.2  # pursuit: prey stays w.p. this, else tries one of 4 moves uniformly
+
+    def __post_init__(self) -> None:
+        if self.domain not in ("foraging", "pursuit"):
+            raise ConfigError(f"GridConfig.domain={self.domain!r}: use 'foraging' or 'pursuit'")
+        if not 2 <= self.n_agents <= 4:
+            raise ConfigError(f"GridConfig.n_agents={self.n_agents}: use 2 to 4 agents")
+        if self.n_targets < 1:
+            raise ConfigError(f"GridConfig.n_targets={self.n_targets}: need at least one apple/prey")
+        if self.rows < 3 or self.cols < 3:
+            raise ConfigError(f"GridConfig {self.rows}x{self.cols}: use at least 3x3 cells")
+        all_cells = np.stack(np.divmod(np.arange(self.rows * self.cols), self.cols), axis=-1)
+        if GridRules(self).target_cells_valid(all_cells).sum() < self.n_targets:
+            raise ConfigError(f"GridConfig {self.rows}x{self.cols}: too few cells where {self.n_targets} targets can "
+                              "be surrounded (walled grids keep targets off the border and interior corners); "
+                              "use at least 5x5 or toroidal=True")
+        if self.rows * self.cols < self.n_agents + self.n_targets:
+            raise ConfigError(f"GridConfig {self.rows}x{self.cols}: too small for the agents and targets")
+        if self.max_agent_level < 1:
+            raise ConfigError(f"GridConfig.max_agent_level={self.max_agent_level}: must be >= 1")
+        if not 0.0 <= self.prey_stay_probability <= 1.0:
+            raise ConfigError(f"GridConfig.prey_stay_probability={self.prey_stay_probability}: must be in [0, 1]")
+
+
+@dataclass
+class GridState:
+    """Full state (thesis 6.2.1): agent cells and levels, target cells and levels, which targets remain."""
+
+    agents: np.ndarray  # (N, 2) int64 cells
+    agent_levels: np.ndarray  # (N,) int64 (all 1 in pursuit)
+    targets: np.ndarray  # (M, 2) int64 cells
+    target_levels: np.ndarray  # (M,) int64 (all 1 in pursuit)
+    alive: np.ndarray = field(default=None)  # (M,) bool: not yet foraged/captured
+
+    def __post_init__(self) -> None:
+        if self.alive is None:
+            self.alive = np.ones(len(self.targets), dtype=bool)
+
+    def copy(self) -> GridState:
+        return GridState(self.agents.copy(), self.agent_levels.copy(), self.targets.copy(),
+                         self.target_levels.copy(), self.alive.copy())
+
+    def as_dict(self) -> dict:
+        return {"agents": self.agents.tolist(), "agent_levels": self.agent_levels.tolist(),
+                "targets": self.targets.tolist(), "target_levels": self.target_levels.tolist(),
+                "alive": self.alive.tolist()}
+
+
+@dataclass(frozen=True)
+class StepPlan:
+    """The outcome of one grid step decided by the rules, before it is applied (or executed physically)."""
+
+    agents: np.ndarray  # (N, 2) cells after the move
+    targets: np.ndarray  # (M, 2) cells after the prey's move
+    completed: np.ndarray  # (M,) bool: foraged/captured this step
+
+
+class GridRules:
+    """The rules of one :class:`GridConfig`: spawning, moves, foraging/capture, distances."""
+
+    def __init__(self, config: GridConfig) -> None:
+        self.config = config
+        self.shape = np.array([config.rows, config.cols], dtype=np.int64)
+        cells = np.stack(np.divmod(np.arange(config.rows * config.cols), config.cols), axis=-1)
+        wanted, inside = self.normalise(cells[:, None, :] + MOVES[None, :4, :])
+        # neighbours[flat cell, action] = flat index of the cell that move leads to, or -1 (a wall)
+        self.neighbours = np.where(inside, wanted[..., 0] * config.cols + wanted[..., 1], -1)
+        self.neighbour_lists: list[list[int]] = self.neighbours.tolist()
+
+    # -- geometry ---------------------------------------------------------------------------------------------
+    def normalise(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Wrap cells on a torus, or flag those outside the walls: returns (cells, inside mask)."""
+        cells = np.asarray(cells, dtype=np.int64)
+        if self.config.toroidal:
+            return cells % self.shape, np.ones(cells.shape[:-1], dtype=bool)
+        inside = np.all((cells >= 0) & (cells < self.shape), axis=-1)
+        return cells, inside
+
+    def delta(self, frm: np.ndarray, to: np.ndarray) -> np.ndarray:
+        """Shortest signed displacement ``to - frm`` (through the wrap on a torus)."""
+        d = np.asarray(to, dtype=np.int64) - np.asarray(frm, dtype=np.int64)
+        if self.config.toroidal:
+            d = (d + self.shape // 2) % self.shape - self.shape // 2
+        return d
+
+    def distance(self, frm: np.ndarray, to: np.ndarray) -> np.ndarray:
+        """Manhattan distance (toroidal if the grid wraps)."""
+        return np.abs(self.delta(frm, to)).sum(axis=-1)
+
+    def target_cells_valid(self, cells: np.ndarray) -> np.ndarray:
+        """Cells where a target may stand: anywhere on a torus, else the interior (all task positions exist)."""
+        cells = np.asarray(cells)
+        if self.config.toroidal:
+            return np.ones(cells.shape[:-1], dtype=bool)
+        interior = np.all((cells >= 1) & (cells <= self.shape - 2), axis=-1)
+        # An apple on an interior corner would, with agents on two of its slots, seal the grid's corner cell
+        # (its only exits are those slots): such cells are excluded so that no spawn can deadlock a team.
+        corner = np.all((cells == 1) | (cells == self.shape - 2), axis=-1)
+        return interior & ~corner
+
+    def occupancy(self, state: GridState) -> np.ndarray:
+        """(R, C) int grid: 0 free, 1 + i for agent i, -1 - m for live target m."""
+        grid = np.zeros((self.config.rows, self.config.cols), dtype=np.int64)
+        alive = state.targets[state.alive]
+        grid[alive[:, 0], alive[:, 1]] = -1 - np.flatnonzero(state.alive)
+        grid[state.agents[:, 0], state.agents[:, 1]] = 1 + np.arange(len(state.agents))
+        return grid
+
+    # -- spawning ---------------------------------------------------------------------------------------------
+    def sample_state(self, rng: np.random.Generator) -> GridState:
+        """A random initial state: targets on valid cells, agents on the remaining free cells."""
+        cfg = self.config
+        all_cells = np.stack(np.divmod(np.arange(cfg.rows * cfg.cols), cfg.cols), axis=-1)
+        valid = np.flatnonzero(self.target_cells_valid(all_cells))
+        target_idx = rng.choice(valid, size=cfg.n_targets, replace=False)
+        free = np.setdiff1d(np.arange(cfg.rows * cfg.cols), target_idx)
+        agent_idx = rng.choice(free, size=cfg.n_agents, replace=False)
+        if cfg.domain == "foraging":
+            agent_levels = rng.integers(1, cfg.max_agent_level + 1, size=cfg.n_agents)
+            target_levels = rng.integers(1, int(agent_levels.sum()) + 1, size=cfg.n_targets)
+        else:
+            agent_levels = np.ones(cfg.n_agents, dtype=np.int64)
+            target_levels = np.ones(cfg.n_targets, dtype=np.int64)
+        return GridState(all_cells[agent_idx].copy(), agent_levels.astype(np.int64),
+                         all_cells[target_idx].copy(), target_levels.astype(np.int64))
+
+    # -- one step ---------------------------------------------------------------------------------------------
+    def completed_targets(self, state: GridState, task: Task, actions: np.ndarray) -> np.ndarray:
+        """Targets foraged/captured by ``actions`` in ``state`` (section 6.2.1): every agent stands at its task
+        position around the target, all execute Forage/Capture (unless ``interact_required`` is off) and, for
+        LBF, their levels sum to at least the target's level."""
+        n = self.config.n_agents
+        if len(task.offsets) != n:
+            raise ConfigError(f"task {task.name} has {len(task.offsets)} positions for {n} agents")
+        done = np.zeros(len(state.targets), dtype=bool)
+        interacting = np.asarray(actions) == INTERACT
+        if self.config.interact_required and not interacting.all():
+            return done
+        offsets = np.array(task.offsets, dtype=np.int64)
+        for m in np.flatnonzero(state.alive):
+            rel = self.delta(state.targets[m], state.agents)  # (N, 2)
+            if task.interchangeable:
+                ok = sorted(map(tuple, rel.tolist())) == sorted(map(tuple, offsets.tolist()))
+            else:
+                ok = bool(np.all(rel == offsets))
+            if ok and state.agent_levels.sum() >= state.target_levels[m]:
+                done[m] = True
+        return done
+
+    def resolve_moves(self, movers: np.ndarray, moves: np.ndarray, blocked: np.ndarray) -> np.ndarray:
+        """New cells of ``movers`` (K, 2) moving by ``moves`` (K, 2): a move fails if it leaves the walls, enters
+        a ``blocked`` (R, C) cell, or claims a cell another mover also claims."""
+        wanted, inside = self.normalise(movers + moves)
+        moving = np.any(moves != 0, axis=-1) & inside
+        rows, cols = np.where(inside, wanted[:, 0], 0), np.where(inside, wanted[:, 1], 0)
+        moving &= ~blocked[rows, cols]
+        flat = rows * self.config.cols + cols
+        claims = np.bincount(flat[moving], minlength=self.config.rows * self.config.cols)
+        moving &= claims[flat] == 1
+        return np.where(moving[:, None], wanted, movers)
+
+    def plan(self, state: GridState, task: Task, actions: np.ndarray, rng: np.random.Generator) -> StepPlan:
+        """Decide one step: completions (checked first, on the current state), agent moves, then prey moves
+        into cells free both before and after the agents move. Only pursuit consumes ``rng``."""
+        actions = np.asarray(actions, dtype=np.int64)
+        if actions.shape != (self.config.n_agents,) or np.any((actions < 0) | (actions > 4)):
+            raise ConfigError(f"actions {actions.tolist()}: need {self.config.n_agents} integers in 0..4")
+        completed = self.completed_targets(state, task, actions)
+        alive = state.alive & ~completed
+        blocked = self.occupancy(state) != 0
+        agents = self.resolve_moves(state.agents, MOVES[actions], blocked)
+        targets = state.targets.copy()
+        if self.config.domain == "pursuit" and alive.any():
+            m = len(targets)
+            stay = rng.random(m) < self.config.prey_stay_probability
+            direction = rng.integers(0, 4, size=m)
+            moves = np.where((stay | ~alive)[:, None], 0, MOVES[direction])
+            wanted, _ = self.normalise(targets + moves)
+            valid = self.target_cells_valid(wanted)
+            moves = np.where(valid[:, None], moves, 0)
+            blocked = blocked.copy()
+            blocked[agents[:, 0], agents[:, 1]] = True
+            targets = self.resolve_moves(targets, moves, blocked)
+        return StepPlan(agents, targets, completed)
+
+    def apply(self, state: GridState, plan: StepPlan) -> GridState:
+        """The state after ``plan`` (the grid twin's transition)."""
+        return GridState(plan.agents.copy(), state.agent_levels.copy(), plan.targets.copy(),
+                         state.target_levels.copy(), state.alive & ~plan.completed)
