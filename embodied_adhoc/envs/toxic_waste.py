@@ -11,7 +11,7 @@ from gymnasium import spaces
 
 from embodied_adhoc.domains.lab import DEFAULT_TASKS, LabObservation, build_lab_library
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND, HELD
-from embodied_adhoc.envs.toxic_waste_speech import SpeechTurn, make_speech
+from embodied_adhoc.envs.toxic_waste_speech import SPEECH_KINDS, SpeechTurn, make_speech
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["ToxicWasteEnv"]
@@ -126,6 +126,8 @@ class ToxicWasteEnv(gymnasium.Env):
 
         if render_mode not in (None, "rgb_array"):
             raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if speech not in SPEECH_KINDS:
+            raise ConfigError(f"speech={speech!r} unknown; use one of {', '.join(SPEECH_KINDS)}")
         if render_quality not in ("fast", "high"):
             raise ConfigError(f"render_quality must be 'fast' or 'high', got {render_quality!r}")
         if int(max_episode_steps) < 1:
