@@ -16,8 +16,6 @@ Measures, in one run:
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import statistics
 import subprocess
 import sys
@@ -25,6 +23,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+
+from embodied_adhoc.experiments.script_args import parse_dataclass_args
 
 AGENTS = ("hotspot", "known-task", "oracle", "random")
 
@@ -42,12 +42,7 @@ class Args:
 
 
 def parse_args() -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in dataclasses.fields(Args):
-        parser.add_argument("--" + f.name, type=int, default=f.default)
-    return Args(**vars(parser.parse_args()))
+    return parse_dataclass_args(Args, __doc__)
 
 
 def clear_model_caches() -> None:

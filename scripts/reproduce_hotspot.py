@@ -14,8 +14,6 @@ with our p-values, and writes the runs (resumable CSVs) and plots to --out::
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +23,7 @@ from scipy import stats
 from embodied_adhoc.experiments.plots import plot_entropy, plot_settings, plot_steps
 from embodied_adhoc.experiments.registry import get_trial_domain
 from embodied_adhoc.experiments.runner import SweepConfig, SweepResult, run_sweep
+from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.stats import welch_test
 from embodied_adhoc.experiments.tables import fmt, format_table, interval, mean_sd, p_value
 
@@ -59,17 +58,7 @@ class Args:
 
 
 def parse_args() -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    for f in dataclasses.fields(Args):
-        flag = "--" + f.name.replace("_", "-")
-        if f.type in ("bool", bool):
-            parser.add_argument(flag, action="store_true")
-        else:
-            kind = {"Path": Path, "int": int}[f.type if isinstance(f.type, str) else f.type.__name__]
-            parser.add_argument(flag, type=kind, default=f.default)
-    return Args(**vars(parser.parse_args()))
+    return parse_dataclass_args(Args, __doc__)
 
 
 def run_setting(args: Args, setting: str) -> SweepResult:
