@@ -92,6 +92,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle_toxic_waste(args: argparse.Namespace) -> int:
+    import os
+
+    # Headless by default: MuJoCo picks its GL backend when first imported, so decide before that.
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("MUJOCO_GL", "egl")
+        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from embodied_adhoc.envs.toxic_waste_episode import EpisodeConfig, run_episode
     from embodied_adhoc.errors import ConfigError
 
