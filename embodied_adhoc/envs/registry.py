@@ -33,6 +33,25 @@ ENV_SPECS: list[EnvSpec] = [
         "HOTSPOT toxic-waste lab on MuJoCo: wheeled container robot on odometry, walking human, balls, RFID, speech",
         backend="mujoco",
     ),
+    # arenas (issue 6): level-based foraging and predator-prey, grid twin + MuJoCo arena
+    EnvSpec("EmbodiedAdhoc/ForagingGrid-v0", "embodied_adhoc.envs.foraging:ForagingEnv",
+            "Level-based foraging grid twin: 5x5, 4 foragers, N/S/W/E tasks, teams tau0-2, egocentric 5x5 view",
+            max_episode_steps=200),
+    EnvSpec("EmbodiedAdhoc/Foraging-v0", "embodied_adhoc.envs.foraging:ForagingEnv",
+            "Level-based foraging MuJoCo arena: diff-drive robots cell to cell, apples sized by level",
+            kwargs={"backend": "mujoco"}, max_episode_steps=200, backend="mujoco"),
+    EnvSpec("EmbodiedAdhoc/PursuitGrid-v0", "embodied_adhoc.envs.pursuit:PursuitEnv",
+            "Predator-prey grid twin: 5x5, 4 predators, random prey, N/S/W/E tasks, teams tau0-2",
+            max_episode_steps=200),
+    EnvSpec("EmbodiedAdhoc/Pursuit-v0", "embodied_adhoc.envs.pursuit:PursuitEnv",
+            "Predator-prey MuJoCo arena: predator robots and a randomly moving prey robot",
+            kwargs={"backend": "mujoco"}, max_episode_steps=200, backend="mujoco"),
+    EnvSpec("EmbodiedAdhoc/PursuitPairGrid-v0", "embodied_adhoc.envs.pursuit:PursuitEnv",
+            "Fig. 7.12 two-predator pursuit grid twin: capture pairs N+S, W+E, SW+NE, NW+SE; greedy/aware teammate",
+            kwargs={"pairs": True}, max_episode_steps=150),
+    EnvSpec("EmbodiedAdhoc/PursuitPair-v0", "embodied_adhoc.envs.pursuit:PursuitEnv",
+            "Fig. 7.12 two-predator pursuit in the MuJoCo arena",
+            kwargs={"pairs": True, "backend": "mujoco"}, max_episode_steps=150, backend="mujoco"),
 ]
 
 

@@ -1,0 +1,75 @@
+"""Predator-prey envs: ``EmbodiedAdhoc/PursuitGrid-v0`` (grid twin), ``EmbodiedAdhoc/Pursuit-v0`` (MuJoCo arena)
+and the two-predator variant of Fig. 7.12 (``EmbodiedAdhoc/PursuitPairGrid-v0``, ``EmbodiedAdhoc/PursuitPair-v0``)."""
+
+from __future__ import annotations
+
+from embodied_adhoc.domains.pursuit import pursuit_config, pursuit_tasks, two_predator_config
+from embodied_adhoc.envs.grid_world_env_adhoc import AdhocGridEnv
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.teammates.pursuit_teams import PURSUIT_TEAMS
+
+FOUR_PREDATOR_TEAMS = {k: PURSUIT_TEAMS[k] for k in ("tau0", "tau1", "tau2")}
+TWO_PREDATOR_TEAMS = {k: PURSUIT_TEAMS[k] for k in ("greedy", "aware")}
+
+
+class PursuitEnv(AdhocGridEnv):
+    """Predator-prey with an unknown team and task (thesis sections 6.2.1-6.2.2, and 5.2.5 / Fig. 7.12).
+
+    ## Description
+    N predators (the ad hoc robot, agent 0, plus N-1 scripted teammates) and M prey on an R x C grid. The prey
+    stays with probability ``prey_stay_probability`` (0.2), else tries one of the four moves uniformly (a move
+    into a wall, an occupied cell, or, on walled grids, onto the border fails). A prey is captured when every
+    predator stands at its task position around it (task 1: agents 0..3 north, south, west, east of the prey;
+    tasks 2-4 rotate that) and all execute *Capture* in the same step; it ends when every prey is captured.
+    Teams: tau0 (closest prey, greedy), tau1 (shortest paths around teammates), tau2 (encircling ring).
+    ``pairs=True`` is the two-predator variant of Fig. 7.12: ``n_agents=2``, tasks N+S, W+E, SW+NE, NW+SE
+    with interchangeable positions, teams ``greedy`` / ``aware`` (A*), and capture happens as soon as the pair
+    is in position (action 4 means *Stay*).
+
+    ## Action space
+    ``Discrete(5)``: 0 up (row - 1), 1 down, 2 left (column - 1), 3 right, 4 capture (*Stay* when ``pairs``).
+
+    ## Observation space
+    ``obs_mode="grid"``: ``Box(0, 1, (C, f, f), float32)``, egocentric ``f x f`` view with
+    ``C = (N-1) + M + 1`` channels: one per teammate, one per prey and the boundary.
+    ``obs_mode="image"`` (``backend="mujoco"`` only): ``Box(0, 255, (image_size, image_size, 3), uint8)``.
+
+    ## Rewards
+    Sparse: 1.0 on the step the last prey is captured, else 0.0.
+
+    ## Starting state
+    Prey on interior cells (off the border and interior corners on walled grids), predators on free cells.
+
+    ## Episode end
+    Terminated when all prey are captured; truncated by ``max_episode_steps`` (200; 150 for the pair variant
+    as in Fig. 7.12).
+
+    ## Arguments
+    ``gymnasium.make("EmbodiedAdhoc/PursuitGrid-v0", tasks=None, teams=None, rows=5, cols=5, n_agents=4,
+    n_prey=1, pairs=False, toroidal=False, prey_stay_probability=0.2, view=5, backend="abstract",
+    obs_mode="grid", image_size=64, render_mode=None)``; ``reset(options={"task", "team", "state"})``.
+
+    ## Info
+    ``task`` (1-based), ``task_name``, ``team``, ``state`` (ground truth, evaluation only), ``steps``,
+    ``remaining``; after a step ``completed`` and ``teammate_actions``.
+
+    ## Version history
+    v0: initial release.
+    """
+
+    def __init__(self, tasks=None, teams=None, rows: int = 5, cols: int = 5, n_agents: int | None = None,
+                 n_prey: int = 1, pairs: bool = False, toroidal: bool = False, prey_stay_probability: float = 0.2,
+                 view: int = 5, backend: str = "abstract", obs_mode: str = "grid", image_size: int = 64,
+                 render_mode: str | None = None, **backend_kwargs):
+        common = dict(rows=rows, cols=cols, n_targets=n_prey, toroidal=toroidal,
+                      prey_stay_probability=prey_stay_probability)
+        if pairs:
+            if n_agents not in (None, 2):
+                raise ConfigError(f"n_agents={n_agents}: the pair variant (pairs=True) has two predators")
+            config, library, teams_lib = two_predator_config(**common), pursuit_tasks(pairs=True), TWO_PREDATOR_TEAMS
+        else:
+            n_agents = 4 if n_agents is None else n_agents
+            config = pursuit_config(n_agents=n_agents, **common)
+            library, teams_lib = pursuit_tasks(n_agents), FOUR_PREDATOR_TEAMS
+        super().__init__(config, library, teams_lib, tasks, teams, view, backend, obs_mode, image_size,
+                         render_mode, **backend_kwargs)
