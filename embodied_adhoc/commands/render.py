@@ -30,14 +30,15 @@ def handle_lab(args: argparse.Namespace) -> int:
     import imageio.v3 as iio
 
     from embodied_adhoc.record.atomic import publish, temporary_sibling
-    from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld
+    from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig
 
     out = Path(args.out)
     if out.suffix.lower() not in (".png", ".jpg", ".jpeg"):
         raise ConfigError(f"--out {out}: use a .png or .jpg file name")
     if not out.parent.is_dir():
         raise ConfigError(f"--out {out}: folder {out.parent} does not exist; create it first")
-    with LabWorld() as world:
+    config = LabWorldConfig(render_shadows=not args.fast, render_reflections=not args.fast)
+    with LabWorld(config) as world:
         world.reset(
             seed=args.seed, robot_node=args.robot_node, human_node=args.human_node, ball_nodes=args.task
         )
@@ -82,6 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     lab.add_argument("--width", type=int, default=1280, help="image width in pixels (default 1280)")
     lab.add_argument("--height", type=int, default=1024, help="image height in pixels (default 1024)")
+    lab.add_argument("--fast", action="store_true", help="no shadows or reflections (what videos use)")
     lab.add_argument("--seed", type=int, default=0, help="seed of the world (default 0)")
     lab.set_defaults(func=handle_lab)
     group.set_defaults(_parser=group)

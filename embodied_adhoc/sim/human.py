@@ -288,11 +288,10 @@ class HumanWalker:
 
 
 def _quat_z_to(axis: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) rotating the z axis onto unit vector ``axis``."""
-    z = np.array([0.0, 0.0, 1.0])
-    cross = np.cross(z, axis)
-    dot = float(z @ axis)
-    if dot < -0.999999:
+    """Unit quaternion (w, x, y, z) rotating the z axis onto unit vector ``axis`` (the half-way quaternion)."""
+    ax, ay, az = float(axis[0]), float(axis[1]), float(axis[2])
+    if az < -0.999999:
         return np.array([0.0, 1.0, 0.0, 0.0])
-    quat = np.array([1.0 + dot, cross[0], cross[1], cross[2]])
-    return quat / np.linalg.norm(quat)
+    w = 1.0 + az  # z . axis; the vector part is z x axis = (-ay, ax, 0)
+    norm = math.sqrt(w * w + ax * ax + ay * ay)
+    return np.array([w / norm, -ay / norm, ax / norm, 0.0])

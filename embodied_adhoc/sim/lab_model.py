@@ -68,6 +68,8 @@ class LabIds:
     grasp_welds: np.ndarray
     robot_geoms: np.ndarray
     wall_geoms: np.ndarray
+    robot_geom_mask: np.ndarray  # (ngeom,) bool lookup tables for contact checks
+    wall_geom_mask: np.ndarray
 
     @classmethod
     def resolve(cls, model: mujoco.MjModel) -> LabIds:
@@ -79,6 +81,11 @@ class LabIds:
         geom_names = [mujoco.mj_id2name(model, obj.mjOBJ_GEOM, g) or "" for g in range(model.ngeom)]
         robot_geoms = np.flatnonzero(model.body_rootid[model.geom_bodyid] == base)
         wall_geoms = np.array([g for g, name in enumerate(geom_names) if name.startswith(WALL_PREFIXES)])
+
+        robot_mask = np.zeros(model.ngeom, dtype=bool)
+        robot_mask[robot_geoms] = True
+        wall_mask = np.zeros(model.ngeom, dtype=bool)
+        wall_mask[wall_geoms] = True
 
         def sensor_address(name: str) -> int:
             return int(model.sensor_adr[_id(model, obj.mjOBJ_SENSOR, name)])
@@ -101,6 +108,8 @@ class LabIds:
             grasp_welds=np.array([_id(model, obj.mjOBJ_EQUALITY, name) for name in GRASP_WELDS]),
             robot_geoms=robot_geoms,
             wall_geoms=wall_geoms,
+            robot_geom_mask=robot_mask,
+            wall_geom_mask=wall_mask,
         )
 
 

@@ -46,6 +46,8 @@ class LabWorldConfig:
         min_macro_seconds: a macro step lasts at least this long (a "stay" still lets time pass).
         video_fps: rate (simulated frames per second) at which ``frame_callback`` is called.
         render_width, render_height: default image size of ``render``.
+        render_shadows, render_reflections: pretty but slow without a GPU (software EGL renders about 4x
+            faster with both off), so videos default to off; still images (``render lab``) turn them on.
         scene: scene file in ``scenes/``.
     """
 
@@ -60,6 +62,8 @@ class LabWorldConfig:
     video_fps: float = 15.0
     render_width: int = 640
     render_height: int = 512
+    render_shadows: bool = False
+    render_reflections: bool = False
     scene: str = "lab.xml"
 
     def __post_init__(self) -> None:
@@ -196,9 +200,10 @@ class LabWorld:
                 break
             wheels = self.controller.update(elapsed, self.odometry.pose)
             data.ctrl[self.ids.wheel_actuators] = wheels
-            for kind, ball in self.human.tick(config.control_period, self._senses()):
-                data.eq_active[self.ids.grasp_welds[ball]] = kind == "grasp"
-            self._apply_human()
+            if not self.human.finished:  # an idle human stands still: nothing to update
+                for kind, ball in self.human.tick(config.control_period, self._senses()):
+                    data.eq_active[self.ids.grasp_welds[ball]] = kind == "grasp"
+                self._apply_human()
             self._physics(self.substeps)
             self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
             events.extend(self.rfid.poll(data))
@@ -277,6 +282,8 @@ class LabWorld:
             renderer = mujoco.Renderer(self.model, height=height, width=width)
             self._renderers[(width, height)] = renderer
         renderer.update_scene(self.data, camera=name)
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.config.render_shadows
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = self.config.render_reflections
         return renderer.render()
 
     def close(self) -> None:
@@ -297,11 +304,12 @@ class LabWorld:
 
     def _senses(self) -> HumanSenses:
         ids, data = self.ids, self.data
+        robot = self.true_robot_pose()
         return HumanSenses(
             ball_positions=data.xpos[ids.ball_bodies].copy(),
             container_position=data.site_xpos[ids.rfid_site].copy(),
-            robot_yaw=self.true_robot_pose()[2],
-            robot_node=self.layout.node_at(self.true_robot_pose()[:2]),
+            robot_yaw=robot[2],
+            robot_node=self.layout.node_at(robot[:2]),
         )
 
     def _apply_human(self) -> None:

@@ -52,14 +52,15 @@ class WheelOdometry:
         self.rng = rng
         self._tick = 2.0 * math.pi / config.ticks_per_revolution
         self.pose = np.zeros(3)
-        self._last_counts = np.zeros(2, dtype=np.int64)
+        self._last_counts = (0, 0)
         self._scale = np.ones(2)
         self.distance = 0.0  # metres travelled by the wheel-centre midpoint, as measured
 
     def reset(self, pose: tuple[float, float, float], wheel_angles: np.ndarray) -> None:
         """Start from a known ``pose`` with the current true wheel angles (rad, left/right)."""
         self.pose = np.array(pose, dtype=float)
-        self._last_counts = self.counts(wheel_angles)
+        counts = self.counts(wheel_angles)
+        self._last_counts = (int(counts[0]), int(counts[1]))
         self._scale = 1.0 + self.config.wheel_slip * self.rng.standard_normal(2)
         self.distance = 0.0
 
@@ -69,17 +70,22 @@ class WheelOdometry:
 
     def update(self, wheel_angles: np.ndarray) -> np.ndarray:
         """Read the encoders at the true ``wheel_angles`` (rad, left/right), integrate, return the pose."""
-        counts = self.counts(wheel_angles)
-        delta = (counts - self._last_counts) * self._tick
+        counts = (math.floor(wheel_angles[0] / self._tick), math.floor(wheel_angles[1] / self._tick))
+        delta = (
+            (counts[0] - self._last_counts[0]) * self._tick,
+            (counts[1] - self._last_counts[1]) * self._tick,
+        )
         self._last_counts = counts
-        if self.config.encoder_noise > 0:
-            delta = delta + self.config.encoder_noise * np.sqrt(np.abs(delta)) * self.rng.standard_normal(2)
-        travel = delta * self._scale * self.config.wheel_radius  # metres rolled by each wheel
+        noise = self.rng.standard_normal(2) if self.config.encoder_noise > 0 else (0.0, 0.0)
+        travel = [0.0, 0.0]  # metres rolled by each wheel, as measured
+        for wheel in (0, 1):
+            step = float(delta[wheel])
+            step += self.config.encoder_noise * math.sqrt(abs(step)) * float(noise[wheel])
+            travel[wheel] = step * float(self._scale[wheel]) * self.config.wheel_radius
         ds = 0.5 * (travel[0] + travel[1])
         dyaw = (travel[1] - travel[0]) / self.config.track_width
-        mid_yaw = self.pose[2] + 0.5 * dyaw
-        self.pose[0] += ds * math.cos(mid_yaw)
-        self.pose[1] += ds * math.sin(mid_yaw)
-        self.pose[2] = wrap_angle(self.pose[2] + dyaw)
+        x, y, yaw = self.pose
+        mid_yaw = yaw + 0.5 * dyaw
+        self.pose[:] = (x + ds * math.cos(mid_yaw), y + ds * math.sin(mid_yaw), wrap_angle(yaw + dyaw))
         self.distance += abs(ds)
         return self.pose

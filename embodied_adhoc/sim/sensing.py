@@ -38,6 +38,8 @@ class RfidReader:
 
     def poll(self, data: mujoco.MjData) -> list[int]:
         """Balls read at this tick (first entries that were not missed)."""
+        if self.entered.all():
+            return []
         new = np.flatnonzero(self.inside_mask(data) & ~self.entered)
         events = []
         for ball in new:
@@ -52,6 +54,5 @@ def robot_wall_contact(data: mujoco.MjData, ids: LabIds) -> bool:
     if data.ncon == 0:
         return False
     pairs = data.contact.geom[: data.ncon]
-    robot = np.isin(pairs, ids.robot_geoms)
-    wall = np.isin(pairs, ids.wall_geoms)
-    return bool(np.any((robot[:, 0] & wall[:, 1]) | (robot[:, 1] & wall[:, 0])))
+    robot, wall = ids.robot_geom_mask, ids.wall_geom_mask
+    return bool(np.any((robot[pairs[:, 0]] & wall[pairs[:, 1]]) | (robot[pairs[:, 1]] & wall[pairs[:, 0]])))

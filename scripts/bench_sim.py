@@ -1,0 +1,148 @@
+"""Benchmark and odometry report of the MuJoCo lab (issue 4).
+
+Prints, all measured in this run on this machine:
+  1. real-time factor of LabWorld tours (simulated seconds per wall second, headless, controller + odometry +
+     human + RFID included);
+  2. the same model stepped raw (mj_step, constant controls) and the controller/bookkeeping overhead as a ratio;
+  3. offscreen rendering frames per second per camera;
+  4. dead-reckoning drift after each full tour (every edge both ways) and the node-estimate accuracy at every
+     arrival (thesis Metric 7), at the default encoder noise and wheel slip.
+
+Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render-frames 30] [--width 640 --height 512]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco  # noqa: E402
+
+from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig  # noqa: E402
+
+TOUR = (1, 2, 1, 3, 4, 3, 1, 0)  # from the door, every edge in both directions
+
+
+@dataclass(frozen=True)
+class Args:
+    tours: int = 5
+    """number of full tours (seeds 0..tours-1) for drift and Metric 7"""
+    raw_seconds: float = 20.0
+    """simulated seconds of raw mj_step for the reference rate"""
+    render_frames: int = 30
+    """frames per camera for the render rate"""
+    width: int = 640
+    height: int = 512
+
+
+def parse_args() -> Args:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    for item in fields(Args):
+        parser.add_argument(f"--{item.name.replace('_', '-')}", type=type(item.default), default=item.default)
+    return Args(**vars(parser.parse_args()))
+
+
+def run_tours(world: LabWorld, tours: int) -> tuple[list[dict], float, float]:
+    rows, sim_total, wall_total = [], 0.0, 0.0
+    for seed in range(tours):
+        world.reset(seed=seed, robot_node=0, human_node=4, ball_nodes=(0, 1, 2))
+        correct, contacts, arrived, worst_arrival = 0, 0, 0, 0.0
+        start = time.perf_counter()
+        sim = 0.0
+        for target in TOUR:
+            result = world.step_macro(target, HumanCommand.stay())
+            sim += result.sim_seconds
+            correct += result.odometry_node == result.true_robot_node
+            contacts += result.wall_contact
+            arrived += result.robot_arrived
+            goal = world.layout.node_waypoints[target]
+            truth = world.ground_truth().robot_pose
+            worst_arrival = max(worst_arrival, float(np.hypot(truth[0] - goal[0], truth[1] - goal[1])))
+        wall = time.perf_counter() - start
+        sim_total, wall_total = sim_total + sim, wall_total + wall
+        rows.append(
+            {
+                "seed": seed,
+                "distance_m": world.odometry.distance,
+                "drift_m": world.odometry_error(),
+                "node_correct": correct,
+                "arrivals": arrived,
+                "worst_arrival_m": worst_arrival,
+                "wall_contacts": contacts,
+                "rtf": sim / wall,
+            }
+        )
+    return rows, sim_total, wall_total
+
+
+def raw_step_rate(world: LabWorld, seconds: float) -> float:
+    """Simulated seconds per wall second of bare mj_step on the same model, robot driving on constant wheels."""
+    world.reset(seed=0, robot_node=1, human_node=4, ball_nodes=(0, 1, 2))
+    model, data = world.model, world.data
+    data.ctrl[world.ids.wheel_actuators] = [3.0, 3.3]
+    steps = int(seconds / model.opt.timestep)
+    start = time.perf_counter()
+    for _ in range(steps):
+        mujoco.mj_step(model, data)
+    return seconds / (time.perf_counter() - start)
+
+
+def render_rate(world: LabWorld, camera: str, frames: int, width: int, height: int) -> float:
+    world.render(camera, width, height)  # context creation excluded
+    start = time.perf_counter()
+    for _ in range(frames):
+        world.render(camera, width, height)
+    return frames / (time.perf_counter() - start)
+
+
+def main() -> None:
+    args = parse_args()
+    with LabWorld(LabWorldConfig()) as world:
+        rows, sim_total, wall_total = run_tours(world, args.tours)
+        raw_rtf = raw_step_rate(world, args.raw_seconds)
+        world.reset(seed=0, robot_node=1, human_node=1, ball_nodes=(0, 1, 2))
+        fps = {
+            cam: render_rate(world, cam, args.render_frames, args.width, args.height)
+            for cam in ("overhead", "robot")
+        }
+    world_rtf = sim_total / wall_total
+    print(
+        f"physics timestep {world.config.timestep * 1e3:.1f} ms, control period {world.config.control_period * 1e3:.0f} ms"
+    )
+    print(
+        "\n| seed | distance (m) | drift after tour (m) | node estimate correct | arrived | worst arrival error (m) | wall contacts | RTF |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for row in rows:
+        print(
+            f"| {row['seed']} | {row['distance_m']:.1f} | {row['drift_m']:.3f} | {row['node_correct']}/{len(TOUR)} | "
+            f"{row['arrivals']}/{len(TOUR)} | {row['worst_arrival_m']:.3f} | {row['wall_contacts']} | {row['rtf']:.1f} |"
+        )
+    drifts = np.array([row["drift_m"] for row in rows])
+    accuracy = sum(row["node_correct"] for row in rows) / (len(rows) * len(TOUR))
+    print(
+        f"\ndrift after a full tour: mean {drifts.mean():.3f} m, max {drifts.max():.3f} m "
+        f"({100 * drifts.mean() / np.mean([r['distance_m'] for r in rows]):.2f} % of distance)"
+    )
+    print(
+        f"node-estimate accuracy (thesis Metric 7): {100 * accuracy:.1f} % over {len(rows) * len(TOUR)} arrivals"
+    )
+    print("\n| measure | value |")
+    print("|---|---|")
+    print(f"| LabWorld real-time factor (sim s / wall s, headless) | {world_rtf:.1f} |")
+    print(f"| raw mj_step real-time factor, same model | {raw_rtf:.1f} |")
+    print(
+        f"| controller + odometry + human + RFID overhead (raw / LabWorld wall time per sim s) | {raw_rtf / world_rtf:.2f}x |"
+    )
+    for cam, rate in fps.items():
+        print(f"| offscreen render {cam} {args.width}x{args.height} (frames/s) | {rate:.1f} |")
+
+
+if __name__ == "__main__":
+    main()
