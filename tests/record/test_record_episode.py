@@ -112,3 +112,20 @@ def test_run_command_rejects_odd_video_size(tmp_path):
         timeout=300,
     )
     assert result.returncode == 2 and "even" in result.stderr
+
+
+def test_interrupted_run_keeps_finished_work(tmp_path):
+    import pytest
+
+    def interrupt(step, info):
+        raise KeyboardInterrupt
+
+    config = EpisodeConfig(
+        seed=0, task=0, robot_node=0, human_node=0, max_steps=5, record_dir=tmp_path, width=32, height=24
+    )
+    with pytest.raises(KeyboardInterrupt):
+        run_episode(config, progress=interrupt)
+    written = json.loads((tmp_path / "metrics.json").read_text())
+    assert written["outcome"] == "interrupted" and written["steps"] == 1 and not written["success"]
+    assert (tmp_path / "episode.mp4").stat().st_size > 0 and (tmp_path / "episode.rrd").stat().st_size > 0
+    assert not list(tmp_path.glob(".*partial*"))
