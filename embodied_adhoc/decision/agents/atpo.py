@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from embodied_adhoc.decision.agents.hotspot import pick_best
+from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.decision.agents.task_beliefs import LibraryBeliefs, LibraryKernels
 from embodied_adhoc.errors import ModelError
 
@@ -50,10 +50,7 @@ class AtpoAgent:
         return distribution
 
     def act(self) -> int:
-        distribution = self.action_distribution()
-        if self.greedy:
-            return pick_best(distribution, self.rng)
-        return int(self.rng.choice(len(distribution), p=distribution / distribution.sum()))
+        return draw_action(self.action_distribution(), self.rng, self.greedy)
 
     def observe(self, action: int, observation: int, state: int | None = None) -> None:
         self.tracker.update(action, observation)

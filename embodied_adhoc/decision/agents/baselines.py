@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from embodied_adhoc.decision.agents.hotspot import pick_best
+from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["OracleAgent", "RandomAgent"]

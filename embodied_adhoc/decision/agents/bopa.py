@@ -17,7 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from embodied_adhoc.decision.agents.hotspot import pick_best
+from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.decision.agents.task_beliefs import check_library
 from embodied_adhoc.decision.models import MDP
 from embodied_adhoc.errors import ConfigError, ModelError
@@ -65,10 +65,7 @@ class BopaAgent:
         return self.posterior @ self.policies[:, self.state, :]
 
     def act(self) -> int:
-        distribution = self.action_distribution()
-        if self.greedy:
-            return pick_best(distribution, self.rng)
-        return int(self.rng.choice(len(distribution), p=distribution / distribution.sum()))
+        return draw_action(self.action_distribution(), self.rng, self.greedy)
 
     def observe(self, action: int, observation: int, state: int | None = None) -> None:
         """Eq. 5.1 on the observed transition ``(x_t, a_t, x_{t+1})``."""

@@ -27,12 +27,13 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.decision.agents.task_beliefs import LibraryBeliefs, LibraryKernels, normalised_entropy
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["HotspotAgent", "HotspotConfig", "HotspotPlan", "information_reward", "plan_hotspot", "pick_best"]
+__all__ = ["HotspotAgent", "HotspotConfig", "HotspotPlan", "information_reward", "plan_hotspot"]
 
 
 REWARD_GAINS = ("thesis", "conditional", "none")
@@ -122,13 +123,6 @@ def plan_hotspot(pomdps: Sequence[POMDP], config: HotspotConfig = HotspotConfig(
         q_info.append(value_iteration(pomdp, rewards=info, tolerance=config.vi_tolerance).q_values)
         info_rewards.append(info)
     return HotspotPlan(kernels, np.stack(q_task), np.stack(q_info), np.stack(info_rewards), config)
-
-
-def pick_best(values: np.ndarray, rng: np.random.Generator) -> int:
-    """Argmax with ties (to 1e-9 relative) broken uniformly with ``rng``."""
-    best = values.max()
-    ties = np.flatnonzero(values >= best - 1e-9 * max(1.0, abs(best)))
-    return int(ties[0]) if ties.size == 1 else int(rng.choice(ties))
 
 
 class HotspotAgent:
