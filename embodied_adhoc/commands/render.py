@@ -37,17 +37,17 @@ def handle_lab(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out {out}: use a .png or .jpg file name")
     if not out.parent.is_dir():
         raise ConfigError(f"--out {out}: folder {out.parent} does not exist; create it first")
+    if args.pick is not None and args.task[args.pick] != args.human_node:
+        raise ConfigError(
+            f"--pick {args.pick}: that ball lies at node {args.task[args.pick]}, the human is at node "
+            f"{args.human_node}; pick a ball in the human's area"
+        )
     config = LabWorldConfig(render_shadows=not args.fast, render_reflections=not args.fast)
     with LabWorld(config) as world:
         world.reset(
             seed=args.seed, robot_node=args.robot_node, human_node=args.human_node, ball_nodes=args.task
         )
         if args.pick is not None:
-            if args.task[args.pick] != args.human_node:
-                raise ConfigError(
-                    f"--pick {args.pick}: that ball lies at node {args.task[args.pick]}, the human is at node "
-                    f"{args.human_node}; pick a ball in the human's area"
-                )
             world.step_macro(None, HumanCommand.pick(args.pick))
         image = world.render(args.camera, width=args.width, height=args.height)
     temporary = temporary_sibling(out)

@@ -8,6 +8,7 @@ import mujoco
 import numpy as np
 import pytest
 
+from embodied_adhoc import paths
 from embodied_adhoc.domains.lab_graph import DEFAULT_GRAPH
 from embodied_adhoc.errors import SceneError
 from embodied_adhoc.sim.lab_layout import LAB_LAYOUT, LabLayout
@@ -33,8 +34,9 @@ def test_lab_scene_counts_are_pinned():
     assert model.nmocap == 2 and model.neq == 3
 
 
-def test_lab_scene_steps_two_seconds_of_random_controls_without_warnings():
-    model = load_lab_model()
+@pytest.mark.parametrize("scene", sorted(p.name for p in paths.scenes_dir().glob("*.xml")))
+def test_every_scene_steps_two_seconds_of_random_controls_without_warnings(scene):
+    model = load_lab_model(scene)
     data = mujoco.MjData(model)
     rng = np.random.default_rng(7)
     low, high = model.actuator_ctrlrange.T
@@ -46,8 +48,6 @@ def test_lab_scene_steps_two_seconds_of_random_controls_without_warnings():
 
 
 def test_robot_file_compiles_alone_and_follows_conventions():
-    from embodied_adhoc import paths
-
     model = mujoco.MjModel.from_xml_path(str(paths.asset("robots/container_robot/container_robot.xml")))
     assert model.nu == 2 and model.nsensor == 5
     unnamed = [g for g in range(model.ngeom) if not mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)]
