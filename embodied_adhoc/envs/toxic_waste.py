@@ -266,7 +266,7 @@ class ToxicWasteEnv(gymnasium.Env):
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":
             return None
-        return self._render_overhead()
+        return self.render_camera()
 
     def close(self) -> None:
         self.world.close()
@@ -312,14 +312,15 @@ class ToxicWasteEnv(gymnasium.Env):
             "speech_audio": speech_audio,
         }
 
-    def _render_overhead(self) -> np.ndarray:
+    def render_camera(self, camera: str = "overhead") -> np.ndarray:
+        """An RGB image from a named camera of the lab ("overhead", "perspective", "robot") at the env's size."""
         if not self._rendering_prepared:
             if self.render_quality == "fast":
                 # Shadow maps and multisampling dominate CPU (software GL) rendering; visuals only.
                 self.world.model.light_castshadow[:] = 0
                 self.world.model.vis.quality.offsamples = 0
             self._rendering_prepared = True
-        return self.world.render("overhead", self.width, self.height)
+        return self.world.render(camera, self.width, self.height)
 
     def _on_frame(self, world) -> None:
         truth = world.ground_truth()
@@ -331,7 +332,7 @@ class ToxicWasteEnv(gymnasium.Env):
             "human_position": truth.human_pose[:2],
             "ball_positions": np.array(truth.ball_positions),
         }
-        self._frame_sink(self._render_overhead(), snapshot)
+        self._frame_sink(self.render_camera(), snapshot)
 
 
 def _area(layout, pose, node: int | None) -> int:

@@ -150,6 +150,7 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
             metrics.end_step(action, description, float(reward), info["sim_time"], posterior, entropy)
             if rerun is not None:
                 _log_step(rerun, step, info, library.action_names[action], description, posterior, entropy)
+                rerun.log_camera("robot", env.unwrapped.render_camera("robot"))
             if progress is not None:
                 progress(step, info)
             if terminated or truncated:

@@ -28,7 +28,7 @@ entity                           archetype          content
 ``log/utterances``               TextLog            robot and human speech (question, transcript, reply)
 ``log/events``                   TextLog            episode events (RFID reads, task identified, outcome)
 ``speech/audio``                 AssetAudio         WAV of the human's reply (``speech="audio"`` only)
-``camera/<name>``                EncodedImage       JPEG camera frames (e.g. ``camera/overhead``)
+``camera/<name>``                EncodedImage       JPEG camera frames (``camera/overhead``, ``camera/robot``)
 ===============================  =================  ==========================================================
 
 Timelines: ``step`` (macro step, sequence) and ``sim_time`` (simulated seconds, duration).
@@ -88,7 +88,10 @@ def _default_blueprint():
                 row_shares=[3, 1],
             ),
             rrb.Vertical(
-                rrb.Spatial2DView(name="camera", origin="/camera"),
+                rrb.Horizontal(
+                    rrb.Spatial2DView(name="overhead camera", origin="/camera/overhead"),
+                    rrb.Spatial2DView(name="robot camera", origin="/camera/robot"),
+                ),
                 rrb.BarChartView(name="task belief", origin="/belief/task"),
                 rrb.TimeSeriesView(
                     name="entropy and odometry error", contents=["/belief/entropy", "/metrics/**"]
