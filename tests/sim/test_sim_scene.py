@@ -80,6 +80,16 @@ def test_every_route_keeps_clear_of_every_wall():
             assert clearance >= ROBOT_CLEARANCE, (start, goal, spots, clearance)
 
 
+def test_robot_routes_keep_clear_of_balls_and_human_spots():
+    """The robot never drives over a ball lying at its spot, nor through the human's standing spot."""
+    obstacles = np.array([*LAB_LAYOUT.ball_spots, *LAB_LAYOUT.human_spots])
+    for start, goal in itertools.permutations(LAB_LAYOUT.nodes, 2):
+        points = np.array([LAB_LAYOUT.node_waypoints[start], *LAB_LAYOUT.route(start, goal)])
+        samples = np.concatenate([np.linspace(a, b, 60) for a, b in itertools.pairwise(points)], axis=0)
+        gaps = np.hypot(*(samples[:, None, :] - obstacles[None]).transpose(2, 0, 1))
+        assert gaps.min() >= 0.6, (start, goal, gaps.min())
+
+
 def test_passages_are_gaps_and_area_borders_are_walled():
     """A straight line between adjacent areas' crossing points passes the wall; every other border is closed."""
     walls = _walls(load_lab_model())
