@@ -50,6 +50,8 @@ def make_backend(name: str, rules: GridRules, **kwargs):
         from embodied_adhoc.sim.grid_arena_world import GridArenaBackend
 
         return GridArenaBackend(rules, **kwargs)
+    if kwargs:
+        raise ConfigError(f"{sorted(kwargs)}: options of the MuJoCo arena only (backend='mujoco')")
     raise ConfigError(f"backend={name!r}: use one of {BACKENDS}")
 
 
@@ -86,6 +88,8 @@ class GridWorldCore:
             raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
         self.view = view
         self.backend_name = backend
+        if backend == "mujoco":
+            backend_kwargs["view"] = view
         self.backend = make_backend(backend, self.rules, **backend_kwargs)
         self.episode: Episode | None = None
         self.rng = np.random.default_rng(0)
