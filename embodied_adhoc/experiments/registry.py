@@ -121,3 +121,5 @@ def get_trial_domain(name: str) -> TrialDomain:
 
 # Built-in domains. Other areas append theirs here (one line each) or call register_trial_domain at import.
 register_trial_domain("toxic-waste", "embodied_adhoc.experiments.toxic_waste:DOMAIN")
+register_trial_domain("foraging", "embodied_adhoc.experiments.foraging:DOMAIN")
+register_trial_domain("pursuit", "embodied_adhoc.experiments.pursuit:DOMAIN")

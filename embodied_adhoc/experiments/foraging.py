@@ -1,0 +1,165 @@
+"""Trial plug-ins of the grid arenas: ``embodied-adhoc trials foraging|pursuit --backend abstract|mujoco``.
+
+Episode spec (drawn once per episode from ``(seed, episode)``, shared by every agent): ``task`` (0-based index
+in the N/S/W/E task library, or fixed by ``--task``), ``team`` (uniform over ``--team``) and ``start`` (the
+initial grid state as JSON, imposed through ``reset(options={"state": ...})``), so every agent faces the same
+team, task and start; the prey's moves and teammates' tie-breaks then follow each trial's env seed.
+
+Agents: ``original`` (the thesis's *original teammate*: the team's own policy, with the full state, in the ad
+hoc robot's seat) and ``random`` (uniform over the 5 actions). The observation index reported to the runner is
+a CRC-32 fingerprint of the egocentric observation (these domains have no finite observation library).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import zlib
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+ENV_IDS = {
+    "foraging": {"abstract": "EmbodiedAdhoc/ForagingGrid-v0", "mujoco": "EmbodiedAdhoc/Foraging-v0"},
+    "pursuit": {"abstract": "EmbodiedAdhoc/PursuitGrid-v0", "mujoco": "EmbodiedAdhoc/Pursuit-v0"},
+}
+
+
+class RandomAgent:
+    """Uniform over the five actions."""
+
+    name, observes_state, task_posterior = "random", False, None
+
+    def reset(self, rng: np.random.Generator, state=None) -> None:
+        self.rng = rng
+
+    def act(self) -> int:
+        return int(self.rng.integers(5))
+
+    def observe(self, action: int, observation: int, state=None) -> None:
+        pass
+
+
+class OriginalTeammateAgent:
+    """The team's own policy in the ad hoc robot's seat (thesis section 6.2.4): knows task and team and sees
+    the full state (``info['state']``), hence ``observes_state``."""
+
+    name, observes_state, task_posterior = "original", True, None
+
+    def __init__(self, rules, task, team_spec) -> None:
+        self.rules, self.task, self.team_spec = rules, task, team_spec
+
+    def reset(self, rng: np.random.Generator, state=None) -> None:
+        self.rng, self.state = rng, state
+
+    def act(self) -> int:
+        from embodied_adhoc.domains.grid_rules_team import team_actions
+        from embodied_adhoc.envs.grid_world_env import state_from_dict
+
+        state = state_from_dict(self.state, self.rules)
+        return int(team_actions(self.rules, state, self.task, self.team_spec, self.rng, [0])[0])
+
+    def observe(self, action: int, observation: int, state=None) -> None:
+        self.state = state
+
+
+class GridTrialSession:
+    def __init__(self, domain: str, backend: str, options: dict) -> None:
+        import gymnasium
+
+        import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+
+        self.env_id = ENV_IDS[domain][backend]
+        self.env_kwargs = env_kwargs(options)
+        probe = gymnasium.make(self.env_id, **self.env_kwargs).unwrapped
+        self.rules, self.tasks, self.teams = probe.core.rules, probe.core.tasks, probe.core.teams
+        probe.close()
+        self.task_names = tuple(task.name for task in self.tasks)
+
+    def make_env(self, max_steps: int):
+        import gymnasium
+
+        return gymnasium.make(self.env_id, max_episode_steps=int(max_steps), disable_env_checker=True,
+                              **self.env_kwargs)
+
+    def reset_options(self, spec: dict) -> dict:
+        return {"task": int(spec["task"]) + 1, "team": spec["team"], "state": json.loads(spec["start"])}
+
+    def make_agent(self, name: str, spec: dict, seed: int):
+        if name == "random":
+            return RandomAgent()
+        if name == "original":
+            return OriginalTeammateAgent(self.rules, self.tasks[int(spec["task"])], self.teams[spec["team"]])
+        raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
+
+    def observation_index(self, observation, info: dict) -> int:
+        return zlib.crc32(np.ascontiguousarray(observation).tobytes())
+
+
+def env_kwargs(options: dict) -> dict:
+    kwargs = {"rows": options["rows"], "cols": options["cols"], "toroidal": options["toroidal"],
+              "teams": options["teams"]}
+    if options["domain"] == "pursuit" and options["pairs"]:
+        kwargs["pairs"] = True
+    else:
+        kwargs["n_agents"] = options["agents"]
+    return kwargs
+
+
+class GridTrialDomain:
+    backends = ("abstract", "mujoco")
+    agent_names = ("original", "random")
+    default_agents = ("original", "random")
+
+    def __init__(self, name: str, description: str, team_names: tuple[str, ...]) -> None:
+        self.name, self.description, self.team_names = name, description, team_names
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        group = parser.add_argument_group(f"{self.name} options")
+        group.add_argument("--team", default=None, metavar="NAME[,NAME]",
+                           help=f"team type(s) drawn per episode, from {', '.join(self.team_names)} "
+                                "(default: tau0,tau1,tau2)")
+        group.add_argument("--task", type=int, default=None, metavar="K",
+                           help="fix the task to K in 1..4 (N/S/W/E assignment rotated K-1 times; default: uniform)")
+        group.add_argument("--rows", type=int, default=5, help="grid rows (default 5)")
+        group.add_argument("--cols", type=int, default=5, help="grid columns (default 5)")
+        group.add_argument("--n-agents", type=int, default=4, help="robots incl. the ad hoc one, 2-4 (default 4)")
+        group.add_argument("--toroidal", action="store_true", help="wrap-around grid (abstract backend only)")
+        if self.name == "pursuit":
+            group.add_argument("--pairs", action="store_true",
+                               help="Fig. 7.12 variant: 2 predators, capture pairs N+S, W+E, SW+NE, NW+SE, "
+                                    "teams greedy/aware")
+
+    def options_from_args(self, args: argparse.Namespace) -> dict:
+        pairs = bool(getattr(args, "pairs", False))
+        default = ("greedy", "aware") if pairs else ("tau0", "tau1", "tau2")
+        teams = tuple(args.team.split(",")) if args.team else default
+        allowed = ("greedy", "aware") if pairs else ("tau0", "tau1", "tau2")
+        if any(t not in allowed for t in teams):
+            raise ConfigError(f"--team {args.team}: choose from {', '.join(allowed)}")
+        if args.task is not None and not 1 <= args.task <= 4:
+            raise ConfigError(f"--task {args.task}: the task library is 1..4")
+        return {"domain": self.name, "teams": list(teams), "task": args.task, "rows": args.rows,
+                "cols": args.cols, "agents": 2 if pairs else args.n_agents, "toroidal": bool(args.toroidal),
+                "pairs": pairs}
+
+    def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
+        from embodied_adhoc.domains.grid_rules import GridConfig, GridRules
+
+        drawn_task = int(rng.integers(4))
+        team = options["teams"][int(rng.integers(len(options["teams"])))]
+        config = GridConfig(domain=options["domain"], rows=options["rows"], cols=options["cols"],
+                            n_agents=options["agents"], toroidal=options["toroidal"])
+        start = GridRules(config).sample_state(rng)
+        task = drawn_task if options.get("task") is None else int(options["task"]) - 1
+        return {"task": task, "team": team, "start": json.dumps(start.as_dict())}
+
+    def open_session(self, backend: str, options: dict) -> GridTrialSession:
+        if backend == "mujoco" and options["toroidal"]:
+            raise ConfigError("--toroidal: a physical arena cannot wrap; use --backend abstract")
+        return GridTrialSession(self.name, backend, options)
+
+
+DOMAIN = GridTrialDomain("foraging", "Level-based foraging: 4 foragers, N/S/W/E forage positions, teams tau0-2 "
+                         "(thesis ch. 6)", ("tau0", "tau1", "tau2"))
