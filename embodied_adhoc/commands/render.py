@@ -42,7 +42,7 @@ def handle_lab(args: argparse.Namespace) -> int:
             f"--pick {args.pick}: that ball lies at node {args.task[args.pick]}, the human is at node "
             f"{args.human_node}; pick a ball in the human's area"
         )
-    config = LabWorldConfig(render_shadows=not args.fast, render_reflections=not args.fast)
+    config = LabWorldConfig(render_quality="fast" if args.fast else "high")
     with LabWorld(config) as world:
         world.reset(
             seed=args.seed, robot_node=args.robot_node, human_node=args.human_node, ball_nodes=args.task
@@ -83,7 +83,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     lab.add_argument("--width", type=int, default=1280, help="image width in pixels (default 1280)")
     lab.add_argument("--height", type=int, default=1024, help="image height in pixels (default 1024)")
-    lab.add_argument("--fast", action="store_true", help="no shadows or reflections (what videos use)")
+    lab.add_argument(
+        "--fast",
+        action="store_true",
+        help='render quality "fast" (what videos use): no shadows, reflections or floor texture',
+    )
     lab.add_argument("--seed", type=int, default=0, help="seed of the world (default 0)")
     lab.set_defaults(func=handle_lab)
     group.set_defaults(_parser=group)

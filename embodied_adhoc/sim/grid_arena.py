@@ -68,26 +68,66 @@ def build_arena(config: GridConfig, layout: ArenaLayout, timestep: float = 0.005
     arena.option.integrator = "implicitfast"
     visual_global = getattr(arena.visual, "global")
     visual_global.offwidth, visual_global.offheight = 640, 640
-    arena.asset.add("texture", name="cells", type="2d", builtin="checker", width=64, height=64,
-                    rgb1=[0.62, 0.62, 0.6], rgb2=[0.5, 0.52, 0.5])
+    arena.asset.add(
+        "texture",
+        name="cells",
+        type="2d",
+        builtin="checker",
+        width=64,
+        height=64,
+        rgb1=[0.62, 0.62, 0.6],
+        rgb2=[0.5, 0.52, 0.5],
+    )
     arena.asset.add("material", name="cells", texture="cells", texrepeat=[config.cols / 2, config.rows / 2])
     width, height = layout.cols * layout.cell, layout.rows * layout.cell
-    arena.worldbody.add("light", name="sun", pos=[0, 0, 3], dir=[0, 0, -1], directional=True,
-                        diffuse=[0.5, 0.5, 0.5], specular=[0.1, 0.1, 0.1])
-    arena.worldbody.add("geom", name="floor", type="plane", size=[width / 2, height / 2, 0.05], material="cells",
-                        friction=[1.0, 0.005, 0.0001])
+    arena.worldbody.add(
+        "light",
+        name="sun",
+        pos=[0, 0, 3],
+        dir=[0, 0, -1],
+        directional=True,
+        diffuse=[0.5, 0.5, 0.5],
+        specular=[0.1, 0.1, 0.1],
+    )
+    arena.worldbody.add(
+        "geom",
+        name="floor",
+        type="plane",
+        size=[width / 2, height / 2, 0.05],
+        material="cells",
+        friction=[1.0, 0.005, 0.0001],
+    )
     thickness = 0.02
     for name, pos, size in (
-        ("wall_north", [0, height / 2 + thickness, layout.wall_height / 2], [width / 2 + 2 * thickness, thickness]),
-        ("wall_south", [0, -height / 2 - thickness, layout.wall_height / 2], [width / 2 + 2 * thickness, thickness]),
+        (
+            "wall_north",
+            [0, height / 2 + thickness, layout.wall_height / 2],
+            [width / 2 + 2 * thickness, thickness],
+        ),
+        (
+            "wall_south",
+            [0, -height / 2 - thickness, layout.wall_height / 2],
+            [width / 2 + 2 * thickness, thickness],
+        ),
         ("wall_east", [width / 2 + thickness, 0, layout.wall_height / 2], [thickness, height / 2]),
         ("wall_west", [-width / 2 - thickness, 0, layout.wall_height / 2], [thickness, height / 2]),
     ):
-        arena.worldbody.add("geom", name=name, type="box", pos=pos, size=[*size, layout.wall_height / 2],
-                            rgba=[0.35, 0.3, 0.25, 1])
+        arena.worldbody.add(
+            "geom",
+            name=name,
+            type="box",
+            pos=pos,
+            size=[*size, layout.wall_height / 2],
+            rgba=[0.35, 0.3, 0.25, 1],
+        )
     span = max(width, height)
-    arena.worldbody.add("camera", name="overhead", pos=[0, 0, 0.5 * span / math.tan(math.radians(22.5)) + 0.1],
-                        xyaxes=[1, 0, 0, 0, 1, 0], fovy=45)
+    arena.worldbody.add(
+        "camera",
+        name="overhead",
+        pos=[0, 0, 0.5 * span / math.tan(math.radians(22.5)) + 0.1],
+        xyaxes=[1, 0, 0, 0, 1, 0],
+        fovy=45,
+    )
 
     robot_path = paths.asset(ROBOT_FILE)
     names = [f"agent{i}" for i in range(config.n_agents)]
@@ -103,6 +143,13 @@ def build_arena(config: GridConfig, layout: ArenaLayout, timestep: float = 0.005
     if config.domain == "foraging":
         for m in range(config.n_targets):
             apple = arena.worldbody.add("body", name=f"apple{m}", mocap=True, pos=[0, 0, 0.05])
-            apple.add("geom", name=f"apple{m}", type="sphere", size=[0.05], contype=0, conaffinity=0,
-                      rgba=list(apple_rgba(1, 2)))
+            apple.add(
+                "geom",
+                name=f"apple{m}",
+                type="sphere",
+                size=[0.05],
+                contype=0,
+                conaffinity=0,
+                rgba=list(apple_rgba(1, 2)),
+            )
     return arena

@@ -28,8 +28,14 @@ from embodied_adhoc.sim.grid_arena import ArenaLayout, apple_radius, apple_rgba,
 
 # The grid robot's wheels (assets/robots/grid_robot): radius 0.03 m, 0.12 m apart.
 GRID_ROBOT_GEOMETRY = DiffDriveGeometry(wheel_radius=0.03, track_width=0.12, max_wheel_speed=20.0)
-GRID_ROBOT_LIMITS = DriveLimits(max_speed=0.4, max_acceleration=1.5, max_jerk=8.0, max_yaw_rate=5.0,
-                                max_yaw_acceleration=20.0, max_yaw_jerk=150.0)
+GRID_ROBOT_LIMITS = DriveLimits(
+    max_speed=0.4,
+    max_acceleration=1.5,
+    max_jerk=8.0,
+    max_yaw_rate=5.0,
+    max_yaw_acceleration=20.0,
+    max_yaw_jerk=150.0,
+)
 
 
 @dataclass(frozen=True)
@@ -46,8 +52,9 @@ class ArenaPhysics:
 class GridArenaBackend:
     """Executes grid plans in a MuJoCo arena built for ``rules.config``."""
 
-    def __init__(self, rules: GridRules, view: int = 5, image_size: int = 64,
-                 physics: ArenaPhysics | None = None) -> None:
+    def __init__(
+        self, rules: GridRules, view: int = 5, image_size: int = 64, physics: ArenaPhysics | None = None
+    ) -> None:
         self.rules, self.physics_config = rules, physics or ArenaPhysics()
         cfg = rules.config
         self.layout = ArenaLayout(cfg.rows, cfg.cols, self.physics_config.cell)
@@ -56,7 +63,9 @@ class GridArenaBackend:
         try:
             self.model = mujoco.MjModel.from_xml_string(arena.to_xml_string(), arena.get_assets())
         except ValueError as error:
-            raise SceneError(f"grid arena {cfg.domain} {cfg.rows}x{cfg.cols} does not compile: {error}") from None
+            raise SceneError(
+                f"grid arena {cfg.domain} {cfg.rows}x{cfg.cols} does not compile: {error}"
+            ) from None
         self.data = mujoco.MjData(self.model)
         self.robots = [f"agent{i}" for i in range(cfg.n_agents)]
         if cfg.domain == "pursuit":
@@ -64,12 +73,23 @@ class GridArenaBackend:
         joint = [self.model.joint(f"{name}/{name}_free/") for name in self.robots]
         self.qpos_adr = np.array([j.qposadr[0] for j in joint])
         self.qvel_adr = np.array([j.dofadr[0] for j in joint])
-        self.actuators = np.array([[self.model.actuator(f"{name}/{side}_wheel").id for side in ("left", "right")]
-                                   for name in self.robots])
-        self.apple_geoms = [self.model.geom(f"apple{m}").id for m in range(cfg.n_targets)] \
-            if cfg.domain == "foraging" else []
-        controller_config = ControllerConfig(limits=GRID_ROBOT_LIMITS, geometry=GRID_ROBOT_GEOMETRY,
-                                             arrival_tolerance=self.physics_config.arrival_tolerance, settle_time=1.0)
+        self.actuators = np.array(
+            [
+                [self.model.actuator(f"{name}/{side}_wheel").id for side in ("left", "right")]
+                for name in self.robots
+            ]
+        )
+        self.apple_geoms = (
+            [self.model.geom(f"apple{m}").id for m in range(cfg.n_targets)]
+            if cfg.domain == "foraging"
+            else []
+        )
+        controller_config = ControllerConfig(
+            limits=GRID_ROBOT_LIMITS,
+            geometry=GRID_ROBOT_GEOMETRY,
+            arrival_tolerance=self.physics_config.arrival_tolerance,
+            settle_time=1.0,
+        )
         self.controllers = [WaypointController(controller_config) for _ in self.robots]
         self.image_size = image_size
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
@@ -87,10 +107,10 @@ class GridArenaBackend:
 
     def _place(self, robot: int, cell: np.ndarray, yaw: float = math.pi / 2) -> None:
         adr = self.qpos_adr[robot]
-        self.data.qpos[adr:adr + 2] = self.layout.cell_xy(cell)
+        self.data.qpos[adr : adr + 2] = self.layout.cell_xy(cell)
         self.data.qpos[adr + 2] = 0.0
-        self.data.qpos[adr + 3:adr + 7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
-        self.data.qvel[self.qvel_adr[robot]:self.qvel_adr[robot] + 6] = 0.0
+        self.data.qpos[adr + 3 : adr + 7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
+        self.data.qvel[self.qvel_adr[robot] : self.qvel_adr[robot] + 6] = 0.0
 
     def _park(self, robot: int, slot: int) -> None:
         """Move a captured prey out of the arena (beside the east wall)."""
@@ -129,8 +149,13 @@ class GridArenaBackend:
         targets = previous.targets.copy()
         if self.rules.config.domain == "pursuit":
             targets[alive] = cells[n:][alive]
-        return GridState(cells[:n].copy(), previous.agent_levels.copy(), targets, previous.target_levels.copy(),
-                         alive.copy())
+        return GridState(
+            cells[:n].copy(),
+            previous.agent_levels.copy(),
+            targets,
+            previous.target_levels.copy(),
+            alive.copy(),
+        )
 
     def execute(self, state: GridState, plan: StepPlan) -> GridState:
         cfg, phys = self.rules.config, self.physics_config

@@ -27,6 +27,8 @@ BALL_COLOURS = ("red", "yellow", "blue")
 GRASP_WELDS = ("grasp_0", "grasp_1", "grasp_2")
 WALL_PREFIXES = ("wall_", "partition_")
 CAMERA_ALIASES = {"robot": "robot_camera"}
+FLOOR = "floor"
+FLOOR_MATERIALS = ("floor", "floor_plain")
 
 
 def load_lab_model(scene: str = LAB_SCENE) -> mujoco.MjModel:
@@ -70,6 +72,8 @@ class LabIds:
     wall_geoms: np.ndarray
     robot_geom_mask: np.ndarray  # (ngeom,) bool lookup tables for contact checks
     wall_geom_mask: np.ndarray
+    floor_geom: int
+    floor_materials: tuple[int, int]  # (textured, plain)
 
     @classmethod
     def resolve(cls, model: mujoco.MjModel) -> LabIds:
@@ -110,6 +114,8 @@ class LabIds:
             wall_geoms=wall_geoms,
             robot_geom_mask=robot_mask,
             wall_geom_mask=wall_mask,
+            floor_geom=_id(model, obj.mjOBJ_GEOM, FLOOR),
+            floor_materials=tuple(_id(model, obj.mjOBJ_MATERIAL, name) for name in FLOOR_MATERIALS),
         )
 
 

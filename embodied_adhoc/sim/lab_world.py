@@ -30,6 +30,8 @@ from embodied_adhoc.sim.sensing import RfidReader, robot_wall_contact
 
 __all__ = ["GroundTruth", "HumanCommand", "LabWorld", "LabWorldConfig", "MacroStepResult"]
 
+RENDER_QUALITIES = ("fast", "high")
+
 
 @dataclass(frozen=True)
 class LabWorldConfig:
@@ -46,8 +48,8 @@ class LabWorldConfig:
         min_macro_seconds: a macro step lasts at least this long (a "stay" still lets time pass).
         video_fps: rate (simulated frames per second) at which ``frame_callback`` is called.
         render_width, render_height: default image size of ``render``.
-        render_shadows, render_reflections: pretty but slow without a GPU (software EGL renders about 4x
-            faster with both off), so videos default to off; still images (``render lab``) turn them on.
+        render_quality: "fast" (no shadows, no reflections, untextured floor: software EGL without a GPU
+            renders several times faster) or "high" (everything; what ``render lab`` uses for stills).
         scene: scene file in ``scenes/``.
     """
 
@@ -62,8 +64,7 @@ class LabWorldConfig:
     video_fps: float = 15.0
     render_width: int = 640
     render_height: int = 512
-    render_shadows: bool = False
-    render_reflections: bool = False
+    render_quality: str = "fast"
     scene: str = "lab.xml"
 
     def __post_init__(self) -> None:
@@ -78,6 +79,10 @@ class LabWorldConfig:
         if not 0.0 <= self.rfid_miss_probability <= 1.0:
             raise ConfigError(
                 f"LabWorldConfig.rfid_miss_probability must be in [0, 1], got {self.rfid_miss_probability}"
+            )
+        if self.render_quality not in RENDER_QUALITIES:
+            raise ConfigError(
+                f"LabWorldConfig.render_quality must be one of {RENDER_QUALITIES}, got {self.render_quality!r}"
             )
         for name in ("human_speed", "macro_timeout", "video_fps"):
             if not getattr(self, name) > 0:
@@ -281,9 +286,11 @@ class LabWorld:
         if renderer is None:
             renderer = mujoco.Renderer(self.model, height=height, width=width)
             self._renderers[(width, height)] = renderer
+        high = self.config.render_quality == "high"
+        self.model.geom_matid[self.ids.floor_geom] = self.ids.floor_materials[0 if high else 1]
         renderer.update_scene(self.data, camera=name)
-        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = self.config.render_shadows
-        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = self.config.render_reflections
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
+        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
         return renderer.render()
 
     def close(self) -> None:

@@ -120,6 +120,8 @@ def test_frame_callback_runs_at_the_video_rate_and_renders(world):
 
 
 def test_bad_arguments_are_clear_errors(world):
+    with pytest.raises(ConfigError, match="render_quality"):
+        LabWorldConfig(render_quality="ultra")
     with pytest.raises(ConfigError, match="whole multiple"):
         LabWorldConfig(control_period=0.021)
     with pytest.raises(ConfigError, match="ball_nodes"):
