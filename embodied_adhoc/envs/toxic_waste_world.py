@@ -15,8 +15,10 @@ def make_world(
     frame_rate: float,
     width: int,
     height: int,
+    render_quality: str = "fast",
 ):
-    """A ``sim.lab_world.LabWorld`` with the env's odometry noise, RFID miss rate, timeout and frame rate."""
+    """A ``sim.lab_world.LabWorld`` with the env's odometry noise, RFID miss rate, timeout, frame rate and
+    rendering settings."""
     from embodied_adhoc.sim.lab_world import LabWorld, LabWorldConfig
     from embodied_adhoc.sim.odometry import OdometryConfig
 
@@ -34,5 +36,6 @@ def make_world(
         video_fps=float(frame_rate),
         render_width=int(width),
         render_height=int(height),
+        render_quality=render_quality,
     )
     return LabWorld(config)
