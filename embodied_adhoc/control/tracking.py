@@ -19,7 +19,8 @@ class TrackingGains:
 
     (e_x, e_y) is the reference position in the robot frame and e_theta the heading error. Unlike Kanayama's
     original law the heading term is not multiplied by v_r, so heading errors are also corrected while the
-    reference turns in place. Units: k_x 1/s, k_y 1/m^2... (rad/m^2 with v_r in m/s), k_theta 1/s.
+    reference turns in place. Units: k_x in 1/s, k_y in rad/m^2 (times v_r in m/s and e_y in m gives rad/s),
+    k_theta in 1/s.
     """
 
     k_x: float = 2.0

@@ -112,13 +112,13 @@ class LabLayout:
     # ----------------------------------------------------------------------------------------- graph
     def neighbours(self, node: int) -> tuple[int, ...]:
         """Adjacent nodes in ascending index (the order the abstract model's move actions use)."""
-        self._check_node(node)
+        self.check_node(node)
         return self._adjacency[node]
 
     def node_path(self, from_node: int, to_node: int) -> list[int]:
         """Shortest node sequence from ``from_node`` to ``to_node`` inclusive (breadth-first search)."""
-        self._check_node(from_node)
-        self._check_node(to_node)
+        self.check_node(from_node)
+        self.check_node(to_node)
         parent = {from_node: from_node}
         queue = deque([from_node])
         while queue:
@@ -204,7 +204,8 @@ class LabLayout:
             return self.human_spots
         raise SceneError(f"LabLayout.route: spots must be 'robot' or 'human', got {spots!r}")
 
-    def _check_node(self, node: int) -> None:
+    def check_node(self, node: int) -> None:
+        """Raise a SceneError unless ``node`` is a valid node id."""
         if not isinstance(node, int | np.integer) or not 0 <= int(node) < len(self.nodes):
             raise SceneError(f"LabLayout: node must be an int in 0..{len(self.nodes) - 1}, got {node!r}")
 

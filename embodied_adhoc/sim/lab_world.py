@@ -141,6 +141,8 @@ class LabWorld:
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self._next_frame = 0.0
         self._reset_done = False
+        self.current_route: tuple[tuple[float, float], ...] = ()
+        """Waypoints (xy) the robot follows in the current/last macro step (empty when it stays)."""
 
     # ------------------------------------------------------------------------------------------ episode
     def reset(
@@ -150,7 +152,7 @@ class LabWorld:
         start dead reckoning from the robot's known start pose. Returns the ground truth after settling."""
         layout, ids = self.layout, self.ids
         for node in (robot_node, human_node, *ball_nodes):
-            layout._check_node(node)
+            layout.check_node(node)
         if len(ball_nodes) != len(ids.ball_bodies):
             raise ConfigError(f"reset: ball_nodes needs {len(ids.ball_bodies)} nodes, got {list(ball_nodes)}")
         odometry_seed, rfid_seed = np.random.SeedSequence(int(seed)).spawn(2)
@@ -189,10 +191,11 @@ class LabWorld:
             raise ConfigError("LabWorld.step_macro called before reset()")
         config, data = self.config, self.data
         if robot_target is not None:
-            self.layout._check_node(robot_target)
-            route = self.layout.route_from(self.odometry.pose[:2], robot_target)
-            self.controller.start(self.odometry.pose, route)
+            self.layout.check_node(robot_target)
+            self.current_route = tuple(self.layout.route_from(self.odometry.pose[:2], robot_target))
+            self.controller.start(self.odometry.pose, self.current_route)
         else:
+            self.current_route = ()
             self.controller.finished, self.controller.arrived = True, True
         self.human.start(human_command, self._senses())
         start, warnings_before = data.time, int(sum(w.number for w in data.warning))
