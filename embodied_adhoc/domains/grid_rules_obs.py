@@ -26,35 +26,47 @@ def observation_high(rules: GridRules) -> float:
     return float(max(1, cfg.n_agents * cfg.max_agent_level)) if cfg.domain == "foraging" else 1.0
 
 
+def _padded_layers(rules: GridRules, state: GridState, half: int) -> np.ndarray:
+    """World-frame layers (N agents, M targets, boundary, levels), padded by ``half`` cells on every side:
+    with the boundary marked beyond walls, or wrapped around on a torus."""
+    cfg = rules.config
+    layers = np.zeros((cfg.n_agents + cfg.n_targets + 2, cfg.rows, cfg.cols), dtype=np.float32)
+    layers[np.arange(cfg.n_agents), state.agents[:, 0], state.agents[:, 1]] = 1.0
+    live = np.flatnonzero(state.alive)
+    layers[cfg.n_agents + live, state.targets[live, 0], state.targets[live, 1]] = 1.0
+    levels = layers[-1]
+    levels[state.agents[:, 0], state.agents[:, 1]] = state.agent_levels
+    levels[state.targets[live, 0], state.targets[live, 1]] = state.target_levels[live]
+    if cfg.toroidal:
+        return np.pad(layers, ((0, 0), (half, half), (half, half)), mode="wrap")
+    padded = np.pad(layers, ((0, 0), (half, half), (half, half)))
+    padded[-2] = 1.0
+    padded[-2, half:half + cfg.rows, half:half + cfg.cols] = 0.0
+    return padded
+
+
+def egocentric_observations(rules: GridRules, state: GridState, view: int = 5) -> np.ndarray:
+    """Every agent's observation at once, ``(N, channels, view, view)`` (one padded world, N slices)."""
+    if view < 1 or view % 2 == 0:
+        raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
+    cfg = rules.config
+    padded = _padded_layers(rules, state, view // 2)
+    keep = -1 if cfg.domain == "pursuit" else None  # pursuit has no level channel
+    out = np.empty((cfg.n_agents, observation_channels(rules), view, view), dtype=np.float32)
+    for i, (r, c) in enumerate(state.agents.tolist()):
+        window = padded[:keep, r:r + view, c:c + view]
+        out[i, :cfg.n_agents - 1] = np.delete(window[:cfg.n_agents], i, axis=0)
+        out[i, cfg.n_agents - 1:] = window[cfg.n_agents:]
+    return out
+
+
 def egocentric_observation(rules: GridRules, state: GridState, agent: int, view: int = 5) -> np.ndarray:
     """The ``(channels, view, view)`` observation of ``agent`` in ``state``."""
     if view < 1 or view % 2 == 0:
         raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
     cfg = rules.config
-    half = view // 2
-    span = np.arange(-half, half + 1)
-    window = state.agents[agent] + np.stack(np.meshgrid(span, span, indexing="ij"), axis=-1)  # (f, f, 2)
-    cells, inside = rules.normalise(window)
-    rows, cols = np.where(inside, cells[..., 0], 0), np.where(inside, cells[..., 1], 0)
-
-    agent_at = np.full((cfg.rows, cfg.cols), -1, dtype=np.int64)
-    agent_at[state.agents[:, 0], state.agents[:, 1]] = np.arange(cfg.n_agents)
-    target_at = np.full((cfg.rows, cfg.cols), -1, dtype=np.int64)
-    live = np.flatnonzero(state.alive)
-    target_at[state.targets[live, 0], state.targets[live, 1]] = live
-    seen_agent = np.where(inside, agent_at[rows, cols], -1)
-    seen_target = np.where(inside, target_at[rows, cols], -1)
-
-    obs = np.zeros((observation_channels(rules), view, view), dtype=np.float32)
-    teammates = [i for i in range(cfg.n_agents) if i != agent]
-    for channel, mate in enumerate(teammates):
-        obs[channel] = seen_agent == mate
-    base = len(teammates)
-    for m in range(cfg.n_targets):
-        obs[base + m] = seen_target == m
-    obs[base + cfg.n_targets] = ~inside
-    if cfg.domain == "foraging":
-        levels = np.where(seen_agent >= 0, state.agent_levels[np.maximum(seen_agent, 0)], 0)
-        levels = np.where(seen_target >= 0, state.target_levels[np.maximum(seen_target, 0)], levels)
-        obs[base + cfg.n_targets + 1] = levels
-    return obs
+    padded = _padded_layers(rules, state, view // 2)
+    r, c = state.agents[agent].tolist()
+    keep = -1 if cfg.domain == "pursuit" else None
+    window = padded[:keep, r:r + view, c:c + view]
+    return np.concatenate([np.delete(window[:cfg.n_agents], agent, axis=0), window[cfg.n_agents:]])

@@ -17,6 +17,7 @@ import numpy as np
 from embodied_adhoc.domains.grid_rules import GridConfig, GridRules, GridState, StepPlan, Task
 from embodied_adhoc.domains.grid_rules_obs import (
     egocentric_observation,
+    egocentric_observations,
     observation_channels,
     observation_high,
 )
@@ -134,6 +135,10 @@ class GridWorldCore:
 
     def observe(self, agent: int) -> np.ndarray:
         return egocentric_observation(self.rules, self.episode.state, agent, self.view)
+
+    def observe_all(self) -> np.ndarray:
+        """Every agent's observation, ``(N, channels, view, view)``."""
+        return egocentric_observations(self.rules, self.episode.state, self.view)
 
     def info(self) -> dict:
         ep = self.episode

@@ -48,7 +48,7 @@ class GridParallelEnv(ParallelEnv):
         return self._action_space
 
     def _observations(self) -> dict:
-        return {name: self.core.observe(i) for i, name in enumerate(self.possible_agents)}
+        return dict(zip(self.possible_agents, self.core.observe_all(), strict=True))
 
     def reset(self, seed: int | None = None, options: dict | None = None):
         # Only the world's own options (task, team, state) reach it; PettingZoo passes others (its API test

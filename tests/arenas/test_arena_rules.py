@@ -103,3 +103,47 @@ def test_config_errors_name_the_field():
     with pytest.raises(ConfigError, match="3x3"):
         foraging_config(rows=3, cols=3)
     foraging_config(rows=3, cols=3, toroidal=True)
+
+
+def reference_observation(rules, state, agent, view):
+    """Cell-by-cell definition of the egocentric observation (thesis 6.2.1), to check the vectorised one."""
+    cfg = rules.config
+    half = view // 2
+    obs = np.zeros((observation_channels(rules), view, view), dtype=np.float32)
+    mates = [j for j in range(cfg.n_agents) if j != agent]
+    for dr in range(-half, half + 1):
+        for dc in range(-half, half + 1):
+            cell, inside = rules.normalise(state.agents[agent] + np.array([dr, dc]))
+            i, j = dr + half, dc + half
+            if not inside:
+                obs[len(mates) + cfg.n_targets, i, j] = 1
+                continue
+            for k, mate in enumerate(mates):
+                if (state.agents[mate] == cell).all():
+                    obs[k, i, j] = 1
+                    if cfg.domain == "foraging":
+                        obs[-1, i, j] = state.agent_levels[mate]
+            if (state.agents[agent] == cell).all() and cfg.domain == "foraging":
+                obs[-1, i, j] = state.agent_levels[agent]
+            for m in range(cfg.n_targets):
+                if state.alive[m] and (state.targets[m] == cell).all():
+                    obs[len(mates) + m, i, j] = 1
+                    if cfg.domain == "foraging":
+                        obs[-1, i, j] = state.target_levels[m]
+    return obs
+
+
+@pytest.mark.parametrize("config", [foraging_config(n_targets=2), foraging_config(rows=4, cols=6, toroidal=True),
+                                    pursuit_config(n_agents=3, rows=6, cols=5), pursuit_config(toroidal=True)])
+def test_vectorised_observation_matches_definition(config):
+    from embodied_adhoc.domains.grid_rules_obs import egocentric_observations
+
+    rules, rng = GridRules(config), np.random.default_rng(4)
+    for _ in range(20):
+        state = rules.sample_state(rng)
+        state.alive[0] = rng.random() < 0.7
+        every = egocentric_observations(rules, state, 5)
+        for agent in range(config.n_agents):
+            expected = reference_observation(rules, state, agent, 5)
+            assert np.array_equal(egocentric_observation(rules, state, agent, 5), expected)
+            assert np.array_equal(every[agent], expected)

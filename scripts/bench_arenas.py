@@ -1,0 +1,130 @@
+"""Speed of the foraging/pursuit worlds, as ratios against references measured in the same run.
+
+1. env steps/s of lbforaging 2.0.0's env (5x5, 4 players, 1 food, sight 2, vector observation; random joint
+   actions), the reference; against it: our grid twin with random joint actions (PettingZoo env: rules +
+   four egocentric observations), the single-agent grid env (scripted teammates plan every step), and the
+   MuJoCo arena (single-agent env, robots driven cell to cell physically);
+2. physics overhead of one MuJoCo macro step (one grid step executed physically, controllers included) as a
+   ratio to one raw ``mj_step`` of the same model, and the number of ``mj_step`` calls it makes.
+
+    MUJOCO_GL=egl .venv/bin/python scripts/bench_arenas.py [--seconds 3 --domain foraging]
+
+lbforaging is an optional reference (``pip install lbforaging==2.0.0``); without it the lbforaging row is
+skipped and our PettingZoo grid env becomes the reference.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from embodied_adhoc.experiments.script_args import parse_dataclass_args
+
+
+@dataclass(frozen=True)
+class Args:
+    seconds: float = 3.0
+    """wall-clock budget per grid measurement (the MuJoCo one runs a third of it, at least 20 steps)"""
+    domain: str = "foraging"
+    """foraging or pursuit (lbforaging is compared in either case: it is the only external grid reference)"""
+    seed: int = 0
+
+
+def rate(step, reset, budget: float, minimum: int = 20) -> float:
+    """Steps per second of ``step()`` (``reset()`` on episode end) over ``budget`` seconds."""
+    reset()
+    steps, start = 0, time.perf_counter()
+    while steps < minimum or time.perf_counter() - start < budget:
+        if step():
+            reset()
+        steps += 1
+    return steps / (time.perf_counter() - start)
+
+
+def lbforaging_rate(args: Args) -> float | None:
+    try:
+        from lbforaging.foraging import ForagingEnv as LbfEnv
+    except ImportError:
+        return None
+    env = LbfEnv(players=4, min_player_level=1, max_player_level=2, min_food_level=1, max_food_level=None,
+                 field_size=(5, 5), max_num_food=1, sight=2, max_episode_steps=200, force_coop=True,
+                 grid_observation=False)  # its grid_observation=True fails on gymnasium 1.4 (Box shape bug)
+    rng = np.random.default_rng(args.seed)
+    seeds = iter(range(10**9))
+
+    def step():
+        _, _, done, truncated, _ = env.step(tuple(int(a) for a in rng.integers(0, 6, size=4)))
+        return done or truncated
+
+    return rate(step, lambda: env.reset(seed=next(seeds)), args.seconds)
+
+
+def main(args: Args) -> None:
+    import gymnasium
+    import mujoco
+
+    import embodied_adhoc.envs  # noqa: F401
+    from embodied_adhoc.envs.multiagent import GridParallelEnv
+
+    rng = np.random.default_rng(args.seed)
+    results: list[tuple[str, float]] = []
+    lbf = lbforaging_rate(args)
+    if lbf is not None:
+        results.append(("lbforaging 2.0.0 grid env, random joint actions (reference)", lbf))
+
+    parallel = GridParallelEnv(args.domain)
+    seeds = iter(range(10**9))
+
+    def parallel_step():
+        actions = dict(zip(parallel.possible_agents, rng.integers(0, 5, size=4).tolist(), strict=True))
+        parallel.step(actions)
+        return not parallel.agents
+
+    results.append((f"{args.domain} grid twin (PettingZoo), random joint actions",
+                    rate(parallel_step, lambda: parallel.reset(seed=next(seeds)), args.seconds)))
+
+    def single_rate(env_id: str, budget: float) -> float:
+        env = gymnasium.make(env_id, max_episode_steps=10**6).unwrapped
+
+        def step():
+            return env.step(int(rng.integers(5)))[2]
+
+        value = rate(step, lambda: env.reset(seed=next(seeds)), budget)
+        env.close()
+        return value
+
+    ids = {"foraging": ("EmbodiedAdhoc/ForagingGrid-v0", "EmbodiedAdhoc/Foraging-v0"),
+           "pursuit": ("EmbodiedAdhoc/PursuitGrid-v0", "EmbodiedAdhoc/Pursuit-v0")}[args.domain]
+    results.append((f"{ids[0]}, random ad hoc + scripted team", single_rate(ids[0], args.seconds)))
+
+    arena_env = gymnasium.make(ids[1]).unwrapped
+    backend = arena_env.core.backend
+    arena_env.reset(seed=1)
+    before_steps, before_time, macro = backend.physics_steps, time.perf_counter(), 0
+    while macro < 20 or time.perf_counter() - before_time < args.seconds / 3:
+        if arena_env.step(int(rng.integers(5)))[2]:
+            arena_env.reset(seed=next(seeds))
+        macro += 1
+    macro_time = (time.perf_counter() - before_time) / macro
+    mj_steps_per_macro = (backend.physics_steps - before_steps) / macro
+    results.append((f"{ids[1]} (MuJoCo), random ad hoc + scripted team", 1.0 / macro_time))
+    raw_start, raw_n = time.perf_counter(), 2000
+    mujoco.mj_step(backend.model, backend.data, raw_n)
+    raw = (time.perf_counter() - raw_start) / raw_n
+    arena_env.close()
+
+    reference_name, reference = results[0]
+    print(f"{'env':62s} {'steps/s':>10s} {'ratio':>8s}")
+    for name, value in results:
+        print(f"{name:62s} {value:10.1f} {value / reference:8.3f}")
+    print(f"\nratios against: {reference_name}")
+    print(f"MuJoCo macro step = {macro_time / raw:.0f} raw mj_step of the same model "
+          f"({mj_steps_per_macro:.0f} mj_step calls per macro step, i.e. physics overhead "
+          f"{macro_time / (mj_steps_per_macro * raw):.2f}x the physics it runs; "
+          f"timestep {backend.model.opt.timestep} s)")
+
+
+if __name__ == "__main__":
+    main(parse_dataclass_args(Args, description=__doc__))
