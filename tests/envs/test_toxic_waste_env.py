@@ -123,3 +123,19 @@ def test_bad_kwargs_and_reset_options_are_clear_errors():
             env.reset(seed=0, options={"robot_node": 9})
     finally:
         env.close()
+
+
+def test_audio_speech_logs_the_dialogue_and_a_wav():
+    pytest.importorskip("pocketsphinx")
+    env = make(speech="audio")
+    try:
+        env.reset(seed=5, options={"task": 0, "robot_node": 1, "human_node": 3})
+        observation, *_, info = env.step(4)
+        lines = info["utterances"]
+        assert lines[0] == 'robot: "Where are you?"' and lines[1].startswith("human: ")
+        assert any(line.startswith("recognised: ") for line in lines)
+        assert info["speech_audio"][:4] == b"RIFF" and b"WAVE" in info["speech_audio"][:16]
+        heard = lines[-1].removeprefix("heard node: ")
+        assert observation[1] == (5 if heard.startswith("no location") else int(heard.split()[0]))
+    finally:
+        env.close()
