@@ -81,7 +81,15 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     toxic.add_argument("--width", type=int, default=640, help="video width in pixels, even (640)")
     toxic.add_argument("--height", type=int, default=480, help="video height in pixels, even (480)")
     toxic.add_argument(
-        "--render-quality", choices=("fast", "high"), default="fast", help="'high' adds shadows (~4x slower)"
+        "--render-quality",
+        choices=("fast", "high"),
+        default="fast",
+        help="'high' adds shadows, reflections, floor texture (slower)",
+    )
+    toxic.add_argument(
+        "--no-overlay",
+        action="store_true",
+        help="no heads-up text (step, action, observation, belief) on the video",
     )
     toxic.add_argument(
         "--json", action="store_true", help="print metrics.json's summary as JSON instead of text"
@@ -118,6 +126,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         video_fps=args.video_fps,
         video_speed=args.video_speed,
         render_quality=args.render_quality,
+        video_overlay=not args.no_overlay,
         width=args.width,
         height=args.height,
     )

@@ -43,6 +43,7 @@ class EpisodeConfig:
     width: int = 640
     height: int = 480
     rerun_camera_hz: float = 2.0
+    video_overlay: bool = True  # heads-up text (step, action, what was heard, task belief) on the video
     env_kwargs: dict = field(default_factory=dict)
 
 
@@ -121,10 +122,11 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
     )
     files: dict[str, Path] = {}
     video = rerun = None
+    hud: dict[str, str] = {}
     try:
         if recording:
             video, rerun = _open_recorders(config, files)
-            _attach_frame_sink(env, config, video, rerun)
+            _attach_frame_sink(env, config, video, rerun, hud if config.video_overlay else None)
         _, info = env.reset(
             seed=seeding.env_seed(config.seed, 0, config.agent), options=session.reset_options(spec)
         )
@@ -133,12 +135,14 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
             seeding.agent_rng(config.seed, 0, config.agent), state=info["state"] if privileged else None
         )
         prior = agent.task_posterior
+        hud.update(_hud_belief(library, prior, info, config.agent))
         metrics.start_episode(prior)
         if rerun is not None:
             _log_start(rerun, env, info, library, spec, prior, normalised_entropy)
         for step in range(1, config.max_steps + 1):
             metrics.start_step()
             action = int(agent.act())
+            hud["action"] = f"step {step}: {library.action_names[action]}"
             _, reward, terminated, truncated, info = env.step(action)
             observation_index = int(info["observation_index"])
             agent.observe(action, observation_index, state=info["state"] if privileged else None)
@@ -151,6 +155,8 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
             if rerun is not None:
                 _log_step(rerun, step, info, library.action_names[action], description, posterior, entropy)
                 rerun.log_camera("robot", env.unwrapped.render_camera("robot"))
+            hud.update(_hud_belief(library, posterior, info, config.agent))
+            hud["heard"] = f"observed: {description}"
             if progress is not None:
                 progress(step, info)
             if terminated or truncated:
@@ -184,13 +190,31 @@ def _open_recorders(config: EpisodeConfig, files: dict[str, Path]):
     return video, RerunRecorder(files["rerun"], recording_name=name)
 
 
-def _attach_frame_sink(env, config: EpisodeConfig, video, rerun) -> None:
-    """Every rendered frame goes to the video; rerun gets the poses of every frame and images at a lower rate."""
-    state = {"next_camera": 0.0, "step": 0}
+def _hud_belief(library, posterior, info: dict, agent: str) -> dict[str, str]:
+    """Heads-up lines for the video: the task belief and the balls in the container so far."""
+    disposed = sum(1 for status in info["ball_status"] if status == 2)
+    lines = {"balls": f"{agent} | balls in container {disposed}/{len(info['ball_status'])}"}
+    if posterior is not None:
+        beliefs = "  ".join(f"{list(task)} {p:.2f}" for task, p in zip(library.tasks, posterior, strict=True))
+        lines["belief"] = f"P(task): {beliefs}"
+    return lines
+
+
+def _attach_frame_sink(env, config: EpisodeConfig, video, rerun, hud: dict[str, str] | None) -> None:
+    """Every rendered frame goes to the video (with the heads-up text unless ``hud`` is None); rerun gets the
+    poses of every frame and the camera image at ``rerun_camera_hz`` of simulated time."""
+    from embodied_adhoc.record.overlay import annotate
+
+    state = {"next_camera": 0.0}
     camera_period = 1.0 / config.rerun_camera_hz if config.rerun_camera_hz > 0 else float("inf")
+    order = ("balls", "action", "heard", "belief")
 
     def on_frame(frame: np.ndarray, snapshot: dict) -> None:
-        video.write(frame)
+        if hud is None:
+            video.write(frame)
+        else:
+            lines = [hud[key] for key in order if key in hud] + [f"t = {snapshot['sim_time']:.1f} s"]
+            video.write(annotate(frame, lines))
         rerun.set_time(snapshot["step"], snapshot["sim_time"])
         rerun.log_poses(
             snapshot["robot_pose"],
