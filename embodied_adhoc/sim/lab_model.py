@@ -27,8 +27,8 @@ BALL_COLOURS = ("red", "yellow", "blue")
 GRASP_WELDS = ("grasp_0", "grasp_1", "grasp_2")
 WALL_PREFIXES = ("wall_", "partition_")
 CAMERA_ALIASES = {"robot": "robot_camera"}
-FLOOR = "floor"
-FLOOR_MATERIALS = ("floor", "floor_plain")
+FLOOR_TILES = ("floor_door", "floor_open", "floor_station", "floor_single", "floor_double")
+"""Visual floor geoms; each has a textured material of the same name and a ``<name>_plain`` one."""
 
 
 def load_lab_model(scene: str = LAB_SCENE) -> mujoco.MjModel:
@@ -72,8 +72,9 @@ class LabIds:
     wall_geoms: np.ndarray
     robot_geom_mask: np.ndarray  # (ngeom,) bool lookup tables for contact checks
     wall_geom_mask: np.ndarray
-    floor_geom: int
-    floor_materials: tuple[int, int]  # (textured, plain)
+    floor_tiles: np.ndarray  # geom ids of the visual floor tiles
+    floor_textured: np.ndarray  # their textured materials ("high" render quality)
+    floor_plain: np.ndarray  # their plain materials ("fast")
 
     @classmethod
     def resolve(cls, model: mujoco.MjModel) -> LabIds:
@@ -114,8 +115,9 @@ class LabIds:
             wall_geoms=wall_geoms,
             robot_geom_mask=robot_mask,
             wall_geom_mask=wall_mask,
-            floor_geom=_id(model, obj.mjOBJ_GEOM, FLOOR),
-            floor_materials=tuple(_id(model, obj.mjOBJ_MATERIAL, name) for name in FLOOR_MATERIALS),
+            floor_tiles=np.array([_id(model, obj.mjOBJ_GEOM, name) for name in FLOOR_TILES]),
+            floor_textured=np.array([_id(model, obj.mjOBJ_MATERIAL, name) for name in FLOOR_TILES]),
+            floor_plain=np.array([_id(model, obj.mjOBJ_MATERIAL, f"{name}_plain") for name in FLOOR_TILES]),
         )
 
 

@@ -290,7 +290,9 @@ class LabWorld:
             renderer = mujoco.Renderer(self.model, height=height, width=width)
             self._renderers[(width, height)] = renderer
         high = self.config.render_quality == "high"
-        self.model.geom_matid[self.ids.floor_geom] = self.ids.floor_materials[0 if high else 1]
+        self.model.geom_matid[self.ids.floor_tiles] = (
+            self.ids.floor_textured if high else self.ids.floor_plain
+        )
         renderer.update_scene(self.data, camera=name)
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
