@@ -17,6 +17,8 @@ solver's value would no longer be a lower bound.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg
@@ -24,57 +26,107 @@ import scipy.sparse.linalg
 from embodied_adhoc.decision.models import POMDP
 
 
+@dataclass(frozen=True)
+class PreparedAlphas:
+    """A value function with its per-action projections (built once, used for many batches)."""
+
+    alphas: np.ndarray
+    projections: tuple[sp.csr_matrix, ...]
+    fallbacks: tuple[np.ndarray, ...]
+
+
 class BackupOperator:
-    """Precomputed per-(action, observation) supports of a POMDP; ``backup(beliefs, alphas)`` is the operator."""
+    """Precomputed sparse observation structure of a POMDP; ``backup(beliefs, alphas)`` is the operator."""
 
     def __init__(self, pomdp: POMDP) -> None:
         self.pomdp = pomdp
         self.discount = pomdp.discount
+        self.n_observations = pomdp.n_observations
         self.rewards_by_action = np.ascontiguousarray(pomdp.rewards.T)  # (A, S)
         self.transitions = pomdp.transitions  # CSR (S x S) per action
         self.transitions_t = tuple(m.T.tocsr() for m in pomdp.transitions)
-        # For each action, the observations with any support, each with (end states, probabilities).
-        self.branches: list[list[tuple[int, np.ndarray, np.ndarray]]] = []
+        # Per action, the nonzero entries (s', z, O(z|s',a)) of the observation matrix, and the (nnz x S)
+        # matrix that sums per-entry terms back into their end state.
+        self.entries = []
         for matrix in pomdp.observations:
-            csc = sp.csc_matrix(matrix)
-            branches = []
-            for z in range(csc.shape[1]):
-                start, end = csc.indptr[z], csc.indptr[z + 1]
-                if end > start:
-                    branches.append((z, csc.indices[start:end].copy(), csc.data[start:end].copy()))
-            self.branches.append(branches)
+            coo = matrix.tocoo()
+            end_states, observations, probabilities = (
+                coo.row.astype(np.int64),
+                coo.col.astype(np.int64),
+                coo.data,
+            )
+            from_entries = sp.csr_matrix(
+                (np.ones(coo.nnz), (end_states, np.arange(coo.nnz))), shape=(pomdp.n_states, coo.nnz)
+            )
+            self.entries.append((end_states, observations, probabilities, from_entries, matrix.T.tocsr()))
 
-    def backup(self, beliefs: np.ndarray, alphas: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def prepare(self, alphas: np.ndarray) -> PreparedAlphas:
+        """Per-action projections of a value function, reused by every :meth:`backup` against it."""
+        n_vectors, n_obs, n_states = alphas.shape[0], self.n_observations, self.pomdp.n_states
+        projections, fallbacks = [], []
+        for end_states, observations, probabilities, _, observation_t in self.entries:
+            # projected (K*Z x S'): row k*Z+z holds O(z|s',a) alpha_k(s'); scores[k, z, i] = row . (b_i T_a)
+            weights = alphas[:, end_states] * probabilities  # (K, nnz)
+            rows = (np.arange(n_vectors)[:, None] * n_obs + observations[None, :]).ravel()
+            projections.append(
+                sp.csr_matrix(
+                    (weights.ravel(), (rows, np.tile(end_states, n_vectors))),
+                    shape=(n_vectors * n_obs, n_states),
+                )
+            )
+            # For branches impossible at a belief: the vector best for a uniform spread over the states emitting z.
+            fallbacks.append(np.argmax(observation_t @ alphas.T, axis=1))
+        return PreparedAlphas(np.ascontiguousarray(alphas), tuple(projections), tuple(fallbacks))
+
+    def backup(
+        self, beliefs: np.ndarray, alphas: np.ndarray | PreparedAlphas
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Backed-up vectors for each row of ``beliefs``: ``(vectors (n, S), actions (n,), values (n,))``.
 
-        ``values[i] = beliefs[i] . vectors[i]``. ``alphas`` is the current value function (K x S).
+        ``values[i] = beliefs[i] . vectors[i]``. ``alphas`` is the current value function (K x S), or its
+        :meth:`prepare`-d form when several batches are backed up against the same one.
+        Internally everything is laid out (S, n) so that every sparse product is a row-oriented CSR product.
         """
+        prepared = alphas if isinstance(alphas, PreparedAlphas) else self.prepare(alphas)
+        alphas = prepared.alphas
         n, n_states = beliefs.shape
+        n_vectors, n_obs = alphas.shape[0], self.n_observations
+        beliefs_t = np.ascontiguousarray(beliefs.T)  # (S, n)
         best_vectors = np.empty((n, n_states))
         best_values = np.full(n, -np.inf)
         best_actions = np.zeros(n, dtype=np.int64)
-        rows = np.arange(n)
         for action in range(self.pomdp.n_actions):
-            predicted = np.asarray(self.transitions_t[action] @ beliefs.T).T  # (n, S'): sum_s b(s) T(s,a,s')
-            continuation = np.zeros((n, n_states))
-            for _, states, probabilities in self.branches[action]:
-                weighted = alphas[:, states] * probabilities  # (K, m): O(z|s',a) alpha_k(s')
-                scores = predicted[:, states] @ weighted.T  # (n, K)
-                chosen = np.argmax(scores, axis=1)
-                impossible = ~np.any(predicted[:, states] > 0.0, axis=1)
-                if impossible.any():
-                    chosen[impossible] = int(np.argmax(weighted.sum(axis=1)))
-                continuation[:, states] += weighted[chosen]
-            vectors = (
-                self.rewards_by_action[action]
-                + self.discount * np.asarray(self.transitions[action] @ continuation.T).T
+            end_states, observations, probabilities, from_entries, observation_t = self.entries[action]
+            # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
+            predicted = self.transitions_t[action] @ beliefs_t
+            scores = (prepared.projections[action] @ predicted).reshape(n_vectors, n_obs, n)
+            chosen = _argmax_first_axis(scores)  # (Z, n): best continuation vector per branch and belief
+            impossible = (observation_t @ predicted) <= 0.0  # (Z, n)
+            if impossible.any():
+                chosen = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
+            # continuation[s', i] = sum_z O(z|s',a) alpha_{chosen[z,i]}(s'), gathered per observation entry.
+            per_entry = alphas[chosen[observations], end_states[:, None]] * probabilities[:, None]  # (nnz, n)
+            continuation = from_entries @ per_entry  # (S', n)
+            vectors = self.rewards_by_action[action][:, None] + self.discount * (
+                self.transitions[action] @ continuation
             )
-            values = np.einsum("ij,ij->i", beliefs, vectors)
+            values = np.einsum("si,si->i", beliefs_t, vectors)
             better = values > best_values
             best_values[better] = values[better]
             best_actions[better] = action
-            best_vectors[rows[better]] = vectors[better]
+            best_vectors[better] = vectors[:, better].T
         return best_vectors, best_actions, best_values
+
+
+def _argmax_first_axis(scores: np.ndarray) -> np.ndarray:
+    """``argmax(scores, axis=0)`` by a running maximum over contiguous slabs (about 2x numpy's strided argmax)."""
+    best = scores[0].copy()
+    chosen = np.zeros(best.shape, dtype=np.int64)
+    for k in range(1, scores.shape[0]):
+        better = scores[k] > best
+        np.copyto(best, scores[k], where=better)
+        chosen[better] = k
+    return chosen
 
 
 def blind_policy_vectors(pomdp: POMDP) -> np.ndarray:

@@ -13,6 +13,7 @@ import numpy as np
 from embodied_adhoc.decision.models import POMDP
 
 _DENSE_OBSERVATION_LIMIT = 20_000_000
+_EXHAUSTED_AFTER = 1000  # consecutive steps without a new belief: the reachable set is (nearly) exhausted
 
 
 class BeliefStepper:
@@ -64,7 +65,7 @@ def collect_beliefs(
     attempts_without_new = 0
     belief, state, depth = pomdp.initial_belief, pomdp.sample_initial_state(rng), 0
     # Stop early when the reachable set seems exhausted (many consecutive steps without a new belief).
-    while len(beliefs) < count and attempts_without_new < 20 * count + 1000:
+    while len(beliefs) < count and attempts_without_new < _EXHAUSTED_AFTER:
         if depth >= max_depth:
             belief, state, depth = pomdp.initial_belief, pomdp.sample_initial_state(rng), 0
         if greedy_q is not None and rng.random() >= epsilon:

@@ -1,0 +1,199 @@
+"""``embodied-adhoc pomdp info|solve``: inspect and solve Cassandra ``.pomdp`` files."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+SOLVERS = ("perseus", "qmdp", "vi")
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    group = subparsers.add_parser("pomdp", help="inspect and solve .pomdp files (Cassandra's format)")
+    group.set_defaults(_parser=group)
+    commands = group.add_subparsers(dest="pomdp_command", metavar="SUBCOMMAND")
+
+    info = commands.add_parser("info", help="sizes and discount of a .pomdp file")
+    _add_file(info)
+    info.add_argument("--json", action="store_true", help="print one JSON object")
+    info.set_defaults(func=_info)
+
+    solve = commands.add_parser("solve", help="solve a .pomdp file and report V(b0)")
+    _add_file(solve)
+    solve.add_argument("--solver", choices=SOLVERS, default="perseus", help="default: perseus")
+    solve.add_argument("--beliefs", type=int, default=1000, help="Perseus belief-set size (default 1000)")
+    solve.add_argument("--time-limit", type=float, default=None, help="Perseus time limit in seconds")
+    solve.add_argument(
+        "--tolerance", type=float, default=None, help="stop when improvement <= T (default 1e-3)"
+    )
+    solve.add_argument(
+        "--horizon", type=int, default=None, help="finite horizon (required when discount is 1.0)"
+    )
+    solve.add_argument("--seed", type=int, default=0, help="seed of belief collection and simulation")
+    solve.add_argument(
+        "--simulate", type=int, default=0, metavar="N", help="evaluate with N simulated episodes"
+    )
+    solve.add_argument(
+        "--sim-steps",
+        type=int,
+        default=None,
+        help="steps per simulated episode (default: horizon, or until gamma^t < 1e-3)",
+    )
+    solve.add_argument(
+        "--save-policy", type=Path, default=None, metavar="PATH", help="write the policy (.npz)"
+    )
+    solve.add_argument("--json", action="store_true", help="stdout is one JSON object")
+    solve.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    solve.set_defaults(func=_solve)
+
+
+def _add_file(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("file", help="a .pomdp path, or the name of a shipped file (e.g. tiger.95.POMDP)")
+    parser.add_argument(
+        "--missing-rows",
+        choices=("error", "absorbing", "reset"),
+        default="error",
+        help="transition rows the file never writes: error (default), self-loop, or start belief",
+    )
+
+
+def resolve_pomdp_path(name: str) -> Path:
+    """A path relative to the working directory, else a file shipped under ``assets/data/``."""
+    from embodied_adhoc import paths
+    from embodied_adhoc.errors import ConfigError
+
+    path = Path(name)
+    if path.is_file():
+        return path
+    try:
+        return paths.asset(f"data/{name}")
+    except FileNotFoundError:
+        shipped = sorted(p.name for p in paths.assets_dir().joinpath("data").glob("*.POMDP"))
+        raise ConfigError(
+            f"no file '{name}' (not a path from {Path.cwd()}, nor a shipped file: {shipped})"
+        ) from None
+
+
+def _load(args: argparse.Namespace):
+    from embodied_adhoc.decision.pomdp_io import read_pomdp
+
+    return read_pomdp(resolve_pomdp_path(args.file), missing_rows=args.missing_rows)
+
+
+def _info(args: argparse.Namespace) -> int:
+    pomdp = _load(args)
+    report = {
+        "file": str(resolve_pomdp_path(args.file)),
+        "states": pomdp.n_states,
+        "actions": pomdp.n_actions,
+        "observations": pomdp.n_observations,
+        "discount": pomdp.discount,
+        "transition_nonzeros": int(sum(m.nnz for m in pomdp.transitions)),
+        "observation_nonzeros": int(sum(m.nnz for m in pomdp.observations)),
+    }
+    if args.json:
+        print(json.dumps(report))
+    else:
+        for key, value in report.items():
+            print(f"{key:>22}: {value}")
+    return 0
+
+
+def _solve(args: argparse.Namespace) -> int:
+    from embodied_adhoc.errors import ConfigError
+
+    if args.simulate and args.solver == "vi":
+        raise ConfigError(
+            "--simulate needs a belief policy: use --solver perseus or qmdp (vi solves the MDP)"
+        )
+    pomdp = _load(args)
+    start = time.perf_counter()
+    report: dict = {"file": str(resolve_pomdp_path(args.file)), "solver": args.solver}
+    policy = None
+    if args.solver == "vi":
+        from embodied_adhoc.decision.value_iteration import value_iteration
+
+        result = value_iteration(pomdp.as_mdp(), tolerance=args.tolerance or 1e-8, horizon=args.horizon)
+        report.update(
+            value_b0=float(pomdp.initial_belief @ result.values),
+            alpha_vectors=0,
+            iterations=result.iterations,
+            converged=result.converged,
+        )
+    else:
+        if args.solver == "qmdp":
+            from embodied_adhoc.decision.qmdp import qmdp
+
+            policy = qmdp(pomdp, horizon=args.horizon)
+        else:
+            from embodied_adhoc.decision.perseus import PerseusConfig, perseus
+
+            config = PerseusConfig(
+                n_beliefs=args.beliefs,
+                tolerance=1e-3 if args.tolerance is None else args.tolerance,
+                time_limit=args.time_limit,
+                seed=args.seed,
+                horizon=args.horizon,
+            )
+            policy = perseus(pomdp, config, progress=None if args.quiet else _progress_printer())
+        report.update(
+            value_b0=policy.value(pomdp.initial_belief),
+            alpha_vectors=policy.n_vectors,
+            iterations=policy.stats.iterations,
+            converged=policy.stats.converged,
+        )
+        if policy.stats.n_beliefs:
+            report["beliefs"] = policy.stats.n_beliefs
+    report["seconds"] = time.perf_counter() - start
+    if args.save_policy is not None and policy is not None:
+        report["policy"] = str(policy.save(args.save_policy))
+    if args.simulate:
+        from embodied_adhoc.decision.evaluation import evaluate_policy
+
+        steps = args.sim_steps or args.horizon or _effective_horizon(pomdp.discount)
+        evaluation = evaluate_policy(pomdp, policy, args.simulate, steps, seed=args.seed)
+        report["simulation"] = evaluation.as_dict()
+    if args.json:
+        print(json.dumps(report))
+    else:
+        _print_report(report)
+    return 0
+
+
+def _effective_horizon(discount: float) -> int:
+    return (
+        1000
+        if discount >= 1.0
+        else max(1, min(10_000, math.ceil(math.log(1e-3) / math.log(max(discount, 1e-9)))))
+    )
+
+
+def _progress_printer():
+    last = [0.0]
+
+    def report(progress) -> None:
+        if progress.seconds - last[0] >= 1.0 or progress.iteration == 1:
+            last[0] = progress.seconds
+            print(
+                f"  iteration {progress.iteration:5d}  {progress.seconds:7.1f} s  V(b0) {progress.value_b0:12.6f}  "
+                f"vectors {progress.n_vectors:6d}  improvement {progress.improvement:.3g}",
+                file=sys.stderr,
+                flush=True,
+            )
+
+    return report
+
+
+def _print_report(report: dict) -> None:
+    simulation = report.pop("simulation", None)
+    for key, value in report.items():
+        print(f"{key:>14}: {value:.6f}" if isinstance(value, float) else f"{key:>14}: {value}")
+    if simulation:
+        print(
+            f"{'simulation':>14}: {simulation['mean']:.4f} +- {simulation['ci95']:.4f} (95% CI, "
+            f"{simulation['episodes']} episodes x {simulation['horizon']} steps)"
+        )
