@@ -20,12 +20,13 @@ def make(**kwargs):
 def test_check_env_passes_without_warnings():
     from gymnasium.utils.env_checker import check_env
 
-    env = make()
+    env = make(render_mode="rgb_array", width=64, height=48)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            check_env(env, skip_render_check=True)
+            check_env(env)
         assert not [str(w.message) for w in caught if "gymnasium" in str(w.filename)]
+        assert env.render().shape == (48, 64, 3)
     finally:
         env.close()
 
