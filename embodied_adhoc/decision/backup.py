@@ -25,13 +25,16 @@ import scipy.sparse.linalg
 
 from embodied_adhoc.decision.models import POMDP
 
+_DENSE_DENSITY = 0.1  # observation-matrix density above which projections are stored densely
+_DENSE_MAX_ELEMENTS = 20_000_000
+
 
 @dataclass(frozen=True)
 class PreparedAlphas:
     """A value function with its per-action projections (built once, used for many batches)."""
 
     alphas: np.ndarray
-    projections: tuple[sp.csr_matrix, ...]
+    projections: tuple[sp.csr_matrix | np.ndarray, ...]
     fallbacks: tuple[np.ndarray, ...]
 
 
@@ -68,12 +71,18 @@ class BackupOperator:
             # projected (K*Z x S'): row k*Z+z holds O(z|s',a) alpha_k(s'); scores[k, z, i] = row . (b_i T_a)
             weights = alphas[:, end_states] * probabilities  # (K, nnz)
             rows = (np.arange(n_vectors)[:, None] * n_obs + observations[None, :]).ravel()
-            projections.append(
-                sp.csr_matrix(
-                    (weights.ravel(), (rows, np.tile(end_states, n_vectors))),
-                    shape=(n_vectors * n_obs, n_states),
+            columns = np.tile(end_states, n_vectors)
+            shape = (n_vectors * n_obs, n_states)
+            density = len(end_states) / (n_states * n_obs)
+            if density >= _DENSE_DENSITY and shape[0] * shape[1] <= _DENSE_MAX_ELEMENTS:
+                # Dense observation models: a dense BLAS product beats the sparse one despite the extra zeros.
+                # Laid out (Z, K, S) so that the scores come out (n, Z, K), K last for a contiguous argmax.
+                dense_t = observation_t.toarray()  # (Z, S)
+                projections.append(
+                    (dense_t[:, None, :] * alphas[None, :, :]).reshape(n_obs * n_vectors, n_states)
                 )
-            )
+            else:
+                projections.append(sp.csr_matrix((weights.ravel(), (rows, columns)), shape=shape))
             # For branches impossible at a belief: the vector best for a uniform spread over the states emitting z.
             fallbacks.append(np.argmax(observation_t @ alphas.T, axis=1))
         return PreparedAlphas(np.ascontiguousarray(alphas), tuple(projections), tuple(fallbacks))
@@ -99,8 +108,13 @@ class BackupOperator:
             end_states, observations, probabilities, from_entries, observation_t = self.entries[action]
             # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
             predicted = self.transitions_t[action] @ beliefs_t
-            scores = (prepared.projections[action] @ predicted).reshape(n_vectors, n_obs, n)
-            chosen = _argmax_first_axis(scores)  # (Z, n): best continuation vector per branch and belief
+            projected = prepared.projections[action]
+            if isinstance(projected, np.ndarray):  # dense (Z*K, S): scores (n, Z, K)
+                scores = (predicted.T @ projected.T).reshape(n, n_obs, n_vectors)
+                chosen = np.ascontiguousarray(np.argmax(scores, axis=2).T)  # (Z, n)
+            else:  # sparse (K*Z, S): scores (K, Z, n)
+                scores = (projected @ predicted).reshape(n_vectors, n_obs, n)
+                chosen = _argmax_first_axis(scores)  # (Z, n): best continuation vector per branch and belief
             impossible = (observation_t @ predicted) <= 0.0  # (Z, n)
             if impossible.any():
                 chosen = np.where(impossible, prepared.fallbacks[action][:, None], chosen)

@@ -164,7 +164,11 @@ class POMDP(MDP):
 
     def observation_likelihood(self, belief: np.ndarray, action: int, observation: int) -> float:
         """``P(z | b, a) = sum_{s'} O(z | s', a) sum_s P(s' | s, a) b(s)``: the normaliser of Eq. 2.3."""
-        return float(self.observations[action][:, observation].T @ self.predict(belief, action))
+        return float(self._observation_column(action, observation) @ self.predict(belief, action))
+
+    def _observation_column(self, action: int, observation: int) -> np.ndarray:
+        """``O(z | ., a)`` as a dense length-|S| vector."""
+        return self.observations[action][:, [observation]].toarray().ravel()
 
     def belief_update(self, belief: np.ndarray, action: int, observation: int) -> tuple[np.ndarray, float]:
         """Bayesian belief update (thesis Eq. 2.3).
@@ -173,9 +177,7 @@ class POMDP(MDP):
         Returns ``(b', rho)``. An observation impossible under ``b`` (``rho == 0``) raises ModelError,
         since no posterior exists; callers that expect model mismatch should catch it and reset.
         """
-        unnormalised = self.observations[action][:, observation].toarray().ravel() * self.predict(
-            belief, action
-        )
+        unnormalised = self._observation_column(action, observation) * self.predict(belief, action)
         likelihood = float(unnormalised.sum())
         if likelihood <= 0.0:
             raise ModelError(
@@ -191,7 +193,11 @@ class POMDP(MDP):
 
     # -------------------------------------------------------------------------------------- simulation
     def sample_initial_state(self, rng: np.random.Generator) -> int:
-        return int(rng.choice(self.n_states, p=self.initial_belief))
+        # Inverse-CDF sampling: files rounded to 6 digits sum to 1 only within PROBABILITY_ATOL, which
+        # Generator.choice (tolerance 1e-8) would reject.
+        cumulative = np.cumsum(self.initial_belief)
+        index = int(np.searchsorted(cumulative, rng.random() * cumulative[-1], side="right"))
+        return min(index, self.n_states - 1)
 
     def step(self, state: int, action: int, rng: np.random.Generator) -> tuple[int, int, float]:
         """Generative model: sample ``s' ~ P(.|s,a)``, ``z ~ O(.|s',a)``; return ``(s', z, R(s, a))``.
