@@ -94,6 +94,7 @@ class GridArenaBackend:
         self.image_size = image_size
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self.physics_steps = 0  # mj_step calls since construction (for benchmarks)
+        self.on_tick = None  # optional callable(sim_seconds_into_macro_step) after each control tick (recording)
 
     # -- poses ------------------------------------------------------------------------------------------------
     def poses(self) -> np.ndarray:
@@ -185,6 +186,8 @@ class GridArenaBackend:
             mujoco.mj_step(self.model, self.data, phys.control_period)
             self.physics_steps += phys.control_period
             t += dt
+            if self.on_tick is not None:
+                self.on_tick(t)
         self.data.ctrl[:] = 0.0
         for m in np.flatnonzero(plan.completed):
             if cfg.domain == "pursuit":
