@@ -1,6 +1,7 @@
 """Arena scripts: a short recording (mp4 + rrd) and the benchmark's rate helper."""
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -10,8 +11,9 @@ from embodied_adhoc import paths
 
 def load(name):
     path = Path(paths.__file__).resolve().parent.parent / "scripts" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
+    spec = importlib.util.spec_from_file_location(f"arena_script_{name}", path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[f"arena_script_{name}"] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
 
