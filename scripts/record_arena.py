@@ -57,7 +57,7 @@ def main(args: Args) -> None:
     from embodied_adhoc.record.video import VideoWriter
 
     env_id = {"foraging": "EmbodiedAdhoc/Foraging-v0", "pursuit": "EmbodiedAdhoc/Pursuit-v0"}[args.domain]
-    env = gymnasium.make(env_id, teams=(args.team,), tasks=(args.task,), obs_mode="image", image_size=128,
+    env = gymnasium.make(env_id, teams=(args.team,), tasks=(args.task,), obs_mode="image", image_size=max(16, args.size // 4),
                          render_mode="rgb_array").unwrapped
     backend, core = env.core.backend, env.core
     args.out.mkdir(parents=True, exist_ok=True)
