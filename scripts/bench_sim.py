@@ -103,6 +103,37 @@ def render_rate(world: LabWorld, camera: str, frames: int, width: int, height: i
     return frames / (time.perf_counter() - start)
 
 
+# A scripted HOTSPOT episode (task 0,1,2; robot from the door, human in the open space): 12 macro steps in which
+# the robot follows the human and every ball ends in the container.
+EPISODE = (
+    (1, HumanCommand.pick(1)),
+    (None, HumanCommand.drop_into_container(1)),
+    (2, HumanCommand.move_to(2)),
+    (None, HumanCommand.pick(2)),
+    (None, HumanCommand.drop_into_container(2)),
+    (1, HumanCommand.move_to(1)),
+    (0, HumanCommand.move_to(0)),
+    (None, HumanCommand.pick(0)),
+    (None, HumanCommand.drop_into_container(0)),
+    (None, HumanCommand.stay()),
+)
+
+
+def run_episode(world: LabWorld, width: int, height: int, video: bool) -> tuple[float, float, int, tuple]:
+    """Wall seconds, simulated seconds and frames of the scripted episode, with or without overhead video."""
+    frames: list[int] = []
+
+    def grab(lab: LabWorld) -> None:
+        lab.render("overhead", width, height)
+        frames.append(1)
+
+    world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
+    start, sim = time.perf_counter(), 0.0
+    for target, command in EPISODE:
+        sim += world.step_macro(target, command, grab if video else None).sim_seconds
+    return time.perf_counter() - start, sim, len(frames), world.ground_truth().ball_states
+
+
 def main() -> None:
     args = parse_args()
     with LabWorld(LabWorldConfig()) as world:
@@ -116,6 +147,8 @@ def main() -> None:
                 fps[f"{cam}, {quality}"] = render_rate(
                     world, cam, args.render_frames, args.width, args.height
                 )
+        episode_plain = run_episode(world, args.width, args.height, video=False)
+        episode_video = run_episode(world, args.width, args.height, video=True)
     world_rtf = sim_total / cpu_total
     print(
         f"physics timestep {world.config.timestep * 1e3:.1f} ms, control period {world.config.control_period * 1e3:.0f} ms"
@@ -143,6 +176,15 @@ def main() -> None:
     print(f"| LabWorld real-time factor (sim s / CPU s, headless) | {world_rtf:.1f} |")
     print(f"| raw mj_step real-time factor (sim s / CPU s), same model | {raw_rtf:.1f} |")
     print(f"| LabWorld cost per sim s / raw mj_step cost per sim s | {raw_rtf / world_rtf:.2f}x |")
+    wall, sim, _, states = episode_plain
+    print(
+        f"| scripted episode, {len(EPISODE)} macro steps, {sim:.0f} sim s, no video (wall s) | {wall:.1f} |"
+    )
+    wall, sim, count, states = episode_video
+    print(
+        f"| same with overhead video, {count} frames at {world.config.video_fps:g} fps (wall s) | {wall:.1f} |"
+    )
+    print(f"| ball states at the end of the episode | {', '.join(states)} |")
     for cam, rate in fps.items():
         print(f"| offscreen render {cam} quality {args.width}x{args.height} (frames/wall s) | {rate:.1f} |")
 

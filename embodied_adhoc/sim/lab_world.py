@@ -216,8 +216,8 @@ class LabWorld:
             self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
             events.extend(self.rfid.poll(data))
             wall_contact = wall_contact or robot_wall_contact(data, self.ids)
-            if frame_callback is not None and data.time >= self._next_frame - 1e-9:
-                frame_callback(self)
+            while frame_callback is not None and data.time >= self._next_frame - 1e-9:
+                frame_callback(self)  # once per due frame (repeats if video_fps exceeds the control rate)
                 self._next_frame += 1.0 / config.video_fps
         data.ctrl[self.ids.wheel_actuators] = 0.0
         truth = self.ground_truth()
