@@ -103,7 +103,7 @@ def render_rate(world: LabWorld, camera: str, frames: int, width: int, height: i
     return frames / (time.perf_counter() - start)
 
 
-# A scripted HOTSPOT episode (task 0,1,2; robot from the door, human in the open space): 12 macro steps in which
+# A scripted HOTSPOT episode (task 0,1,2; robot from the door, human in the open space): 10 macro steps in which
 # the robot follows the human and every ball ends in the container.
 EPISODE = (
     (1, HumanCommand.pick(1)),
@@ -119,8 +119,11 @@ EPISODE = (
 )
 
 
-def run_episode(world: LabWorld, width: int, height: int, video: bool) -> tuple[float, float, int, tuple]:
-    """Wall seconds, simulated seconds and frames of the scripted episode, with or without overhead video."""
+def run_episode(
+    world: LabWorld, width: int, height: int, video: bool
+) -> tuple[float, float, float, int, tuple]:
+    """Wall seconds, CPU seconds (all threads of this process, so software rendering counts), simulated seconds,
+    frames and final ball states of the scripted episode, with or without overhead video."""
     frames: list[int] = []
 
     def grab(lab: LabWorld) -> None:
@@ -128,10 +131,11 @@ def run_episode(world: LabWorld, width: int, height: int, video: bool) -> tuple[
         frames.append(1)
 
     world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
-    start, sim = time.perf_counter(), 0.0
+    start, cpu_start, sim = time.perf_counter(), time.process_time(), 0.0
     for target, command in EPISODE:
         sim += world.step_macro(target, command, grab if video else None).sim_seconds
-    return time.perf_counter() - start, sim, len(frames), world.ground_truth().ball_states
+    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+    return wall, cpu, sim, len(frames), world.ground_truth().ball_states
 
 
 def main() -> None:
@@ -176,13 +180,14 @@ def main() -> None:
     print(f"| LabWorld real-time factor (sim s / CPU s, headless) | {world_rtf:.1f} |")
     print(f"| raw mj_step real-time factor (sim s / CPU s), same model | {raw_rtf:.1f} |")
     print(f"| LabWorld cost per sim s / raw mj_step cost per sim s | {raw_rtf / world_rtf:.2f}x |")
-    wall, sim, _, states = episode_plain
+    wall, cpu, sim, _, states = episode_plain
     print(
-        f"| scripted episode, {len(EPISODE)} macro steps, {sim:.0f} sim s, no video (wall s) | {wall:.1f} |"
+        f"| scripted episode, {len(EPISODE)} macro steps, {sim:.0f} sim s, no video: wall s / CPU s | {wall:.1f} / {cpu:.1f} |"
     )
-    wall, sim, count, states = episode_video
+    wall, cpu, sim, count, states = episode_video
     print(
-        f"| same with overhead video, {count} frames at {world.config.video_fps:g} fps (wall s) | {wall:.1f} |"
+        f"| same with overhead video {args.width}x{args.height}, {count} frames at {world.config.video_fps:g} fps: "
+        f"wall s / CPU s | {wall:.1f} / {cpu:.1f} |"
     )
     print(f"| ball states at the end of the episode | {', '.join(states)} |")
     for cam, rate in fps.items():
