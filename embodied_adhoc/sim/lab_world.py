@@ -285,6 +285,12 @@ class LabWorld:
         if mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, name) < 0:
             cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
             raise ConfigError(f"no camera '{camera}' in the lab scene; available: {cameras} (or 'robot')")
+        max_width, max_height = self.model.vis.global_.offwidth, self.model.vis.global_.offheight
+        if not (1 <= width <= max_width and 1 <= height <= max_height):
+            raise ConfigError(
+                f"render size {width}x{height} outside 1x1..{max_width}x{max_height} (the scene's offscreen "
+                "buffer, <visual><global offwidth offheight> in scenes/lab.xml)"
+            )
         renderer = self._renderers.get((width, height))
         if renderer is None:
             renderer = mujoco.Renderer(self.model, height=height, width=width)

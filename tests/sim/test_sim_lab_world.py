@@ -117,6 +117,8 @@ def test_frame_callback_runs_at_the_video_rate_and_renders(world):
         assert image.shape == (64, 80, 3) and image.dtype == np.uint8 and image.std() > 5
     with pytest.raises(ConfigError, match="no camera"):
         world.render("ceiling")
+    with pytest.raises(ConfigError, match="offscreen"):
+        world.render("overhead", width=4000, height=100)
 
 
 def test_bad_arguments_are_clear_errors(world):
