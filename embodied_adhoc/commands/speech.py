@@ -16,49 +16,84 @@ import sys
 
 
 def register(subparsers) -> None:
-    parser = subparsers.add_parser("speech", help="offline speech: measure the pipeline, try a phrase, robot utterances",
-                                   description="Offline communication module: espeak-ng synthesis, pocketsphinx "
-                                   "recognition under a grammar generated from the lab's place vocabulary.")
+    parser = subparsers.add_parser(
+        "speech",
+        help="offline speech: measure the pipeline, try a phrase, robot utterances",
+        description="Offline communication module: espeak-ng synthesis, pocketsphinx "
+        "recognition under a grammar generated from the lab's place vocabulary.",
+    )
     commands = parser.add_subparsers(dest="speech_command", metavar="SUBCOMMAND")
     parser.set_defaults(_parser=parser)
 
-    evaluate = commands.add_parser("eval", help="measure accuracies per SNR and the node confusion matrix",
-                                   description="Every voice reads the same phrase list, clean and at each SNR; prints "
-                                   "metrics 4-6 per condition beside the thesis's, and saves the smoothed confusion "
-                                   "matrix (rows = true node, columns = recognised node + failed).")
-    evaluate.add_argument("--voices", default=None, metavar="V,V,...", help="espeak-ng voices (default: the six of "
-                          "embodied_adhoc.comms.synthesis.DEFAULT_VOICES)")
-    evaluate.add_argument("--snr", default="20,10,5", metavar="DB,DB,...",
-                          help="noise levels in dB besides clean speech (default 20,10,5; 'none' = clean only)")
+    evaluate = commands.add_parser(
+        "eval",
+        help="measure accuracies per SNR and the node confusion matrix",
+        description="Every voice reads the same phrase list, clean and at each SNR; prints "
+        "metrics 4-6 per condition beside the thesis's, and saves the smoothed confusion "
+        "matrix (rows = true node, columns = recognised node + failed).",
+    )
+    evaluate.add_argument(
+        "--voices",
+        default=None,
+        metavar="V,V,...",
+        help="espeak-ng voices (default: the six of embodied_adhoc.comms.synthesis.DEFAULT_VOICES)",
+    )
+    evaluate.add_argument(
+        "--snr",
+        default="20,10,5",
+        metavar="DB,DB,...",
+        help="noise levels in dB besides clean speech (default 20,10,5; 'none' = clean only)",
+    )
     evaluate.add_argument("--phrases", type=int, default=60, help="phrases per voice (default 60)")
-    evaluate.add_argument("--seed", type=int, default=0, help="seed of phrases, speeds, pitches and noise (default 0)")
-    evaluate.add_argument("--noise", choices=("babble", "white"), default="babble", help="noise kind (default babble)")
+    evaluate.add_argument(
+        "--seed", type=int, default=0, help="seed of phrases, speeds, pitches and noise (default 0)"
+    )
+    evaluate.add_argument(
+        "--noise", choices=("babble", "white"), default="babble", help="noise kind (default babble)"
+    )
     evaluate.add_argument("--workers", type=int, default=1, help="decoding processes (default 1)")
-    evaluate.add_argument("--out", default=None, metavar="PATH", help="where to save the confusion matrix JSON "
-                          "(default assets/data/speech_confusion_measured.json; 'none' = do not save)")
+    evaluate.add_argument(
+        "--out",
+        default=None,
+        metavar="PATH",
+        help="where to save the confusion matrix JSON "
+        "(default assets/data/speech_confusion_measured.json; 'none' = do not save)",
+    )
     evaluate.add_argument("--json", action="store_true", help="print one JSON document instead of tables")
     evaluate.set_defaults(func=handle_eval)
 
-    attempt = commands.add_parser("try", help="synthesise TEXT, recognise it, print transcript, place and node")
-    attempt.add_argument("text", help="what the human says, e.g. \"I'm at the big workbench\"")
+    attempt = commands.add_parser(
+        "try", help="synthesise TEXT, recognise it, print transcript, place and node"
+    )
+    attempt.add_argument("text", help='what the human says, e.g. "I\'m at the big workbench"')
     attempt.add_argument("--voice", default="en-us", help="espeak-ng voice (default en-us)")
     attempt.add_argument("--speed", type=int, default=160, help="words per minute (default 160)")
     attempt.add_argument("--pitch", type=int, default=50, help="pitch 0-99 (default 50)")
-    attempt.add_argument("--snr", type=float, default=None, metavar="DB", help="add noise at this SNR (default clean)")
-    attempt.add_argument("--noise", choices=("babble", "white"), default="babble", help="noise kind (default babble)")
+    attempt.add_argument(
+        "--snr", type=float, default=None, metavar="DB", help="add noise at this SNR (default clean)"
+    )
+    attempt.add_argument(
+        "--noise", choices=("babble", "white"), default="babble", help="noise kind (default babble)"
+    )
     attempt.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
-    attempt.add_argument("--wav", default=None, metavar="PATH", help="also write the heard audio as a WAV file")
+    attempt.add_argument(
+        "--wav", default=None, metavar="PATH", help="also write the heard audio as a WAV file"
+    )
     attempt.add_argument("--json", action="store_true", help="print JSON")
     attempt.set_defaults(func=handle_try)
 
     say = commands.add_parser("say", help="the robot's utterance as text (and WAV with --wav)")
     say.add_argument("act", choices=("where", "arrived", "ready"), help="communication act")
-    say.add_argument("--node", type=int, default=None, help="node for arrived/ready (0 door .. 4 double workbench)")
+    say.add_argument(
+        "--node", type=int, default=None, help="node for arrived/ready (0 door .. 4 double workbench)"
+    )
     say.add_argument("--wav", default=None, metavar="PATH", help="write the spoken utterance as a 16 kHz WAV")
     say.set_defaults(func=handle_say)
 
     grammar = commands.add_parser("grammar", help="regenerate assets/speech/reply.gram and reply.dict")
-    grammar.add_argument("--check", action="store_true", help="only check that the committed files are up to date")
+    grammar.add_argument(
+        "--check", action="store_true", help="only check that the committed files are up to date"
+    )
     grammar.set_defaults(func=handle_grammar)
 
 
@@ -72,7 +107,9 @@ def _parse_list(text: str | None, kind: str) -> tuple:
         try:
             return tuple(None if item.lower() in ("none", "clean") else float(item) for item in items)
         except ValueError:
-            raise ConfigError(f"--snr {text!r}: expected comma-separated numbers of dB, e.g. 20,10,5") from None
+            raise ConfigError(
+                f"--snr {text!r}: expected comma-separated numbers of dB, e.g. 20,10,5"
+            ) from None
     return items
 
 
@@ -84,10 +121,18 @@ def handle_eval(args: argparse.Namespace) -> int:
 
     levels = (None, *(level for level in _parse_list(args.snr, "snr") if level is not None))
     config = speech_eval.EvalConfig(
-        voices=_parse_list(args.voices, "voices") or synthesis.DEFAULT_VOICES, snr_levels=levels,
-        phrases=args.phrases, seed=args.seed, noise=args.noise, workers=args.workers)
-    command = "embodied-adhoc " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:2] == ["speech"] else \
-        f"embodied-adhoc speech eval --phrases {args.phrases} --seed {args.seed} --snr {args.snr}"
+        voices=_parse_list(args.voices, "voices") or synthesis.DEFAULT_VOICES,
+        snr_levels=levels,
+        phrases=args.phrases,
+        seed=args.seed,
+        noise=args.noise,
+        workers=args.workers,
+    )
+    command = (
+        "embodied-adhoc " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        if sys.argv[1:2] == ["speech"]
+        else f"embodied-adhoc speech eval --phrases {args.phrases} --seed {args.seed} --snr {args.snr}"
+    )
     results = speech_eval.run_eval(config, progress=not args.json and sys.stderr.isatty())
     conditions = [speech_eval.condition_metrics(results, level) for level in config.snr_levels]
     confusion = speech_eval.measured_confusion(results, config, command)
@@ -95,12 +140,22 @@ def handle_eval(args: argparse.Namespace) -> int:
     if (args.out or "").lower() != "none":
         saved = save_confusion(confusion, args.out or paths.assets_dir() / MEASURED_MATRIX)
     if args.json:
-        json.dump({"conditions": conditions, "thesis": speech_eval.THESIS_ACCURACY,
-                   "confusion": {"nodes": list(confusion.nodes), "columns": [*confusion.nodes, "failed"],
-                                 "matrix": confusion.matrix.round(4).tolist(),
-                                 "counts": confusion.provenance["counts"]},
-                   "clean_by_voice": confusion.provenance["clean_by_voice"],
-                   "saved": str(saved) if saved else None}, sys.stdout, indent=2)
+        json.dump(
+            {
+                "conditions": conditions,
+                "thesis": speech_eval.THESIS_ACCURACY,
+                "confusion": {
+                    "nodes": list(confusion.nodes),
+                    "columns": [*confusion.nodes, "failed"],
+                    "matrix": confusion.matrix.round(4).tolist(),
+                    "counts": confusion.provenance["counts"],
+                },
+                "clean_by_voice": confusion.provenance["clean_by_voice"],
+                "saved": str(saved) if saved else None,
+            },
+            sys.stdout,
+            indent=2,
+        )
         print()
         return 0
     print(speech_eval.format_report(conditions, confusion, confusion.provenance["clean_by_voice"]))
@@ -127,9 +182,11 @@ def handle_try(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps({"transcript": transcript, "place": parsed.place, "node": parsed.node}))
     else:
-        print(f"said:       {args.text}\nheard:      {transcript or '(nothing)'}\n"
-              f"place:      {parsed.place or '(none)'}\nnode:       "
-              f"{'no location' if parsed.node is None else f'{parsed.node} ({node_name(parsed.node)})'}")
+        print(
+            f"said:       {args.text}\nheard:      {transcript or '(nothing)'}\n"
+            f"place:      {parsed.place or '(none)'}\nnode:       "
+            f"{'no location' if parsed.node is None else f'{parsed.node} ({node_name(parsed.node)})'}"
+        )
     return 0
 
 
@@ -150,11 +207,16 @@ def handle_grammar(args: argparse.Namespace) -> int:
     from embodied_adhoc.comms import grammar
 
     if args.check:
-        stale = [relative for relative, text in grammar.generated_files().items()
-                 if not (paths.assets_dir() / relative).is_file()
-                 or (paths.assets_dir() / relative).read_text(encoding="utf-8") != text]
+        stale = [
+            relative
+            for relative, text in grammar.generated_files().items()
+            if not (paths.assets_dir() / relative).is_file()
+            or (paths.assets_dir() / relative).read_text(encoding="utf-8") != text
+        ]
         if stale:
-            print(f"out of date: {', '.join('assets/' + s for s in stale)}; run `embodied-adhoc speech grammar`")
+            print(
+                f"out of date: {', '.join('assets/' + s for s in stale)}; run `embodied-adhoc speech grammar`"
+            )
             return 1
         print("grammar and dictionary are up to date")
         return 0

@@ -127,14 +127,18 @@ class AudioChannel:
         return SpeechReply(parsed.node, transcript, audio, synthesis.SAMPLE_RATE, phrase.text)
 
 
-def make_channel(kind: str = "channel", confusion: ConfusionMatrix | str | os.PathLike | None = "measured", **audio_options) -> SpeechChannel:
+def make_channel(
+    kind: str = "channel", confusion: ConfusionMatrix | str | os.PathLike | None = "measured", **audio_options
+) -> SpeechChannel:
     """Build a channel by name: ``"perfect"``, ``"channel"`` (confusion matrix) or ``"audio"`` (full pipeline).
 
     ``confusion`` (for ``"channel"``) is a :class:`ConfusionMatrix`, ``"measured"`` (ours, the default),
     ``"thesis"`` or a JSON path. ``audio_options`` go to :class:`AudioChannel`.
     """
     if audio_options and kind != "audio":
-        raise ConfigError(f"options {sorted(audio_options)} apply only to the 'audio' speech channel, not {kind!r}")
+        raise ConfigError(
+            f"options {sorted(audio_options)} apply only to the 'audio' speech channel, not {kind!r}"
+        )
     if kind == "perfect":
         return PerfectChannel()
     if kind == "channel":

@@ -59,7 +59,9 @@ class EvalConfig:
         if not self.snr_levels:
             raise ConfigError("EvalConfig.snr_levels is empty; pass at least one level (None = clean)")
         if self.phrases < 1 or self.workers < 1:
-            raise ConfigError(f"EvalConfig needs phrases >= 1 and workers >= 1 (got {self.phrases}, {self.workers})")
+            raise ConfigError(
+                f"EvalConfig needs phrases >= 1 and workers >= 1 (got {self.phrases}, {self.workers})"
+            )
         synthesis.check_noise_kind(self.noise)
 
 
@@ -106,8 +108,20 @@ def _decode_one(task: tuple[EvalConfig, int, int, int, int, Phrase]) -> Utteranc
     parsed = parsing.parse(transcript)
     latency_ms = 1000.0 * (time.perf_counter() - start)
     cpu_ms = 1000.0 * (time.process_time() - start_cpu)
-    return UtteranceResult(voice.name, snr_db, true_node, phrase.reference, phrase.place, phrase.node,
-                           transcript, parsed.place, parsed.node, latency_ms, cpu_ms, len(audio) / synthesis.SAMPLE_RATE)
+    return UtteranceResult(
+        voice.name,
+        snr_db,
+        true_node,
+        phrase.reference,
+        phrase.place,
+        phrase.node,
+        transcript,
+        parsed.place,
+        parsed.node,
+        latency_ms,
+        cpu_ms,
+        len(audio) / synthesis.SAMPLE_RATE,
+    )
 
 
 def run_eval(config: EvalConfig, progress: bool = False) -> list[UtteranceResult]:
@@ -159,8 +173,10 @@ def condition_metrics(results: Sequence[UtteranceResult], snr_db: float | None) 
 def voice_metrics(results: Sequence[UtteranceResult], snr_db: float | None = None) -> dict[str, dict]:
     """Metrics 4-6 per voice at one SNR level (default clean): accents differ a lot for an American model."""
     chosen = [r for r in results if r.snr_db == snr_db]
-    return {voice: condition_metrics([r for r in chosen if r.voice == voice], snr_db)
-            for voice in dict.fromkeys(r.voice for r in chosen)}
+    return {
+        voice: condition_metrics([r for r in chosen if r.voice == voice], snr_db)
+        for voice in dict.fromkeys(r.voice for r in chosen)
+    }
 
 
 def confusion_counts(results: Sequence[UtteranceResult], n_nodes: int = len(NODE_NAMES)) -> np.ndarray:
@@ -176,13 +192,17 @@ def confusion_counts(results: Sequence[UtteranceResult], n_nodes: int = len(NODE
     return counts
 
 
-def measured_confusion(results: Sequence[UtteranceResult], config: EvalConfig, command: str) -> ConfusionMatrix:
+def measured_confusion(
+    results: Sequence[UtteranceResult], config: EvalConfig, command: str
+) -> ConfusionMatrix:
     """The smoothed node confusion matrix (all conditions pooled), with its provenance."""
     import importlib.metadata
     import subprocess
 
     counts = confusion_counts(results)
-    espeak = subprocess.run([synthesis.require_espeak(), "--version"], capture_output=True, text=True).stdout.strip()
+    espeak = subprocess.run(
+        [synthesis.require_espeak(), "--version"], capture_output=True, text=True
+    ).stdout.strip()
     provenance = {
         "source": "embodied-adhoc speech eval: offline espeak-ng synthesis + pocketsphinx under the generated grammar",
         "command": command,
@@ -207,7 +227,9 @@ def measured_confusion(results: Sequence[UtteranceResult], config: EvalConfig, c
     return ConfusionMatrix(NODE_NAMES, smooth_confusion(counts, SMOOTHING_FLOOR), SMOOTHING_FLOOR, provenance)
 
 
-def format_report(conditions: Sequence[dict], confusion: ConfusionMatrix, by_voice: dict[str, dict] | None = None) -> str:
+def format_report(
+    conditions: Sequence[dict], confusion: ConfusionMatrix, by_voice: dict[str, dict] | None = None
+) -> str:
     """Human-readable tables: metrics 4-6 per condition beside the thesis's, and the smoothed confusion matrix."""
     lines = [
         "| condition | n | transcript (M4) | place (M5) | node (M6) | latency ms | CPU ms | real-time factor |",
@@ -215,19 +237,30 @@ def format_report(conditions: Sequence[dict], confusion: ConfusionMatrix, by_voi
     ]
     for c in conditions:
         name = "clean" if c["snr_db"] is None else f"SNR {c['snr_db']:g} dB"
-        lines.append(f"| {name} | {c['n']} | {100 * c['transcript_accuracy']:.2f} % | {100 * c['place_accuracy']:.2f} % "
-                     f"| {100 * c['node_accuracy']:.2f} % | {c['latency_ms_mean']:.0f} | {c['cpu_ms_mean']:.0f} "
-                     f"| {c['real_time_factor']:.3f} |")
+        lines.append(
+            f"| {name} | {c['n']} | {100 * c['transcript_accuracy']:.2f} % | {100 * c['place_accuracy']:.2f} % "
+            f"| {100 * c['node_accuracy']:.2f} % | {c['latency_ms_mean']:.0f} | {c['cpu_ms_mean']:.0f} "
+            f"| {c['real_time_factor']:.3f} |"
+        )
     t = THESIS_ACCURACY
-    lines.append(f"| thesis (online, live) | 257 | {100 * t['transcript_accuracy']:.2f} % | {100 * t['place_accuracy']:.2f} % "
-                 f"| {100 * t['node_accuracy']:.2f} % | - | - | - |")
+    lines.append(
+        f"| thesis (online, live) | 257 | {100 * t['transcript_accuracy']:.2f} % | {100 * t['place_accuracy']:.2f} % "
+        f"| {100 * t['node_accuracy']:.2f} % | - | - | - |"
+    )
     if by_voice:
         lines += ["", "| clean speech, voice | n | transcript | place | node |", "|---|---|---|---|---|"]
-        lines += [f"| {voice} | {m['n']} | {100 * m['transcript_accuracy']:.1f} % | {100 * m['place_accuracy']:.1f} % "
-                  f"| {100 * m['node_accuracy']:.1f} % |" for voice, m in by_voice.items()]
+        lines += [
+            f"| {voice} | {m['n']} | {100 * m['transcript_accuracy']:.1f} % | {100 * m['place_accuracy']:.1f} % "
+            f"| {100 * m['node_accuracy']:.1f} % |"
+            for voice, m in by_voice.items()
+        ]
     header = "| true \\ heard | " + " | ".join([*(str(i) for i in range(confusion.n_nodes)), "failed"]) + " |"
-    lines += ["", f"node confusion matrix (all conditions pooled, floor {confusion.smoothing_floor}):", header,
-              "|---" * (confusion.n_nodes + 2) + "|"]
+    lines += [
+        "",
+        f"node confusion matrix (all conditions pooled, floor {confusion.smoothing_floor}):",
+        header,
+        "|---" * (confusion.n_nodes + 2) + "|",
+    ]
     for node, row in enumerate(confusion.matrix):
         lines.append(f"| {node} {confusion.nodes[node]} | " + " | ".join(f"{v:.3f}" for v in row) + " |")
     return "\n".join(lines)

@@ -81,7 +81,9 @@ class PhraseConfig:
         for name in ("uninformative_probability", "opening_probability", "closing_probability"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
-                raise ConfigError(f"PhraseConfig.{name} = {value} is not a probability; use a value in [0, 1]")
+                raise ConfigError(
+                    f"PhraseConfig.{name} = {value} is not a probability; use a value in [0, 1]"
+                )
 
 
 @dataclass(frozen=True)
@@ -107,7 +109,9 @@ def _compose(opening: str | None, body: str, closing: str | None) -> str:
     return text if closing is None else f"{text}, {closing}"
 
 
-def make_phrase(body_template: str, place: str | None, opening: str | None = None, closing: str | None = None) -> Phrase:
+def make_phrase(
+    body_template: str, place: str | None, opening: str | None = None, closing: str | None = None
+) -> Phrase:
     """Build a :class:`Phrase` from its parts (``place`` is ``None`` for an uninformative body)."""
     if place is None:
         return Phrase(_compose(opening, body_template, closing), None, None)
@@ -120,24 +124,32 @@ def iter_phrases() -> Iterator[Phrase]:
     """Every distinct phrasing the generator can produce, in a fixed order (about 10,000)."""
     bodies = [(t, p) for t in LOCATED_TEMPLATES for places in PLACE_SYNONYMS for p in places]
     bodies += [(t, None) for t in UNINFORMATIVE_REPLIES]
-    for opening, (template, place), closing in itertools.product((None, *OPENINGS), bodies, (None, *CLOSINGS)):
+    for opening, (template, place), closing in itertools.product(
+        (None, *OPENINGS), bodies, (None, *CLOSINGS)
+    ):
         yield make_phrase(template, place, opening, closing)
 
 
 def sample_phrase(node: int, rng: np.random.Generator, config: PhraseConfig = PhraseConfig()) -> Phrase:
     """A reply of a person standing at ``node``: names one of its place expressions, or is uninformative."""
     if not 0 <= node < len(NODE_NAMES):
-        raise ConfigError(f"node {node} is not a lab node; use 0..{len(NODE_NAMES) - 1} ({', '.join(NODE_NAMES)})")
+        raise ConfigError(
+            f"node {node} is not a lab node; use 0..{len(NODE_NAMES) - 1} ({', '.join(NODE_NAMES)})"
+        )
     opening = OPENINGS[rng.integers(len(OPENINGS))] if rng.random() < config.opening_probability else None
     closing = CLOSINGS[rng.integers(len(CLOSINGS))] if rng.random() < config.closing_probability else None
     if rng.random() < config.uninformative_probability:
-        return make_phrase(UNINFORMATIVE_REPLIES[rng.integers(len(UNINFORMATIVE_REPLIES))], None, opening, closing)
+        return make_phrase(
+            UNINFORMATIVE_REPLIES[rng.integers(len(UNINFORMATIVE_REPLIES))], None, opening, closing
+        )
     places = PLACE_SYNONYMS[node]
     template = LOCATED_TEMPLATES[rng.integers(len(LOCATED_TEMPLATES))]
     return make_phrase(template, places[rng.integers(len(places))], opening, closing)
 
 
-def sample_phrases(count: int, rng: np.random.Generator, config: PhraseConfig = PhraseConfig()) -> list[tuple[int, Phrase]]:
+def sample_phrases(
+    count: int, rng: np.random.Generator, config: PhraseConfig = PhraseConfig()
+) -> list[tuple[int, Phrase]]:
     """``count`` (true node, reply) pairs with the true nodes balanced (cycled 0..4, then shuffled)."""
     if count < 1:
         raise ConfigError(f"phrase count {count} must be at least 1")

@@ -65,13 +65,17 @@ class Recognizer:
         try:
             self._decoder = pocketsphinx.Decoder(pocketsphinx.Config(**options))
         except (RuntimeError, KeyError, ValueError) as error:
-            raise SpeechError(f"pocketsphinx decoder could not be configured ({error}); "
-                              "regenerate the grammar with `embodied-adhoc speech grammar`") from None
+            raise SpeechError(
+                f"pocketsphinx decoder could not be configured ({error}); "
+                "regenerate the grammar with `embodied-adhoc speech grammar`"
+            ) from None
         self._dither: np.ndarray = np.zeros(0)
 
     def _fixed_dither(self, length: int) -> np.ndarray:
         if len(self._dither) < length:
-            self._dither = np.random.default_rng(0).standard_normal(max(length, 2 * len(self._dither))) * DITHER_LSB
+            self._dither = (
+                np.random.default_rng(0).standard_normal(max(length, 2 * len(self._dither))) * DITHER_LSB
+            )
         return self._dither[:length]
 
     def transcribe(self, audio: np.ndarray) -> str:
@@ -97,7 +101,9 @@ def asset_path_model():
 
     path = Path(pocketsphinx.get_model_path()) / "en-us" / "en-us"
     if not path.is_dir():
-        raise SpeechError(f"pocketsphinx English model not found at {path}; reinstall pocketsphinx (bash scripts/bootstrap.sh)")
+        raise SpeechError(
+            f"pocketsphinx English model not found at {path}; reinstall pocketsphinx (bash scripts/bootstrap.sh)"
+        )
     return path
 
 

@@ -56,7 +56,9 @@ def speak(text: str, voice: synthesis.Voice = ROBOT_VOICE) -> np.ndarray:
     return synthesis.synthesize(text, voice)
 
 
-def save_utterance(path: str | os.PathLike, act: str, node: int | None = None, voice: synthesis.Voice = ROBOT_VOICE) -> tuple[str, Path]:
+def save_utterance(
+    path: str | os.PathLike, act: str, node: int | None = None, voice: synthesis.Voice = ROBOT_VOICE
+) -> tuple[str, Path]:
     """Write the robot's utterance for ``act`` as a 16 kHz WAV at ``path``; returns (text, path)."""
     text = utterance(act, node)
     return text, synthesis.write_wav(path, speak(text, voice))

@@ -25,7 +25,14 @@ from embodied_adhoc.errors import ConfigError, SpeechError
 SAMPLE_RATE = 16_000
 """Samples per second of every waveform in the communication module."""
 
-DEFAULT_VOICES: tuple[str, ...] = ("en-us", "en-gb", "en-us+f3", "en-gb-scotland", "en-gb-x-rp+f2", "en-029+m3")
+DEFAULT_VOICES: tuple[str, ...] = (
+    "en-us",
+    "en-gb",
+    "en-us+f3",
+    "en-gb-scotland",
+    "en-gb-x-rp+f2",
+    "en-029+m3",
+)
 """espeak-ng voices (language[+variant]) of the evaluation and of the audio channel: six accents/timbres."""
 
 SPEED_RANGE_WPM = (140, 185)
@@ -60,8 +67,10 @@ def require_espeak() -> str:
     """Path of the ``espeak-ng`` binary, or a :class:`SpeechError` that says how to install it."""
     path = shutil.which("espeak-ng")
     if path is None:
-        raise SpeechError("espeak-ng is not installed (offline speech synthesis); run `bash scripts/bootstrap.sh` "
-                          "or `apt-get install espeak-ng`")
+        raise SpeechError(
+            "espeak-ng is not installed (offline speech synthesis); run `bash scripts/bootstrap.sh` "
+            "or `apt-get install espeak-ng`"
+        )
     return path
 
 
@@ -89,8 +98,10 @@ def _synthesize_cached(text: str, voice: Voice) -> np.ndarray:
     result = subprocess.run(command, input=text.encode(), capture_output=True, check=False)
     stderr = result.stderr.decode(errors="replace").strip()
     if result.returncode != 0 or not result.stdout or stderr:
-        raise SpeechError(f"espeak-ng failed for voice {voice.name!r} (exit {result.returncode}): {stderr or 'no audio'}; "
-                          "list the voices with `espeak-ng --voices=en`")
+        raise SpeechError(
+            f"espeak-ng failed for voice {voice.name!r} (exit {result.returncode}): {stderr or 'no audio'}; "
+            "list the voices with `espeak-ng --voices=en`"
+        )
     audio, rate = soundfile.read(io.BytesIO(result.stdout), dtype="float32")
     # 22050 Hz -> 16 kHz with a polyphase filter (exact rational ratio 320/441).
     divisor = np.gcd(SAMPLE_RATE, rate)
@@ -117,7 +128,9 @@ def _speech_power(audio: np.ndarray) -> float:
     usable = audio[: len(audio) // frame * frame].astype(np.float64).reshape(-1, frame)
     energy = (usable**2).mean(axis=1)
     if energy.max() <= 0:
-        raise SpeechError("cannot add noise at an SNR to silent audio (the synthesised utterance has no energy)")
+        raise SpeechError(
+            "cannot add noise at an SNR to silent audio (the synthesised utterance has no energy)"
+        )
     return float(energy[energy >= energy.max() * 1e-4].mean())
 
 
@@ -139,7 +152,9 @@ def add_noise(audio: np.ndarray, snr_db: float, rng: np.random.Generator, kind: 
     """
     check_noise_kind(kind)
     if not np.isfinite(snr_db):
-        raise ConfigError(f"SNR {snr_db} dB is not a finite number; pass a number of dB, or no noise for clean speech")
+        raise ConfigError(
+            f"SNR {snr_db} dB is not a finite number; pass a number of dB, or no noise for clean speech"
+        )
     noise = rng.standard_normal(len(audio)) if kind == "white" else _babble(len(audio), rng)
     scale = np.sqrt(_speech_power(audio) / (10.0 ** (snr_db / 10.0)) / np.mean(noise**2))
     return (audio + scale * noise).astype(np.float32)
@@ -151,7 +166,9 @@ def write_wav(path: str | os.PathLike, audio: np.ndarray, sample_rate: int = SAM
 
     peak = float(np.max(np.abs(audio))) if len(audio) else 0.0
     if peak > 1.0:
-        raise SpeechError(f"audio peak {peak:.2f} exceeds full scale 1.0; scale it down before writing {path}")
+        raise SpeechError(
+            f"audio peak {peak:.2f} exceeds full scale 1.0; scale it down before writing {path}"
+        )
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".wav.tmp", delete=False) as handle:

@@ -21,7 +21,9 @@ PLACE_SYNONYMS: tuple[tuple[str, ...], ...] = (
 )
 """The place expressions (named entities) of each node; the first one is the canonical name."""
 
-PLACE_TO_NODE: dict[str, int] = {place: node for node, places in enumerate(PLACE_SYNONYMS) for place in places}
+PLACE_TO_NODE: dict[str, int] = {
+    place: node for node, places in enumerate(PLACE_SYNONYMS) for place in places
+}
 """Place expression -> node id."""
 
 PLACES: tuple[str, ...] = tuple(PLACE_TO_NODE)

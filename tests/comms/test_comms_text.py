@@ -54,11 +54,13 @@ def _grammar_regex() -> re.Pattern:
     """An independent reading of the generated JSGF: expand its rules into one regular expression."""
     text = grammar.grammar_text()
     rules = dict(re.findall(r"(?:public )?<(\w+)> = (.*?);", text, flags=re.S))
+
     def expand(name: str) -> str:
         body = " ".join(rules[name].split())
         body = re.sub(r"<(\w+)>", lambda m: "(?:" + expand(m.group(1)) + ")", body)
         body = body.replace("[", "(?:").replace("]", ")?").replace("(", "(?:").replace("(?:?:", "(?:")
         return body.replace(" | ", "|")
+
     pattern = expand("reply").replace(")? ", ")? ?").replace(" (?:", " ?(?:")
     return re.compile("^" + pattern + "$")
 
@@ -74,8 +76,12 @@ def test_every_generated_phrase_is_in_the_grammar_language():
 def test_committed_grammar_and_dictionary_are_up_to_date():
     for relative, text in grammar.generated_files().items():
         assert (paths.assets_dir() / relative).read_text(encoding="utf-8") == text, (
-            f"assets/{relative} is stale: run `embodied-adhoc speech grammar`")
-    words = {line.split()[0].split("(")[0] for line in grammar.generated_files()[grammar.DICTIONARY_FILE].splitlines()}
+            f"assets/{relative} is stale: run `embodied-adhoc speech grammar`"
+        )
+    words = {
+        line.split()[0].split("(")[0]
+        for line in grammar.generated_files()[grammar.DICTIONARY_FILE].splitlines()
+    }
     assert words == set(grammar.grammar_words())
 
 
