@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 import embodied_adhoc.envs  # noqa: F401
 from embodied_adhoc.domains.foraging import foraging_config, foraging_tasks
 from embodied_adhoc.domains.grid_rules import DOWN, INTERACT, LEFT, RIGHT, UP, GridRules, GridState
-from embodied_adhoc.domains.pursuit import pursuit_config
+from embodied_adhoc.domains.pursuit import pursuit_config, pursuit_tasks
 from embodied_adhoc.sim.grid_arena import ArenaLayout
 from embodied_adhoc.sim.grid_arena_world import GridArenaBackend
 
@@ -47,7 +47,8 @@ def test_robots_drive_to_the_planned_cells_and_apples_vanish_when_foraged():
     assert backend.model.geom_rgba[backend.apple_geoms[0], 3] == 0.0
 
 
-@pytest.mark.parametrize("env_id", ["EmbodiedAdhoc/Foraging-v0", "EmbodiedAdhoc/PursuitPair-v0"])
+@pytest.mark.parametrize("env_id", ["EmbodiedAdhoc/Foraging-v0", "EmbodiedAdhoc/Pursuit-v0",
+                                    "EmbodiedAdhoc/PursuitPair-v0"])
 def test_mujoco_env_checks_and_determinism(env_id):
     env = gymnasium.make(env_id, rows=5, cols=5)
     check_env(env.unwrapped, skip_render_check=True)
@@ -70,3 +71,16 @@ def test_image_observation_and_render():
     assert env.observation_space.contains(obs)
     assert env.render().shape == (480, 480, 3)
     env.close()
+
+
+def test_physics_reads_back_exactly_what_the_rules_planned():
+    """The twins agree step by step: random joint actions, moving prey, every robot lands on its planned cell."""
+    rules = GridRules(pursuit_config())
+    backend = GridArenaBackend(rules)
+    rng = np.random.default_rng(2)
+    state = backend.reset(rules.sample_state(rng))
+    task = pursuit_tasks()[0]
+    for _ in range(12):
+        plan = rules.plan(state, task, rng.integers(0, 5, size=4), rng)
+        state = backend.execute(state, plan)
+        assert np.array_equal(state.agents, plan.agents) and np.array_equal(state.targets, plan.targets)

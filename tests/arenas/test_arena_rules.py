@@ -2,6 +2,8 @@
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from embodied_adhoc.domains.foraging import foraging_config, foraging_tasks
 from embodied_adhoc.domains.grid_rules import DOWN, INTERACT, LEFT, RIGHT, UP, GridRules, GridState
@@ -147,3 +149,24 @@ def test_vectorised_observation_matches_definition(config):
             expected = reference_observation(rules, state, agent, 5)
             assert np.array_equal(egocentric_observation(rules, state, agent, 5), expected)
             assert np.array_equal(every[agent], expected)
+
+
+@settings(max_examples=40, deadline=None)
+@given(domain=st.sampled_from(["foraging", "pursuit"]), rows=st.integers(5, 8), cols=st.integers(5, 8),
+       n_agents=st.integers(2, 4), n_targets=st.integers(1, 2), toroidal=st.booleans(), seed=st.integers(0, 10**6))
+def test_any_step_keeps_cells_on_the_grid_and_distinct(domain, rows, cols, n_agents, n_targets, toroidal, seed):
+    from embodied_adhoc.domains.grid_rules import GridConfig, rotation_tasks
+
+    rules = GridRules(GridConfig(domain=domain, rows=rows, cols=cols, n_agents=n_agents, n_targets=n_targets,
+                                 toroidal=toroidal))
+    rng = np.random.default_rng(seed)
+    state = rules.sample_state(rng)
+    for _ in range(15):
+        before, previous = state.alive.copy(), state.agents.copy()
+        state = rules.apply(state, rules.plan(state, rotation_tasks(n_agents)[0], rng.integers(0, 5, n_agents), rng))
+        live = [tuple(c) for c in state.targets[state.alive].tolist()]
+        cells = [tuple(c) for c in state.agents.tolist()] + live
+        assert len(set(cells)) == len(cells)
+        assert rules.normalise(state.agents)[1].all() and rules.target_cells_valid(state.targets[state.alive]).all()
+        assert not (state.alive & ~before).any()  # taken targets never come back
+        assert (rules.distance(previous, state.agents) <= 1).all()  # one cell per step at most
