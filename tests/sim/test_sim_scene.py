@@ -121,3 +121,16 @@ def test_layout_rejects_inconsistent_metadata():
         LabLayout(node_waypoints=((0.0, 0.0),) * 5)
     with pytest.raises(SceneError, match="not adjacent"):
         LAB_LAYOUT.passage(0, 4)
+
+
+def test_scene_compiles_from_the_wheel_layout(tmp_path):
+    """An installed wheel carries scenes/ and assets/ side by side under embodied_adhoc/_data/ (setup.py); the
+    scene's relative includes must resolve there too."""
+    import shutil
+
+    for name in ("scenes", "assets"):
+        shutil.copytree(
+            paths.scenes_dir() if name == "scenes" else paths.assets_dir(), tmp_path / "_data" / name
+        )
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "_data" / "scenes" / "lab.xml"))
+    assert model.nbody == load_lab_model().nbody
