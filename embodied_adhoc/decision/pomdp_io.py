@@ -18,8 +18,8 @@ from __future__ import annotations
 import os
 import re
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,8 +36,7 @@ MISSING_ROWS = ("error", "absorbing", "reset")
 an error (default), a self-loop, or the start belief. Rows written but not summing to 1 are always errors."""  # max floats painted at once when collapsing R(a, s, s', z)
 
 
-@dataclass(frozen=True)
-class _Token:
+class _Token(NamedTuple):  # a NamedTuple: ~4x cheaper to create than a frozen dataclass (files of 1M tokens)
     text: str
     line: int
 
@@ -47,22 +46,27 @@ class _Tokens:
 
     def __init__(self, text: str, filename: str) -> None:
         self.filename = filename
-        self.items: list[_Token] = []
-        for number, raw in enumerate(text.splitlines(), start=1):
-            content = raw.split("#", 1)[0]
-            for piece in content.replace(":", " : ").split():
-                self.items.append(_Token(piece, number))
+        self.items: list[_Token] = [
+            _Token(piece, number)
+            for number, raw in enumerate(text.splitlines(), start=1)
+            for piece in raw.split("#", 1)[0].replace(":", " : ").split()
+        ]
         self.position = 0
 
     def peek(self, offset: int = 0) -> _Token | None:
-        index = self.position + offset
-        return self.items[index] if index < len(self.items) else None
+        try:
+            return self.items[self.position + offset]
+        except IndexError:
+            return None
 
     def next(self, expected: str) -> _Token:
-        token = self.peek()
-        if token is None:
+        try:
+            token = self.items[self.position]
+        except IndexError:
             last = self.items[-1].line if self.items else 1
-            raise PomdpFormatError(f"{self.filename}:{last}: found end of file, expected {expected}")
+            raise PomdpFormatError(
+                f"{self.filename}:{last}: found end of file, expected {expected}"
+            ) from None
         self.position += 1
         return token
 
@@ -84,15 +88,17 @@ class _Tokens:
         return token is not None and bool(_NUMBER.match(token.text))
 
     def numbers(self, count: int, what: str) -> np.ndarray:
-        values = np.empty(count)
-        for index in range(count):
-            token = self.next(f"{count} numbers for {what} (got {index})")
-            if not _NUMBER.match(token.text):
+        chunk = self.items[self.position : self.position + count]
+        match = _NUMBER.match
+        for index, token in enumerate(chunk):
+            if not match(token.text):
                 raise self.error(token, f"{count} numbers for {what} (got {index})")
-            values[index] = float(token.text)
+        if len(chunk) < count:
+            raise self.error(None, f"{count} numbers for {what} (got {len(chunk)})")
+        self.position += count
         if self.at_number():
             raise self.error(self.peek(), f"the end of {what} after {count} numbers (too many numbers)")
-        return values
+        return np.array([float(token.text) for token in chunk])
 
 
 class _Parser:
