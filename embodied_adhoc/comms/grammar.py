@@ -10,6 +10,7 @@ The generated files are committed under ``assets/speech/`` so they can be read a
 
 from __future__ import annotations
 
+import functools
 import os
 import re
 import tempfile
@@ -45,6 +46,31 @@ def grammar_text() -> str:
         f"<located> = {_alternatives(located)};\n\n"
         f"<uninformative> = {_alternatives([normalise(u) for u in UNINFORMATIVE_REPLIES])};\n"
     )
+
+
+@functools.cache
+def grammar_language() -> re.Pattern:
+    """A regular expression matching exactly the normalised sentences of the grammar (built from the same tables)."""
+
+    def either(items: list[str]) -> str:
+        return "(?:" + "|".join(re.escape(normalise(item)) for item in items) + ")"
+
+    place = either(list(PLACES))
+    located = (
+        "(?:"
+        + "|".join(
+            re.escape(normalise(t.replace("{place}", "PLACE"))).replace("place", place)
+            for t in LOCATED_TEMPLATES
+        )
+        + ")"
+    )
+    body = f"(?:{located}|{either(list(UNINFORMATIVE_REPLIES))})"
+    return re.compile(f"^(?:{either(list(OPENINGS))} )?{body}(?: {either(list(CLOSINGS))})?$")
+
+
+def is_complete(transcript: str) -> bool:
+    """Whether ``transcript`` is a whole sentence of the grammar (not a partial path that ran out of audio)."""
+    return grammar_language().match(normalise(transcript)) is not None
 
 
 def grammar_words() -> list[str]:

@@ -13,17 +13,22 @@ in any worker process.
 from __future__ import annotations
 
 import functools
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from embodied_adhoc.comms.grammar import DICTIONARY_FILE, GRAMMAR_FILE, asset_path
+from embodied_adhoc.comms.grammar import DICTIONARY_FILE, GRAMMAR_FILE, asset_path, is_complete
 from embodied_adhoc.errors import SpeechError
 
 DITHER_LSB = 10.0
 """Standard deviation of the fixed dither added to 16-bit samples. espeak-ng writes exact digital silence
 between words; its log-energy features are degenerate and make the decoder drop words, so a tiny, fixed noise
 floor (as a real microphone has) is added. Its pattern is the same for every utterance (deterministic)."""
+
+
+N_BEST = 20
+"""How many lattice paths are searched for a complete sentence when the best path is partial."""
 
 
 @dataclass(frozen=True)
@@ -90,7 +95,14 @@ class Recognizer:
         self._decoder.process_raw(pcm, no_search=False, full_utt=True)
         self._decoder.end_utt()
         hypothesis = self._decoder.hyp()
-        return hypothesis.hypstr.strip() if hypothesis is not None else ""
+        best = hypothesis.hypstr.strip() if hypothesis is not None else ""
+        if best and not is_complete(best):
+            # The best path did not reach the end of the grammar (a partial sentence such as "come to the
+            # middle"): prefer the best complete sentence among the N-best paths of the lattice, if any.
+            for candidate in itertools.islice(self._decoder.nbest(), N_BEST):
+                if is_complete(candidate.hypstr):
+                    return candidate.hypstr.strip()
+        return best
 
 
 def asset_path_model():

@@ -109,3 +109,11 @@ def test_parser_maps_transcript_to_place_and_node(transcript, place, node):
 
 def test_normalise_ignores_case_and_punctuation():
     assert normalise("Um, I'm at the DOOR!") == "um i'm at the door"
+
+
+def test_grammar_language_matches_the_jsgf_reading():
+    jsgf = _grammar_regex()
+    for phrase in list(phrases.iter_phrases())[::97]:
+        assert grammar.is_complete(phrase.reference) and jsgf.match(phrase.reference)
+    for partial in ("come to the middle", "i'm at the", "i'm at the docking station right", "the open"):
+        assert not grammar.is_complete(partial) and not jsgf.match(partial)
