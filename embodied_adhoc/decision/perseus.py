@@ -93,7 +93,10 @@ def _solve(pomdp: POMDP, config: PerseusConfig, progress: ProgressCallback | Non
     start = time.perf_counter()
     rng = np.random.default_rng(config.seed)
     greedy_q = value_iteration(pomdp.as_mdp(), tolerance=1e-6, horizon=config.horizon).q_values
-    beliefs = collect_beliefs(pomdp, config.n_beliefs, rng, greedy_q=greedy_q, epsilon=config.epsilon)
+    # A finite-horizon solve only needs beliefs reachable within the horizon.
+    beliefs = collect_beliefs(
+        pomdp, config.n_beliefs, rng, greedy_q=greedy_q, epsilon=config.epsilon, max_depth=config.horizon
+    )
     operator = BackupOperator(pomdp)
     if config.horizon is not None:
         return _finite_horizon(pomdp, config, operator, beliefs, start, progress)
