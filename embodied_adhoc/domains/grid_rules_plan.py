@@ -45,12 +45,13 @@ def _best_moves(rules: GridRules, start: int, dist: list[int]) -> list[int]:
 
 
 def navigate(rules: GridRules, state: GridState, agent: int, goal: np.ndarray, obstacles: np.ndarray,
-             rng: np.random.Generator, unstick: float = 0.25) -> int:
+             rng: np.random.Generator, unstick: float = 0.25, greedy_axis: bool = False) -> int:
     """First move of a shortest path to ``goal`` (A*-equivalent on a unit grid; INTERACT once there) around the
     live targets and the teammates flagged in ``obstacles`` (bool per agent). If those wall the goal off, the
     path around targets only. The member waits while its next cell is taken, except that with probability
     ``unstick`` it steps to a random free cell instead; ties between equally short moves are broken with
-    ``rng``. Both break the stalemates a deterministic team could repeat forever.
+    ``rng`` (with ``greedy_axis``, 4 times in 5 in favour of the axis with the larger gap to the goal, rows
+    first: the greedy walker's habit; always doing so lets two greedy members mirror each other forever). Both break the stalemates a deterministic team could repeat forever.
     """
     cols = rules.config.cols
     start = int(state.agents[agent, 0] * cols + state.agents[agent, 1])
@@ -69,6 +70,9 @@ def navigate(rules: GridRules, state: GridState, agent: int, goal: np.ndarray, o
     moves = _best_moves(rules, start, distance_field(rules, target, blocked))
     moves = moves or _best_moves(rules, start, distance_field(rules, target, static))
     moves = [a for a in moves if free[neighbours[a]]]
+    if len(moves) > 1 and greedy_axis and rng.random() < 0.8:
+        gap = np.abs(rules.delta(state.agents[agent], goal))
+        return min(moves, key=lambda a: (-gap[0 if a < 2 else 1], a))
     if moves:
         return int(moves[rng.integers(len(moves))]) if len(moves) > 1 else moves[0]
     if rng.random() < unstick:
@@ -87,12 +91,19 @@ def assign_slots(rules: GridRules, agents: np.ndarray, slots: np.ndarray) -> tup
     return tuple(best)
 
 
-def ring_goal(rules: GridRules, agent_cell: np.ndarray, target_cell: np.ndarray, offset: np.ndarray) -> np.ndarray:
-    """Encircling plan: a cell on the agent's own ray ``target + k * offset`` with ``k`` one less than the agent's
-    current Chebyshev distance (at least 1), pulled inside the walls, so the ring closes in step by step."""
-    k = max(1, int(np.abs(rules.delta(target_cell, agent_cell)).max()) - 1)
-    for radius in range(k, 0, -1):
-        cell, inside = rules.normalise(target_cell + radius * np.asarray(offset))
+def ring_goal(rules: GridRules, agent_cell: np.ndarray, target_cell: np.ndarray, offset: np.ndarray,
+              radius: int = 2) -> np.ndarray:
+    """Encircling plan (team tau2): off its own ray ``target + k * offset``, a member heads for the ray's cell at
+    ``radius`` (the circle around the target, pulled inside the walls); on the ray at ``k``, it closes in to
+    ``k - 1`` (at least 1, its task slot), so the circle tightens one step at a time."""
+    offset = np.asarray(offset)
+    rel = rules.delta(target_cell, agent_cell)
+    scale = int(np.abs(offset).max())
+    k = int(np.abs(rel).max()) // scale if scale else 0
+    on_ray = k >= 1 and np.array_equal(rel, k * offset)
+    start = max(1, k - 1) if on_ray else radius
+    for r in range(start, 0, -1):
+        cell, inside = rules.normalise(target_cell + r * offset)
         if inside:
             return cell
-    return rules.normalise(target_cell + np.asarray(offset))[0]
+    return rules.normalise(target_cell + offset)[0]

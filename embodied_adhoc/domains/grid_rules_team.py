@@ -91,7 +91,8 @@ def team_actions(rules: GridRules, state: GridState, task: Task, spec: TeamSpec,
         for i in range(n):
             # greedy members ignore teammates on the move; path planners also avoid lower-index members
             obstacles = settled | (np.arange(n) < i) if spec.navigation == "path" else settled
-            intended[i] = navigate(rules, state, i, goals[i], obstacles, rng)
+            intended[i] = navigate(rules, state, i, goals[i], obstacles, rng,
+                                   greedy_axis=spec.navigation == "greedy")
     wanted, _ = rules.normalise(state.agents + MOVES[intended])
     flat = wanted[:, 0] * rules.config.cols + wanted[:, 1]
     moving = intended != INTERACT

@@ -9,6 +9,6 @@ FORAGING_TEAMS: dict[str, TeamSpec] = {
                      target="closest", slot="closest", goal="slot", navigation="greedy"),
     "tau1": TeamSpec("tau1", "highest-level apple, shortest path around obstacles, teammates assumed alike",
                      target="highest_level", slot="assigned", goal="slot", navigation="path"),
-    "tau2": TeamSpec("tau2", "apple closest to the team, encircling ring that closes in each step",
+    "tau2": TeamSpec("tau2", "apple closest to the team, joins its ray on a circle of radius 2, then closes in",
                      target="team_closest", slot="assigned", goal="ring", navigation="path"),
 }

@@ -15,7 +15,7 @@ PURSUIT_TEAMS: dict[str, TeamSpec] = {
                      target="closest", slot="closest", goal="slot", navigation="greedy"),
     "tau1": TeamSpec("tau1", "prey closest to the team, shortest path around obstacles, teammates assumed alike",
                      target="team_closest", slot="assigned", goal="slot", navigation="path"),
-    "tau2": TeamSpec("tau2", "prey closest to the team, encircling ring that closes in each step",
+    "tau2": TeamSpec("tau2", "prey closest to the team, joins its ray on a circle of radius 2, then closes in",
                      target="team_closest", slot="assigned", goal="ring", navigation="path"),
     "greedy": TeamSpec("greedy", "two-predator greedy teammate: closest capture position, ignores the other agent",
                        target="closest", slot="closest", goal="slot", navigation="greedy"),
