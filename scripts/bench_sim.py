@@ -10,6 +10,7 @@ Prints, all measured in this run on this machine:
      arrival (thesis Metric 7), at the default encoder noise and wheel slip.
 
 Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render-frames 30] [--width 640 --height 512]
+       [--episode-only]
 """
 
 from __future__ import annotations
@@ -41,12 +42,18 @@ class Args:
     """frames per camera for the render rate"""
     width: int = 640
     height: int = 512
+    episode_only: bool = False
+    """only the scripted episode with and without video"""
 
 
 def parse_args() -> Args:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     for item in fields(Args):
-        parser.add_argument(f"--{item.name.replace('_', '-')}", type=type(item.default), default=item.default)
+        flag = f"--{item.name.replace('_', '-')}"
+        if isinstance(item.default, bool):
+            parser.add_argument(flag, action="store_true")
+        else:
+            parser.add_argument(flag, type=type(item.default), default=item.default)
     return Args(**vars(parser.parse_args()))
 
 
@@ -140,6 +147,15 @@ def run_episode(
 
 def main() -> None:
     args = parse_args()
+    if args.episode_only:
+        with LabWorld(LabWorldConfig()) as world:
+            for video in (False, True):
+                wall, cpu, sim, count, states = run_episode(world, args.width, args.height, video)
+                print(
+                    f"episode ({len(EPISODE)} macro steps, {sim:.0f} sim s), {count} frames "
+                    f"{args.width}x{args.height}: {wall:.1f} wall s, {cpu:.1f} CPU s; balls: {', '.join(states)}"
+                )
+        return
     with LabWorld(LabWorldConfig()) as world:
         rows, sim_total, cpu_total = run_tours(world, args.tours)
         raw_rtf = raw_step_rate(world, args.raw_seconds)
