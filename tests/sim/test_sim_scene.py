@@ -134,3 +134,13 @@ def test_scene_compiles_from_the_wheel_layout(tmp_path):
         )
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "_data" / "scenes" / "lab.xml"))
     assert model.nbody == load_lab_model().nbody
+
+
+def test_areas_partition_the_room():
+    """Every point of the room lies in exactly one area (borders go to the lower index), none outside."""
+    rng = np.random.default_rng(0)
+    x0, x1, y0, y1 = LAB_LAYOUT.room_extent
+    points = rng.uniform((x0, y0), (x1, y1), size=(2000, 2))
+    nodes = [LAB_LAYOUT.node_at(p) for p in points]
+    assert None not in nodes and set(nodes) == set(LAB_LAYOUT.nodes)
+    assert LAB_LAYOUT.node_at((-2.5, -3.0)) == 0  # on the 0 | 2 border: the lower index
