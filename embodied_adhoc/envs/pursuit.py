@@ -18,10 +18,11 @@ class PursuitEnv(AdhocGridEnv):
     ## Description
     N predators (the ad hoc robot, agent 0, plus N-1 scripted teammates) and M prey on an R x C grid. The prey
     stays with probability ``prey_stay_probability`` (0.2), else tries one of the four moves uniformly (a move
-    into a wall, an occupied cell, or, on walled grids, onto the border fails). A prey is captured when every
-    predator stands at its task position around it (task 1: agents 0..3 north, south, west, east of the prey;
+    into a wall, an occupied cell, or, on walled grids, onto the border or an interior corner fails). A prey is
+    captured when every predator stands at its task position around it (task 1: agents 0..3 north, south, west, east of the prey;
     tasks 2-4 rotate that) and all execute *Capture* in the same step; it ends when every prey is captured.
-    Teams: tau0 (closest prey, greedy), tau1 (shortest paths around teammates), tau2 (encircling ring).
+    Teams: tau0 (closest prey, greedy), tau1 (shortest paths around teammates), tau2 (encircling: joins its
+    ray around the prey on a radius-2 circle, then closes in).
     ``pairs=True`` is the two-predator variant of Fig. 7.12: ``n_agents=2``, tasks N+S, W+E, SW+NE, NW+SE
     with interchangeable positions, teams ``greedy`` / ``aware`` (A*), and capture happens as soon as the pair
     is in position (action 4 means *Stay*).
