@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from embodied_adhoc.control.reference import DriveLimits, RouteReference
 from embodied_adhoc.control.tracking import DiffDriveGeometry
@@ -97,3 +100,19 @@ def test_control_layer_does_not_import_mujoco():
     code = "import sys, embodied_adhoc.control.waypoint_controller; print('mujoco' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+_points = st.lists(st.tuples(st.floats(-4.0, 4.0), st.floats(-4.0, 4.0)), min_size=1, max_size=5).filter(
+    lambda pts: all(math.dist(a, b) > 0.05 for a, b in itertools.pairwise(pts))
+)
+
+
+@settings(max_examples=30, deadline=None)
+@given(waypoints=_points, yaw=st.floats(-math.pi, math.pi))
+def test_any_route_reference_is_within_limits_and_ends_at_rest_on_the_goal(waypoints, yaw):
+    limits = DriveLimits()
+    reference = RouteReference((0.0, 0.0, yaw), waypoints, limits)
+    states = _sample(reference, dt=0.05)
+    assert max(s.speed for s in states) <= limits.max_speed * 1.02
+    end = reference.at(reference.duration)
+    assert (end.x, end.y) == pytest.approx(reference.goal, abs=1e-6) and end.speed == 0.0
