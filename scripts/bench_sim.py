@@ -28,6 +28,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 
 from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig  # noqa: E402
+from embodied_adhoc.sim.odometry import OdometryConfig  # noqa: E402
 
 TOUR = (1, 2, 1, 3, 4, 3, 1, 0)  # from the door, every edge in both directions
 
@@ -42,6 +43,8 @@ class Args:
     """frames per camera for the render rate"""
     width: int = 640
     height: int = 512
+    noise_free: bool = False
+    """tours with encoder noise and wheel slip set to 0 (the drift left is the physics' own)"""
     episode_only: bool = False
     """only the scripted episode with and without video"""
 
@@ -156,7 +159,8 @@ def main() -> None:
                     f"{args.width}x{args.height}: {wall:.1f} wall s, {cpu:.1f} CPU s; balls: {', '.join(states)}"
                 )
         return
-    with LabWorld(LabWorldConfig()) as world:
+    odometry = OdometryConfig(encoder_noise=0.0, wheel_slip=0.0) if args.noise_free else OdometryConfig()
+    with LabWorld(LabWorldConfig(odometry=odometry)) as world:
         rows, sim_total, cpu_total = run_tours(world, args.tours)
         raw_rtf = raw_step_rate(world, args.raw_seconds)
         world.reset(seed=0, robot_node=1, human_node=1, ball_nodes=(0, 1, 2))
