@@ -94,7 +94,8 @@ class GridArenaBackend:
         self.image_size = image_size
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
         self.physics_steps = 0  # mj_step calls since construction (for benchmarks)
-        self.on_tick = None  # optional callable(sim_seconds_into_macro_step) after each control tick (recording)
+        # optional callable(sim_seconds_into_macro_step) after each control tick (used for recording)
+        self.on_tick = None
 
     # -- poses ------------------------------------------------------------------------------------------------
     def poses(self) -> np.ndarray:
