@@ -23,7 +23,7 @@ from embodied_adhoc.control.reference import DriveLimits
 from embodied_adhoc.control.tracking import DiffDriveGeometry
 from embodied_adhoc.control.waypoint_controller import ControllerConfig, WaypointController
 from embodied_adhoc.domains.grid_rules import GridRules, GridState, StepPlan
-from embodied_adhoc.errors import SceneError
+from embodied_adhoc.errors import ConfigError, SceneError
 from embodied_adhoc.sim.grid_arena import ArenaLayout, apple_radius, apple_rgba, build_arena
 
 # The grid robot's wheels (assets/robots/grid_robot): radius 0.03 m, 0.12 m apart.
@@ -57,6 +57,11 @@ class GridArenaBackend:
     ) -> None:
         self.rules, self.physics_config = rules, physics or ArenaPhysics()
         cfg = rules.config
+        if cfg.toroidal:
+            raise ConfigError(
+                "toroidal=True: a physical arena has walls and cannot wrap around; use the grid twin "
+                "(backend='abstract') for the thesis's toroidal grid"
+            )
         self.layout = ArenaLayout(cfg.rows, cfg.cols, self.physics_config.cell)
         arena = build_arena(cfg, self.layout, self.physics_config.timestep)
         self.view = view

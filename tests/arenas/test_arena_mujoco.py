@@ -21,7 +21,7 @@ def test_layout_maps_cells_both_ways():
     assert layout.cell_xy([0, 0])[1] > layout.cell_xy([3, 0])[1]  # row 0 is north
 
 
-@pytest.mark.parametrize("config", [foraging_config(rows=4, cols=5, n_agents=2, toroidal=True),
+@pytest.mark.parametrize("config", [foraging_config(rows=6, cols=8, n_agents=2, n_targets=2),
                                     pursuit_config(n_agents=3)])
 def test_arena_compiles_and_rests_without_warnings(config):
     backend = GridArenaBackend(GridRules(config))
@@ -84,3 +84,10 @@ def test_physics_reads_back_exactly_what_the_rules_planned():
         plan = rules.plan(state, task, rng.integers(0, 5, size=4), rng)
         state = backend.execute(state, plan)
         assert np.array_equal(state.agents, plan.agents) and np.array_equal(state.targets, plan.targets)
+
+
+def test_toroidal_arena_is_refused():
+    from embodied_adhoc.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="toroidal"):
+        gymnasium.make("EmbodiedAdhoc/Foraging-v0", toroidal=True)
