@@ -172,20 +172,30 @@ class HumanWalker:
         return np.array([c * dx + s * dy, -s * dx + c * dy, world[2] + self.crouch])
 
     def _walk(self, points: list[np.ndarray]) -> Generator[None, None, None]:
-        for point in points:
-            while True:
-                offset = point - self.xy
+        """Walk through ``points`` at ``speed``; distance left over at a waypoint carries on to the next one, so
+        a route takes exactly its length / speed (to one tick)."""
+        targets = [np.asarray(p, dtype=float) for p in points]
+        while targets:
+            budget = self.speed * self._dt
+            direction = targets[0] - self.xy
+            while targets and budget > 0.0:
+                offset = targets[0] - self.xy
                 distance = float(np.linalg.norm(offset))
-                if distance < 1e-6:
-                    break
-                heading = math.atan2(offset[1], offset[0])
-                turn = wrap_angle(heading - self.yaw)
+                if distance <= budget:
+                    self.xy = targets.pop(0).copy()
+                    budget -= distance
+                else:
+                    self.xy = self.xy + offset / distance * budget
+                    budget = 0.0
+                if distance > 1e-9:
+                    direction = offset
+            if np.any(direction):
+                heading = math.atan2(direction[1], direction[0])
+                limit = self.turn_rate * self._dt
                 self.yaw = wrap_angle(
-                    self.yaw + float(np.clip(turn, -self.turn_rate * self._dt, self.turn_rate * self._dt))
+                    self.yaw + float(np.clip(wrap_angle(heading - self.yaw), -limit, limit))
                 )
-                step = min(distance, self.speed * self._dt)
-                self.xy = self.xy + offset / distance * step
-                yield
+            yield
 
     def _face(self, target_xy: np.ndarray) -> Generator[None, None, None]:
         heading = math.atan2(target_xy[1] - self.xy[1], target_xy[0] - self.xy[0])

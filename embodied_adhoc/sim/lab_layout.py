@@ -54,6 +54,8 @@ class LabLayout:
         ball_spots: per node, where a waste ball placed at that node lies on the floor.
         passages: one :class:`Passage` per edge.
         passage_offset: distance (m) before/after a wall at which a route crosses straight through a passage.
+        human_clearance: the human's routes detour to keep this distance (m) from the robot waypoints of the
+            areas they cross, so that a person never walks through the parked robot.
         room_extent: (x_min, x_max, y_min, y_max) of the room interior.
     """
 
@@ -67,7 +69,7 @@ class LabLayout:
         _rectangle(-5.0, 0.0, 1.0, 4.0),  # 3 single workbench (north-west)
         _rectangle(0.0, 5.0, 1.0, 4.0),  # 4 double workbench (north-east)
     )
-    node_waypoints: tuple[XY, ...] = ((2.0, -3.0), (0.5, -0.5), (-3.5, -1.6), (-2.2, 2.3), (2.0, 2.4))
+    node_waypoints: tuple[XY, ...] = ((2.2, -3.35), (0.5, -0.5), (-3.5, -1.6), (-2.2, 2.3), (2.0, 2.4))
     human_spots: tuple[XY, ...] = ((3.1, -2.6), (1.7, 0.1), (-4.2, -0.7), (-3.4, 2.6), (3.2, 2.1))
     ball_spots: tuple[XY, ...] = ((3.6, -3.3), (2.4, -1.0), (-4.3, -2.2), (-3.8, 1.6), (3.9, 1.6))
     passages: tuple[Passage, ...] = (
@@ -77,6 +79,7 @@ class LabLayout:
         Passage((3, 4), (0.0, 2.5), (1.0, 0.0), 1.2),
     )
     passage_offset: float = 0.6
+    human_clearance: float = 0.75
     room_extent: tuple[float, float, float, float] = (-5.0, 5.0, -4.0, 4.0)
     _adjacency: dict[int, tuple[int, ...]] = field(init=False, repr=False, compare=False)
 
@@ -167,10 +170,33 @@ class LabLayout:
         targets = self._spots(spots)
         path = self.node_path(from_node, to_node)
         waypoints: list[XY] = []
+        previous = targets[from_node]
         for a, b in zip(path[:-1], path[1:], strict=True):
-            waypoints.extend(self.crossing(a, b))
+            before, after = self.crossing(a, b)
+            if spots == "human":  # walk around a robot parked in the area being left / entered
+                waypoints.extend(self._detour(previous, before, a))
+            waypoints.extend((before, after))
+            if spots == "human":
+                waypoints.extend(self._detour(after, targets[b], b))
             waypoints.append(targets[b])
+            previous = targets[b]
         return waypoints
+
+    def _detour(self, start: XY, end: XY, node: int) -> list[XY]:
+        """A point to insert on the leg start -> end (inside ``node``'s area) so that a walking person keeps
+        ``human_clearance`` from a robot parked at the node's waypoint; [] if the straight leg already does."""
+        robot = np.asarray(self.node_waypoints[node])
+        a, b = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        leg = b - a
+        t = float(np.clip((robot - a) @ leg / (leg @ leg), 0.0, 1.0))
+        offset = a + t * leg - robot
+        if np.linalg.norm(offset) >= self.human_clearance:
+            return []
+        normal = np.array([-leg[1], leg[0]]) / np.linalg.norm(leg)
+        if offset @ normal < 0:
+            normal = -normal
+        point = robot + self.human_clearance * normal
+        return [(float(point[0]), float(point[1]))]
 
     def route_from(self, xy: Sequence[float], to_node: int, spots: str = "robot") -> list[XY]:
         """Waypoints from an arbitrary position to ``to_node``'s spot: the route from the node containing ``xy``

@@ -144,3 +144,12 @@ def test_areas_partition_the_room():
     nodes = [LAB_LAYOUT.node_at(p) for p in points]
     assert None not in nodes and set(nodes) == set(LAB_LAYOUT.nodes)
     assert LAB_LAYOUT.node_at((-2.5, -3.0)) == 0  # on the 0 | 2 border: the lower index
+
+
+def test_human_routes_walk_around_parked_robots():
+    robots = np.array(LAB_LAYOUT.node_waypoints)
+    for start, goal in itertools.permutations(LAB_LAYOUT.nodes, 2):
+        points = np.array([LAB_LAYOUT.human_spots[start], *LAB_LAYOUT.route(start, goal, spots="human")])
+        samples = np.concatenate([np.linspace(a, b, 60) for a, b in itertools.pairwise(points)], axis=0)
+        gaps = np.hypot(*(samples[:, None, :] - robots[None]).transpose(2, 0, 1))
+        assert gaps.min() >= 0.6, (start, goal, gaps.min())
