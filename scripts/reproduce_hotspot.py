@@ -55,6 +55,8 @@ class Args:
     """worker processes (results do not depend on it)"""
     markdown: bool = False
     """print Markdown tables (for the README)"""
+    confusion: str = "thesis"
+    """speech confusion matrix ("thesis" = the original's, as in the thesis's simulations; "measured"; a path)"""
 
 
 def parse_args() -> Args:
@@ -62,7 +64,7 @@ def parse_args() -> Args:
 
 
 def run_setting(args: Args, setting: str) -> SweepResult:
-    options = get_trial_domain("toxic-waste").options(**SETTINGS[setting])
+    options = get_trial_domain("toxic-waste").options(**SETTINGS[setting], confusion=args.confusion)
     config = SweepConfig("toxic-waste", "abstract", options, AGENTS, args.episodes, args.seed)
     return run_sweep(config, out=args.out / setting, workers=args.workers, progress=True)
 

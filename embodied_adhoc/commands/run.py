@@ -12,6 +12,8 @@ import json
 import sys
 from pathlib import Path
 
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
+
 AGENTS = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
 EPILOG = """\
 examples:
@@ -61,9 +63,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     toxic.add_argument(
         "--confusion",
-        default="thesis",
-        metavar="thesis|measured|PATH",
-        help="speech confusion matrix (thesis)",
+        default=DEFAULT_CONFUSION,
+        metavar="measured|thesis|PATH",
+        help=f"speech confusion matrix of the channel and of the agent's model (default: {DEFAULT_CONFUSION})",
     )
     toxic.add_argument(
         "--max-steps", type=int, default=100, help="macro-step cap (default 100, as the thesis)"

@@ -32,6 +32,9 @@ THESIS_MATRIX = "data/speech_confusion_thesis.json"
 """The matrix of the original implementation (hotspot-lab.md), smoothed with floor 0.03."""
 MEASURED_MATRIX = "data/speech_confusion_measured.json"
 """The matrix measured by ``embodied-adhoc speech eval`` (offline espeak-ng + pocketsphinx)."""
+DEFAULT_CONFUSION = "measured"
+"""The lab model's default observation matrix for "locate human" (issue 7: our measured offline pipeline).
+The thesis reproduction pins ``"thesis"`` explicitly (``scripts/reproduce_hotspot.py``)."""
 
 
 @dataclass(frozen=True)
@@ -60,8 +63,11 @@ def smooth_confusion(counts: np.ndarray, floor: float) -> np.ndarray:
 
 
 def load_confusion(source: str | os.PathLike | None = None) -> ConfusionMatrix:
-    """Load a matrix: ``None`` or ``"thesis"`` = the original's, ``"measured"`` = ours, else a JSON path."""
-    if source is None or source == "thesis":
+    """Load a matrix: ``"thesis"`` = the original's, ``"measured"`` = ours, ``None`` = ``DEFAULT_CONFUSION``,
+    else a JSON path."""
+    if source is None:
+        source = DEFAULT_CONFUSION
+    if source == "thesis":
         path = paths.asset(THESIS_MATRIX)
     elif source == "measured":
         path = paths.asset(MEASURED_MATRIX)

@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from embodied_adhoc.decision.models import MDP, POMDP
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.domains.lab_graph import (
     DEFAULT_GRAPH,
     DEFAULT_TASKS,
@@ -156,7 +157,7 @@ def build_lab_library(
     tasks: Sequence[Sequence[int]] = DEFAULT_TASKS,
     human_epsilon: float = 0.05,
     communication: bool = True,
-    confusion: str | os.PathLike = "thesis",
+    confusion: str | os.PathLike = DEFAULT_CONFUSION,
     robot_node_accuracy: float = 0.99,
     rfid_miss: float = 0.0,
     reward: LabReward = LabReward(),

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from embodied_adhoc.domains.confusion import ConfusionMatrix, load_confusion
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION, ConfusionMatrix, load_confusion
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["LabObservation", "ObservationConfig", "ObservationModel", "observation_names"]
@@ -82,12 +82,12 @@ def observation_names(n_nodes: int) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class ObservationConfig:
-    """Sensor settings. ``confusion``: "thesis", "measured" or a JSON path (see ``domains.confusion``)."""
+    """Sensor settings. ``confusion``: "measured" (default), "thesis" or a JSON path (see ``domains.confusion``)."""
 
     communication: bool = True
     robot_node_accuracy: float = 0.99
     rfid_miss: float = 0.0
-    confusion: str = "thesis"
+    confusion: str = DEFAULT_CONFUSION
 
     def __post_init__(self) -> None:
         for name in ("robot_node_accuracy", "rfid_miss"):

@@ -9,6 +9,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.domains.lab import DEFAULT_TASKS, LabObservation, build_lab_library
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND, HELD
 from embodied_adhoc.envs.toxic_waste_speech import SPEECH_KINDS, SpeechTurn, make_speech
@@ -76,7 +77,7 @@ class ToxicWasteEnv(gymnasium.Env):
     | ``human_epsilon`` | 0.05 | probability that a human move or pick fails |
     | ``communication`` | True | False: no "locate human"; the human is seen only when co-located |
     | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx on every query), "perfect" |
-    | ``confusion`` | "thesis" | confusion matrix of "channel": "thesis", "measured" or a JSON path (also the agents' model) |
+    | ``confusion`` | "measured" | confusion matrix of "channel": "thesis", "measured" or a JSON path (also the agents' model) |
     | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig`` defaults) |
     | ``rfid_miss`` | 0.0 | probability that the reader misses a ball entering the container |
     | ``macro_timeout`` | 60.0 | simulated seconds after which an unfinished macro step ends |
@@ -110,7 +111,7 @@ class ToxicWasteEnv(gymnasium.Env):
         human_epsilon: float = 0.05,
         communication: bool = True,
         speech: str = "channel",
-        confusion: str | os.PathLike = "thesis",
+        confusion: str | os.PathLike = DEFAULT_CONFUSION,
         encoder_noise: float | None = None,
         wheel_slip: float | None = None,
         rfid_miss: float = 0.0,

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import gymnasium
 from gymnasium import spaces
 
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.domains.lab import DEFAULT_GRAPH, DEFAULT_TASKS, LabGraph, apply_step, build_lab_library
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND
 from embodied_adhoc.errors import ConfigError
@@ -51,7 +52,7 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
 
     ## Arguments
     ``task`` (fixed task index, default: drawn uniformly at each reset), ``tasks`` (ball placements),
-    ``human_epsilon`` (0.05), ``communication`` (True), ``confusion`` ("thesis", "measured" or a JSON path),
+    ``human_epsilon`` (0.05), ``communication`` (True), ``confusion`` ("measured" (default), "thesis" or a JSON path),
     ``robot_node_accuracy`` (0.99), ``rfid_miss`` (0.0), ``max_episode_steps`` (100), ``graph`` (``LabGraph``).
     ``reset(options={"task": k, "robot_node": i, "human_node": j})`` fixes the episode's start (default:
     uniform nodes, all balls on the ground).
@@ -72,7 +73,7 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         tasks: Sequence[Sequence[int]] = DEFAULT_TASKS,
         human_epsilon: float = 0.05,
         communication: bool = True,
-        confusion: str | os.PathLike = "thesis",
+        confusion: str | os.PathLike = DEFAULT_CONFUSION,
         robot_node_accuracy: float = 0.99,
         rfid_miss: float = 0.0,
         max_episode_steps: int = 100,

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.errors import ConfigError
 
 ENV_ID = "EmbodiedAdhoc/ToxicWaste-v0"
@@ -34,7 +35,7 @@ class EpisodeConfig:
     human_epsilon: float = 0.05
     communication: bool = True
     speech: str = "channel"
-    confusion: str = "thesis"
+    confusion: str = DEFAULT_CONFUSION
     max_steps: int = 100
     record_dir: Path | None = None
     video_fps: float = 15.0

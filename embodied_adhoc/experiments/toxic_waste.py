@@ -24,6 +24,7 @@ import argparse
 
 import numpy as np
 
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.errors import ConfigError
 
 ENV_IDS = {"abstract": "EmbodiedAdhoc/ToxicWasteAbstract-v0", "mujoco": "EmbodiedAdhoc/ToxicWaste-v0"}
@@ -144,9 +145,9 @@ class ToxicWasteDomain:
         )
         group.add_argument(
             "--confusion",
-            default="thesis",
+            default=DEFAULT_CONFUSION,
             metavar="thesis|measured|PATH",
-            help="speech confusion matrix of 'locate human' (default: the thesis's)",
+            help="speech confusion matrix of 'locate human' (default: measured, our offline pipeline's; 'thesis' = the original's)",
         )
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
@@ -164,7 +165,7 @@ class ToxicWasteDomain:
         communication: bool = True,
         task: int | None = None,
         tasks=None,
-        confusion: str = "thesis",
+        confusion: str = DEFAULT_CONFUSION,
     ) -> dict:
         """Validated, JSON-ready options (what identifies a run in its ``config.json``)."""
         tasks = [list(map(int, t)) for t in (tasks if tasks is not None else DEFAULT_TASKS)]
