@@ -49,6 +49,8 @@ def make_speech(kind: str, confusion: str | os.PathLike) -> SpeechTurn:
 
 
 def _wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
+    """16-bit PCM WAV of ``audio``. Samples beyond full scale (low-SNR mixtures) saturate at +-1, exactly as the
+    recogniser's 16-bit input does (``comms.recognition.Recognizer.transcribe``): the recording is what was heard."""
     import soundfile
 
     buffer = io.BytesIO()
