@@ -29,7 +29,7 @@ def _node_list(text: str) -> tuple[int, ...]:
 def handle_lab(args: argparse.Namespace) -> int:
     import imageio.v3 as iio
 
-    from embodied_adhoc.record.atomic import publish, temporary_sibling
+    from embodied_adhoc.atomic import publish, temporary_sibling
     from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig
 
     out = Path(args.out)

@@ -120,8 +120,8 @@ def handle(args: argparse.Namespace) -> int:
 
 def _run_one(args: argparse.Namespace, config, out):
     """Run (or resume) one sweep; print its tables (or its JSON when it is the only one); write files to out."""
+    from embodied_adhoc.atomic import atomic_write_text
     from embodied_adhoc.experiments.runner import run_sweep
-    from embodied_adhoc.experiments.storage import atomic_write_text
     from embodied_adhoc.experiments.summary import summary_json
     from embodied_adhoc.experiments.tables import summary_table, welch_table
 
@@ -168,7 +168,7 @@ def _compare_backends(args: argparse.Namespace, results: dict) -> None:
     simulation-vs-reality comparison, here abstract vs physics)."""
     from pathlib import Path
 
-    from embodied_adhoc.experiments.storage import atomic_write_text
+    from embodied_adhoc.atomic import atomic_write_text
     from embodied_adhoc.experiments.summary import summary_json, welch_between_runs, welch_json
     from embodied_adhoc.experiments.tables import welch_table
 

@@ -13,10 +13,10 @@ from __future__ import annotations
 import functools
 import os
 import re
-import tempfile
 from pathlib import Path
 
 from embodied_adhoc import paths
+from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.comms.phrases import CLOSINGS, LOCATED_TEMPLATES, OPENINGS, UNINFORMATIVE_REPLIES
 from embodied_adhoc.comms.vocabulary import PLACES, normalise
 from embodied_adhoc.errors import SpeechError
@@ -140,14 +140,7 @@ def write_generated_files() -> list[Path]:
     """(Re)write the grammar and dictionary under ``assets/speech/`` atomically; returns the paths."""
     written = []
     for relative, text in generated_files().items():
-        path = paths.assets_dir() / relative
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(
-            "w", dir=path.parent, suffix=".tmp", delete=False, encoding="utf-8"
-        ) as handle:
-            handle.write(text)
-        os.replace(handle.name, path)
-        written.append(path)
+        written.append(atomic_write_text(paths.assets_dir() / relative, text))
     return written
 
 

@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from embodied_adhoc import paths
+from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.errors import ConfigError
 
 THESIS_MATRIX = "data/speech_confusion_thesis.json"
@@ -111,9 +111,4 @@ def save_confusion(confusion: ConfusionMatrix, path: str | os.PathLike) -> Path:
         "smoothing_floor": confusion.smoothing_floor,
         "provenance": confusion.provenance,
     }
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", dir=path.parent, suffix=".tmp", delete=False) as handle:
-        json.dump(document, handle, indent=2)
-        handle.write("\n")
-    os.replace(handle.name, path)
-    return path
+    return atomic_write_text(path, json.dumps(document, indent=2) + "\n")

@@ -9,13 +9,12 @@
 from __future__ import annotations
 
 import math
-import os
-import tempfile
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
+from embodied_adhoc.atomic import atomic_path
 from embodied_adhoc.experiments.stats import SampleSummary, mean_curve
 from embodied_adhoc.experiments.summary import RunSummary
 
@@ -31,15 +30,10 @@ def _pyplot():
 
 def _save(figure, path: Path) -> Path:
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".png", dir=path.parent)
-    os.close(handle)
     try:
-        figure.savefig(temporary, dpi=120, bbox_inches="tight")
-        os.replace(temporary, path)
+        with atomic_path(path) as temporary:
+            figure.savefig(temporary, dpi=120, bbox_inches="tight")
     finally:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
         _pyplot().close(figure)
     return path
 

@@ -20,11 +20,11 @@ import io
 import json
 import math
 import os
-import tempfile
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.trial import TrialResult
 
@@ -112,22 +112,6 @@ def step_rows(result: TrialResult, n_tasks: int) -> list[dict[str, str]]:
             )
         rows.append(row)
     return rows
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and an atomic rename."""
-    path = Path(path)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8", newline="") as stream:
-            stream.write(text)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-        raise
 
 
 def _csv_text(fields: Iterable[str], rows: Iterable[dict[str, str]], header: bool) -> str:

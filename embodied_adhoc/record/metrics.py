@@ -29,8 +29,8 @@ from typing import Any
 
 import numpy as np
 
+from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.experiments.stats import identify_step
-from embodied_adhoc.experiments.storage import atomic_write_text
 
 SCHEMA_VERSION = 1
 
@@ -120,8 +120,4 @@ class EpisodeMetrics:
 
     def write(self, path: str | Path) -> Path:
         """Write ``metrics.json`` atomically."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")
-        path.chmod(0o644)  # the temporary file was private (mkstemp); the result is an ordinary output file
-        return path
+        return atomic_write_text(path, json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")

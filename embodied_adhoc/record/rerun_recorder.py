@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc.record.atomic import publish, temporary_sibling
+from embodied_adhoc.atomic import publish, temporary_sibling
 
 ENTITY_PATHS: tuple[str, ...] = (
     "world/lab/outline",

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from embodied_adhoc.atomic import publish, temporary_sibling
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.record.atomic import publish, temporary_sibling
 
 
 class VideoWriter:
