@@ -84,30 +84,70 @@ def parse_args() -> Args:
     return Args(**namespace)
 
 
-def generated_pursuit_size_pomdp(
-    seed: int, n_states: int = 626, n_actions: int = 5, n_obs: int = 81
-) -> POMDP:
-    """A seeded random sparse POMDP of the thesis's pursuit size: 3 successors per (s, a), 2 observations per s'."""
+def generated_pursuit_size_pomdp(seed: int, side: int = 5, noise: float = 0.2) -> POMDP:
+    """A seeded pursuit POMDP of the thesis's size: 626 states, 5 actions, 81 observations, sparse.
+
+    States: (robot cell, prey cell) on a ``side x side`` grid (625) plus an absorbing "captured" state. Actions
+    move the robot (N, S, E, W, stay; walls block); the prey then moves to a random neighbouring cell or stays
+    (its move probabilities drawn from the seed), so each row has at most 5 successors. Moving onto the prey
+    captures it (+10, then absorbing); every other step costs 1. The robot observes the prey's offset
+    (dx, dy in -4..4: 81 observations), with probability ``noise`` off by one cell along a random axis.
+    """
     rng = np.random.default_rng(seed)
+    cells = [(x, y) for x in range(side) for y in range(side)]
+    moves = [(0, 1), (0, -1), (1, 0), (-1, 0), (0, 0)]
+    n_cells = len(cells)
+    n_states, captured, n_obs = n_cells * n_cells + 1, n_cells * n_cells, (2 * side - 1) ** 2
 
-    def sparse_rows(n_rows: int, n_cols: int, per_row: int) -> sp.csr_matrix:
-        columns = np.stack([rng.choice(n_cols, per_row, replace=False) for _ in range(n_rows)])
-        weights = rng.dirichlet(np.ones(per_row), size=n_rows)
-        return sp.csr_matrix(
-            (weights.ravel(), (np.repeat(np.arange(n_rows), per_row), columns.ravel())),
-            shape=(n_rows, n_cols),
-        )
+    def step(cell: int, move: tuple[int, int]) -> int:
+        x, y = cells[cell]
+        nx, ny = x + move[0], y + move[1]
+        return nx * side + ny if 0 <= nx < side and 0 <= ny < side else cell
 
-    rewards = np.where(
-        rng.random((n_states, n_actions)) < 0.05, rng.uniform(0, 10, (n_states, n_actions)), -1.0
-    )
+    prey_weights = rng.dirichlet(np.ones(5) * 2.0, size=n_cells)  # each cell's own prey move distribution
+    transitions = []
+    for move in moves:
+        rows, columns, values = [captured], [captured], [1.0]
+        for robot in range(n_cells):
+            for prey in range(n_cells):
+                state, moved = robot * n_cells + prey, step(robot, move)
+                if moved == prey:
+                    rows.append(state), columns.append(captured), values.append(1.0)
+                    continue
+                successors: dict[int, float] = {}
+                for weight, prey_move in zip(prey_weights[prey], moves, strict=True):
+                    target = moved * n_cells + step(prey, prey_move)
+                    successors[target] = successors.get(target, 0.0) + weight
+                for target, weight in successors.items():
+                    rows.append(state), columns.append(target), values.append(weight)
+        transitions.append(sp.csr_matrix((values, (rows, columns)), shape=(n_states, n_states)))
+
+    def offset_index(dx: int, dy: int) -> int:
+        clip = side - 1
+        return (int(np.clip(dx, -clip, clip)) + clip) * (2 * side - 1) + int(np.clip(dy, -clip, clip)) + clip
+
+    observation = np.zeros((n_states, n_obs))
+    observation[captured, offset_index(0, 0)] = 1.0
+    for robot in range(n_cells):
+        for prey in range(n_cells):
+            dx, dy = cells[prey][0] - cells[robot][0], cells[prey][1] - cells[robot][1]
+            row = observation[robot * n_cells + prey]
+            row[offset_index(dx, dy)] += 1.0 - noise
+            for ex, ey in moves[:4]:
+                row[offset_index(dx + ex, dy + ey)] += noise / 4
+    rewards = np.full((n_states, len(moves)), -1.0)
+    rewards[captured] = 0.0
+    for a, move in enumerate(moves):
+        for robot in range(n_cells):
+            moved = step(robot, move)
+            rewards[robot * n_cells + moved, a] = 10.0
     initial = np.zeros(n_states)
-    initial[rng.choice(n_states, 25, replace=False)] = 1 / 25
+    initial[:captured] = 1.0 / captured
     return POMDP(
-        transitions=[sparse_rows(n_states, n_states, 3) for _ in range(n_actions)],
+        transitions=transitions,
         rewards=rewards,
         discount=0.95,
-        observations=[sparse_rows(n_states, n_obs, 2) for _ in range(n_actions)],
+        observations=[sp.csr_matrix(observation)] * len(moves),
         initial_belief=initial,
     )
 

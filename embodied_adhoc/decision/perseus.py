@@ -221,8 +221,12 @@ def _perseus_iteration(
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
     new_alphas, new_actions = _stack(kept_vectors, kept_actions, beliefs.shape[1])
-    # Exact V_{n+1} on B: beliefs that left B~ early were not re-evaluated against later vectors.
-    return new_alphas, new_actions, (beliefs @ new_alphas.T).max(axis=1), False
+    # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning
+    # of the vectors maximal at no belief of B: V_{n+1} on B is unchanged and later backups get cheaper.
+    scores = beliefs @ new_alphas.T
+    best = np.argmax(scores, axis=1)
+    keep = np.unique(best)
+    return new_alphas[keep], new_actions[keep], scores[np.arange(len(best)), best], False
 
 
 def _blas_threads(count: int | None) -> contextlib.AbstractContextManager:
