@@ -115,15 +115,21 @@ def test_perseus_is_seeded(tiger):
     np.testing.assert_array_equal(first.alphas, second.alphas)
 
 
-def test_perseus_time_limit_and_progress(tiger):
+def test_perseus_iteration_limit_and_progress(tiger):
     reports = []
     policy = perseus(
-        tiger, PerseusConfig(n_beliefs=50, tolerance=0.0, time_limit=0.5), progress=reports.append
+        tiger, PerseusConfig(n_beliefs=50, tolerance=0.0, max_iterations=25), progress=reports.append
     )
-    assert not policy.stats.converged
-    assert reports and reports[-1].iteration == policy.stats.iterations
+    assert not policy.stats.converged and policy.stats.iterations == 25
+    assert [r.iteration for r in reports] == list(range(1, 26))
     values = [value for _, value in policy.stats.trace]
     assert all(b >= a - 1e-9 for a, b in zip(values, values[1:], strict=False))  # monotone at b0
+
+
+def test_perseus_time_limit_stops_early(tiger):
+    policy = perseus(tiger, PerseusConfig(n_beliefs=50, tolerance=0.0, time_limit=1e-3))
+    assert not policy.stats.converged
+    assert policy.value(tiger.initial_belief) <= 19.3721  # still a valid lower bound
 
 
 def test_policy_npz_round_trip(tiger_policy, tmp_path):
