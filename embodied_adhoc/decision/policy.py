@@ -10,13 +10,12 @@ Saved as ``.npz`` (``allow_pickle=False`` on load), written atomically.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from embodied_adhoc.atomic import atomic_path
 from embodied_adhoc.errors import ModelError
 
 _FORMAT_VERSION = 1
@@ -105,23 +104,14 @@ class AlphaVectorPolicy:
     def save(self, path: str | Path) -> Path:
         """Write the policy to ``path`` (.npz) atomically; no pickle."""
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        handle = tempfile.NamedTemporaryFile(
-            dir=path.parent, prefix=f".{path.name}.", suffix=".npz", delete=False
-        )
-        try:
-            with handle:
-                np.savez(
-                    handle,
-                    alphas=self.alphas,
-                    actions=self.actions,
-                    stages=self.stages,
-                    format_version=np.int64(_FORMAT_VERSION),
-                )
-            os.replace(handle.name, path)
-        except BaseException:
-            Path(handle.name).unlink(missing_ok=True)
-            raise
+        with atomic_path(path) as temporary:
+            np.savez(
+                temporary,
+                alphas=self.alphas,
+                actions=self.actions,
+                stages=self.stages,
+                format_version=np.int64(_FORMAT_VERSION),
+            )
         return path
 
     @classmethod

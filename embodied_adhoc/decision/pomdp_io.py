@@ -15,14 +15,13 @@ and the line that last wrote it; nothing is renormalised.
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
+from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.models import POMDP, PROBABILITY_ATOL
 from embodied_adhoc.errors import ModelError, PomdpFormatError
 
@@ -547,17 +546,4 @@ def _declaration(names: tuple[str, ...] | None, count: int, kind: str) -> str:
 
 def write_pomdp(pomdp: POMDP, path: str | Path) -> Path:
     """Write ``pomdp`` to ``path`` atomically (temp file + rename); reading it back gives the same model."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    text = format_pomdp(pomdp)
-    handle = tempfile.NamedTemporaryFile(
-        "w", dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False, encoding="utf-8"
-    )
-    try:
-        with handle:
-            handle.write(text)
-        os.replace(handle.name, path)
-    except BaseException:
-        Path(handle.name).unlink(missing_ok=True)
-        raise
-    return path
+    return atomic_write_text(path, format_pomdp(pomdp))
