@@ -101,6 +101,19 @@ def _solve(inp: InputParameter, dofs: int) -> Trajectory:
     return trajectory
 
 
+AXIS_FLOOR = 0.15
+"""Smallest per-axis share of the drive limits (keeps every ruckig problem feasible on near-axis legs)."""
+
+
+def _axis_scale(chord: np.ndarray) -> np.ndarray:
+    """Per-axis shares of the drive limits for a leg along ``chord``: ``max(|unit chord|, AXIS_FLOOR)``.
+
+    Limits proportional to the chord direction keep the Euclidean limits on straight legs; with the floor the
+    Euclidean speed can exceed ``max_speed`` by at most ``sqrt(1 + AXIS_FLOOR**2) - 1`` (1.1 %).
+    """
+    return np.maximum(np.abs(chord) / np.linalg.norm(chord), AXIS_FLOOR)
+
+
 class RouteReference:
     """The reference for one route, from a start pose through ``waypoints`` (the last one is the goal).
 
@@ -147,7 +160,15 @@ class RouteReference:
         bisector = (u_in + u_out) / np.linalg.norm(u_in + u_out)
         speed = self.limits.max_speed * math.cos(corner)
         speed = min(speed, math.sqrt(self.limits.max_acceleration * min(len_in, len_out)))
-        return speed * bisector
+        velocity = speed * bisector
+        # Both legs plan with per-axis velocity limits (_axis_scale); a boundary velocity beyond them would force
+        # the limits up and let the Euclidean speed exceed max_speed, so slow the pass-through to fit both legs.
+        caps = self.limits.max_speed * np.minimum(_axis_scale(leg_in), _axis_scale(leg_out))
+        magnitudes = np.abs(velocity)
+        moving = magnitudes > 0.0
+        if moving.any():
+            velocity *= min(1.0, float(np.min(caps[moving] / magnitudes[moving])))
+        return velocity
 
     def _add_turn(self, xy: np.ndarray, heading: float, direction: float) -> None:
         inp = InputParameter(1)
@@ -168,10 +189,7 @@ class RouteReference:
         self, start: np.ndarray, v0: np.ndarray, end: np.ndarray, v1: np.ndarray, direction: float
     ) -> None:
         limits = self.limits
-        unit = np.abs(end - start) / np.linalg.norm(end - start)
-        # Per-axis limits proportional to the chord direction keep the Euclidean limits on straight legs;
-        # the floor and the boundary velocities keep every problem feasible.
-        scale = np.maximum(unit, 0.15)
+        scale = _axis_scale(end - start)
         max_velocity = np.maximum(limits.max_speed * scale, np.maximum(np.abs(v0), np.abs(v1)) + 1e-6)
         inp = InputParameter(2)
         inp.current_position = start.tolist()
