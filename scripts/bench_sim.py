@@ -15,11 +15,10 @@ Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import os
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -27,6 +26,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco  # noqa: E402
 
+from embodied_adhoc.experiments.script_args import parse_dataclass_args  # noqa: E402
 from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig  # noqa: E402
 from embodied_adhoc.sim.odometry import OdometryConfig  # noqa: E402
 
@@ -50,14 +50,7 @@ class Args:
 
 
 def parse_args() -> Args:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    for item in fields(Args):
-        flag = f"--{item.name.replace('_', '-')}"
-        if isinstance(item.default, bool):
-            parser.add_argument(flag, action="store_true")
-        else:
-            parser.add_argument(flag, type=type(item.default), default=item.default)
-    return Args(**vars(parser.parse_args()))
+    return parse_dataclass_args(Args, __doc__)
 
 
 def run_tours(world: LabWorld, tours: int) -> tuple[list[dict], float, float]:

@@ -8,18 +8,22 @@ macro step and ratios to the abstract env's step measured in the same run:
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from embodied_adhoc.experiments.script_args import parse_dataclass_args
+
 
 @dataclass(frozen=True)
 class BenchArgs:
-    episodes: int = 2  # episodes per configuration (seeds 0..episodes-1)
+    episodes: int = 2
+    """episodes per configuration (seeds 0..episodes-1)"""
     width: int = 640
+    """recorded video width"""
     height: int = 480
+    """recorded video height"""
 
 
 def abstract_step_seconds(episodes: int) -> float:
@@ -73,13 +77,7 @@ def physics_step_seconds(episodes: int, record: bool, args: BenchArgs) -> tuple[
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    parser.add_argument("--episodes", type=int, default=BenchArgs.episodes)
-    parser.add_argument("--width", type=int, default=BenchArgs.width)
-    parser.add_argument("--height", type=int, default=BenchArgs.height)
-    args = BenchArgs(**vars(parser.parse_args()))
+    args = parse_dataclass_args(BenchArgs, __doc__)
     reference = abstract_step_seconds(args.episodes)
     bare, sim = physics_step_seconds(args.episodes, False, args)
     recorded, _ = physics_step_seconds(args.episodes, True, args)
