@@ -6,9 +6,12 @@ For beliefs ``B`` (n x S) and an alpha set ``Gamma`` (K x S) the backup at ``b``
     k*_{a,z}(b) = argmax_k  sum_{s'} (b T_a)(s') O(z | s', a) Gamma[k](s'),
 
 and ``backup(b) = alpha_{a*}^b`` for the action maximising ``b . alpha_a^b``. All beliefs of a batch are handled
-at once: one sparse product ``B T_a`` per action, then per observation a dense product restricted to the end
-states where ``O(z | s', a) > 0`` (so the cost is ``n * K * nnz(O_a)`` per action, not ``n * K * S * |Z|``), and
-one sparse product per action to map the chosen continuation vectors back through ``T_a``.
+at once: one sparse product ``B T_a`` per action, then the scores of every vector on every branch, and one
+sparse product per action to map the chosen continuation vectors back through ``T_a``. The scores are computed
+on the support of the predicted beliefs when they are sparse: one sparse (possible branches x S) matrix
+``W[(i, z), s'] = (b_i T_a)(s') O(z | s', a)`` times the dense ``Gamma^T``, so the cost is ``K`` times the
+nonzeros of ``W`` (about ``n * |supp(b T_a)| * nnz(O_a) / S``); dense predicted beliefs use one product with the
+projection of all vectors on all observations (``n * K * nnz(O_a)`` per action, not ``n * K * S * |Z|``).
 
 Branches ``(a, z)`` impossible at a belief still get a continuation vector (the one best for a uniform spread
 over the states emitting ``z``): dropping them would give a vector that is not the value of any plan, and the
@@ -29,12 +32,16 @@ _DENSE_DENSITY = 0.1  # observation-matrix density above which projections are s
 _DENSE_MAX_ELEMENTS = 20_000_000
 
 
+_SUPPORT_DENSITY = 0.3  # predicted-belief density below which scores are computed on the belief supports
+
+
 @dataclass(frozen=True)
 class PreparedAlphas:
-    """A value function with its per-action projections (built once, used for many batches)."""
+    """A value function with its per-action projections (built on first use, reused for many batches)."""
 
     alphas: np.ndarray
-    projections: tuple[sp.csr_matrix | np.ndarray, ...]
+    alphas_t: np.ndarray  # (S, K) float32, contiguous: right operand of the support-restricted scores
+    projections: dict[int, sp.csr_matrix | np.ndarray]
     fallbacks: tuple[np.ndarray, ...]
 
 
@@ -62,30 +69,70 @@ class BackupOperator:
                 (np.ones(coo.nnz), (end_states, np.arange(coo.nnz))), shape=(pomdp.n_states, coo.nnz)
             )
             self.entries.append((end_states, observations, probabilities, from_entries, matrix.T.tocsr()))
+        self.observation_rows = tuple(sp.csr_matrix(matrix) for matrix in pomdp.observations)  # (S x Z) each
+        for matrix in self.observation_rows:
+            matrix.sort_indices()
+        self.sparse_observations = tuple(
+            matrix.nnz < _DENSE_DENSITY * pomdp.n_states * pomdp.n_observations for matrix in self.observation_rows
+        )
 
     def prepare(self, alphas: np.ndarray) -> PreparedAlphas:
-        """Per-action projections of a value function, reused by every :meth:`backup` against it."""
+        """A value function ready for many :meth:`backup` calls against it (projections built lazily)."""
+        alphas = np.ascontiguousarray(alphas, dtype=np.float64)
+        # For branches impossible at a belief: the vector best for a uniform spread over the states emitting z.
+        fallbacks = tuple(np.argmax(entry[4] @ alphas.T, axis=1) for entry in self.entries)
+        return PreparedAlphas(alphas, np.ascontiguousarray(alphas.T, dtype=np.float32), {}, fallbacks)
+
+    def _projection(self, prepared: PreparedAlphas, action: int) -> sp.csr_matrix | np.ndarray:
+        """Projection of every vector on every observation of ``action`` (used for dense predicted beliefs)."""
+        if action in prepared.projections:
+            return prepared.projections[action]
+        alphas = prepared.alphas
+        end_states, observations, probabilities, _, observation_t = self.entries[action]
         n_vectors, n_obs, n_states = alphas.shape[0], self.n_observations, self.pomdp.n_states
-        projections, fallbacks = [], []
-        for end_states, observations, probabilities, _, observation_t in self.entries:
-            # projected (K*Z x S'): row k*Z+z holds O(z|s',a) alpha_k(s'); scores[k, z, i] = row . (b_i T_a)
+        # projected (K*Z x S'): row k*Z+z holds O(z|s',a) alpha_k(s'); scores[k, z, i] = row . (b_i T_a)
+        shape = (n_vectors * n_obs, n_states)
+        density = len(end_states) / (n_states * n_obs)
+        if density >= _DENSE_DENSITY and shape[0] * shape[1] <= _DENSE_MAX_ELEMENTS:
+            # Dense observation models: a dense BLAS product beats the sparse one despite the extra zeros.
+            # Laid out (Z, K, S) so that the scores come out (n, Z, K), K last for a contiguous argmax.
+            dense_t = observation_t.toarray()  # (Z, S)
+            projection = (dense_t[:, None, :] * alphas[None, :, :]).reshape(n_obs * n_vectors, n_states)
+        else:
             weights = alphas[:, end_states] * probabilities  # (K, nnz)
             rows = (np.arange(n_vectors)[:, None] * n_obs + observations[None, :]).ravel()
             columns = np.tile(end_states, n_vectors)
-            shape = (n_vectors * n_obs, n_states)
-            density = len(end_states) / (n_states * n_obs)
-            if density >= _DENSE_DENSITY and shape[0] * shape[1] <= _DENSE_MAX_ELEMENTS:
-                # Dense observation models: a dense BLAS product beats the sparse one despite the extra zeros.
-                # Laid out (Z, K, S) so that the scores come out (n, Z, K), K last for a contiguous argmax.
-                dense_t = observation_t.toarray()  # (Z, S)
-                projections.append(
-                    (dense_t[:, None, :] * alphas[None, :, :]).reshape(n_obs * n_vectors, n_states)
-                )
-            else:
-                projections.append(sp.csr_matrix((weights.ravel(), (rows, columns)), shape=shape))
-            # For branches impossible at a belief: the vector best for a uniform spread over the states emitting z.
-            fallbacks.append(np.argmax(observation_t @ alphas.T, axis=1))
-        return PreparedAlphas(np.ascontiguousarray(alphas), tuple(projections), tuple(fallbacks))
+            projection = sp.csr_matrix((weights.ravel(), (rows, columns)), shape=shape)
+        prepared.projections[action] = projection
+        return projection
+
+    def _support_choices(
+        self, prepared: PreparedAlphas, action: int, predicted: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Best vector of each possible branch, scored on the support of the predicted beliefs only.
+
+        Returns ``(observations, beliefs, best)`` for every branch ``(z, i)`` with ``P(z | b_i, a) > 0``. The
+        scores are float32 (half the memory traffic of this, the solver's hottest product): they only choose
+        the continuation, the vectors are then built in float64, so a near-tie picked differently still gives
+        the exact value of a conditional plan (the lower bound holds).
+        """
+        observation = self.observation_rows[action]  # CSR (S x Z)
+        n_obs = self.n_observations
+        ends, columns = np.nonzero(predicted)  # predicted is (S, n)
+        mass = predicted[ends, columns]
+        counts = np.diff(observation.indptr)[ends]
+        total = int(counts.sum())
+        owner = np.repeat(np.arange(len(ends)), counts)
+        first = np.repeat(np.cumsum(counts) - counts, counts)
+        position = observation.indptr[ends][owner] + np.arange(total) - first
+        keys = columns[owner] * n_obs + observation.indices[position]  # branch (i, z) of every product entry
+        branch_keys, rows = np.unique(keys, return_inverse=True)
+        weights = sp.csr_matrix(
+            ((mass[owner] * observation.data[position]).astype(np.float32), (rows.ravel(), ends[owner])),
+            shape=(len(branch_keys), self.pomdp.n_states),
+        )
+        best = np.argmax(weights @ prepared.alphas_t, axis=1)  # (branches,)
+        return branch_keys % n_obs, branch_keys // n_obs, best
 
     def backup(
         self, beliefs: np.ndarray, alphas: np.ndarray | PreparedAlphas
@@ -108,16 +155,22 @@ class BackupOperator:
             end_states, observations, probabilities, from_entries, observation_t = self.entries[action]
             # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
             predicted = self.transitions_t[action] @ beliefs_t
-            projected = prepared.projections[action]
-            if isinstance(projected, np.ndarray):  # dense (Z*K, S): scores (n, Z, K)
-                scores = (predicted.T @ projected.T).reshape(n, n_obs, n_vectors)
-                chosen = np.ascontiguousarray(np.argmax(scores, axis=2).T)  # (Z, n)
-            else:  # sparse (K*Z, S): scores (K, Z, n)
-                scores = (projected @ predicted).reshape(n_vectors, n_obs, n)
-                chosen = _argmax_first_axis(scores)  # (Z, n): best continuation vector per branch and belief
-            impossible = (observation_t @ predicted) <= 0.0  # (Z, n)
-            if impossible.any():
-                chosen = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
+            if self.sparse_observations[action] and np.count_nonzero(predicted) < _SUPPORT_DENSITY * predicted.size:
+                # (Z, n): best continuation per branch and belief; impossible branches keep the fallback.
+                chosen = np.repeat(prepared.fallbacks[action][:, None], n, axis=1)
+                branch_observations, branch_beliefs, best = self._support_choices(prepared, action, predicted)
+                chosen[branch_observations, branch_beliefs] = best
+            else:
+                projected = self._projection(prepared, action)
+                if isinstance(projected, np.ndarray):  # dense (Z*K, S): scores (n, Z, K)
+                    scores = (predicted.T @ projected.T).reshape(n, n_obs, n_vectors)
+                    chosen = np.ascontiguousarray(np.argmax(scores, axis=2).T)  # (Z, n)
+                else:  # sparse (K*Z, S): scores (K, Z, n)
+                    scores = (projected @ predicted).reshape(n_vectors, n_obs, n)
+                    chosen = _argmax_first_axis(scores)  # (Z, n): best continuation per branch and belief
+                impossible = (observation_t @ predicted) <= 0.0  # (Z, n)
+                if impossible.any():
+                    chosen = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
             # continuation[s', i] = sum_z O(z|s',a) alpha_{chosen[z,i]}(s'), gathered per observation entry.
             per_entry = alphas[chosen[observations], end_states[:, None]] * probabilities[:, None]  # (nnz, n)
             continuation = from_entries @ per_entry  # (S', n)

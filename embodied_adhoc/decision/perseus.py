@@ -22,6 +22,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
 from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
 from embodied_adhoc.decision.beliefs import collect_beliefs
@@ -115,7 +116,8 @@ def _infinite_horizon(
     alphas = blind_policy_vectors(pomdp)
     actions = np.arange(pomdp.n_actions, dtype=np.int64)
     b0 = pomdp.initial_belief
-    values = (beliefs @ alphas.T).max(axis=1)  # V_n on the belief set
+    rows = _belief_rows(beliefs)
+    values = (rows @ alphas.T).max(axis=1)  # V_n on the belief set
     trace = [(time.perf_counter() - start, float((alphas @ b0).max()))]
     improvement, converged, iteration = np.inf, False, 0
     gamma = pomdp.discount
@@ -123,7 +125,7 @@ def _infinite_horizon(
     deadline = None if config.time_limit is None else start + config.time_limit
     for iteration in range(1, config.max_iterations + 1):
         new_alphas, new_actions, new_values, timed_out = _perseus_iteration(
-            operator, beliefs, alphas, actions, values, rng, config.batch_size, deadline
+            operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline
         )
         if timed_out and not new_alphas.shape[0]:
             iteration -= 1
@@ -132,7 +134,7 @@ def _infinite_horizon(
             # A partial iteration: keep the old vectors too, so no belief loses value.
             new_alphas = np.vstack([new_alphas, alphas])
             new_actions = np.concatenate([new_actions, actions])
-            new_values = (beliefs @ new_alphas.T).max(axis=1)
+            new_values = (rows @ new_alphas.T).max(axis=1)
         improvement = float(np.max(new_values - values))
         alphas, actions, values = new_alphas, new_actions, new_values
         seconds = time.perf_counter() - start
@@ -146,14 +148,14 @@ def _infinite_horizon(
             # Perseus may stall on ties (a belief "improved" by an equal vector); stop only if a full backup
             # of every belief confirms the Bellman residual on B is within tolerance, else add the fixes.
             residual, fixes, fix_actions = _full_backup_check(
-                operator, beliefs, alphas, values, threshold, config
+                operator, beliefs, rows, alphas, values, threshold, config
             )
             if residual <= threshold:
                 improvement, converged = residual, True
                 break
             alphas = np.vstack([alphas, fixes])
             actions = np.concatenate([actions, fix_actions])
-            values = (beliefs @ alphas.T).max(axis=1)
+            values = (rows @ alphas.T).max(axis=1)
     stats = SolverStats(
         "perseus",
         iteration,
@@ -169,6 +171,7 @@ def _infinite_horizon(
 def _perseus_iteration(
     operator: BackupOperator,
     beliefs: np.ndarray,
+    rows: np.ndarray | sp.csr_matrix,
     alphas: np.ndarray,
     actions: np.ndarray,
     values: np.ndarray,
@@ -176,7 +179,10 @@ def _perseus_iteration(
     batch_size: int,
     deadline: float | None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
-    """One Perseus stage ``V_n -> V_{n+1}``; returns the new vectors, their actions, V_{n+1} on B, timed_out."""
+    """One Perseus stage ``V_n -> V_{n+1}``; returns the new vectors, their actions, V_{n+1} on B, timed_out.
+
+    ``rows`` is ``beliefs`` in the form used for value products (sparse when the beliefs are).
+    """
     n = beliefs.shape[0]
     new_values = np.full(n, -np.inf)
     kept_vectors: list[np.ndarray] = []
@@ -196,7 +202,7 @@ def _perseus_iteration(
         batch = pending[:size]
         size = min(batch_size, 2 * size)
         vectors, vector_actions, _ = operator.backup(beliefs[batch], prepared)
-        pending_beliefs = beliefs[pending]
+        pending_beliefs = rows[pending]
         candidate_values = (
             pending_beliefs @ vectors.T
         )  # (P, m): pending beliefs' values under the new vectors
@@ -216,14 +222,14 @@ def _perseus_iteration(
                     kept_old.add(old)
                     kept_vectors.append(alphas[old])
                     kept_actions.append(int(actions[old]))
-                    np.maximum(pending_new, pending_beliefs @ alphas[old], out=pending_new)
+                    np.maximum(pending_new, (pending_beliefs @ alphas[old][:, None]).ravel(), out=pending_new)
                 # V_n(b) is kept exactly (guards against a last-bit difference between matvec and matmul).
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
     new_alphas, new_actions = _stack(kept_vectors, kept_actions, beliefs.shape[1])
     # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning
     # of the vectors maximal at no belief of B: V_{n+1} on B is unchanged and later backups get cheaper.
-    scores = beliefs @ new_alphas.T
+    scores = rows @ new_alphas.T
     best = np.argmax(scores, axis=1)
     keep = np.unique(best)
     return new_alphas[keep], new_actions[keep], scores[np.arange(len(best)), best], False
@@ -244,6 +250,7 @@ def _blas_threads(count: int | None) -> contextlib.AbstractContextManager:
 def _full_backup_check(
     operator: BackupOperator,
     beliefs: np.ndarray,
+    rows: np.ndarray | sp.csr_matrix,
     alphas: np.ndarray,
     values: np.ndarray,
     threshold: float,
@@ -265,8 +272,15 @@ def _full_backup_check(
             break
         if current[index] + threshold < values[index] + gains[index]:
             chosen.append(index)
-            np.maximum(current, beliefs @ vectors[index], out=current)
+            np.maximum(current, (rows @ vectors[index][:, None]).ravel(), out=current)
     return residual, vectors[chosen], actions[chosen]
+
+
+def _belief_rows(beliefs: np.ndarray) -> np.ndarray | sp.csr_matrix:
+    """The belief set for value products ``B @ Gamma^T``: CSR when sparse (large models' beliefs mostly are)."""
+    if np.count_nonzero(beliefs) < 0.3 * beliefs.size:
+        return sp.csr_matrix(beliefs)
+    return beliefs
 
 
 def _stack(vectors: list[np.ndarray], actions: list[int], n_states: int) -> tuple[np.ndarray, np.ndarray]:
