@@ -28,7 +28,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     solve.add_argument("--beliefs", type=int, default=1000, help="Perseus belief-set size (default 1000)")
     solve.add_argument("--time-limit", type=float, default=None, help="Perseus time limit in seconds")
     solve.add_argument(
-        "--tolerance", type=float, default=None, help="stop when improvement <= T (default 1e-3)"
+        "--tolerance", type=float, default=None, help="Perseus convergence tolerance (default 1e-3; see --stop)"
+    )
+    solve.add_argument(
+        "--stop",
+        choices=("bound", "gain"),
+        default="bound",
+        help="Perseus stop rule: 'bound' (default) = the bound gamma/(1-gamma) x the largest one-iteration gain "
+        "on the belief set is <= tolerance; 'gain' = the classic rule, that gain itself is <= tolerance",
     )
     solve.add_argument(
         "--horizon", type=int, default=None, help="finite horizon (required when discount is 1.0)"
@@ -135,6 +142,7 @@ def _solve(args: argparse.Namespace) -> int:
             config = PerseusConfig(
                 n_beliefs=args.beliefs,
                 tolerance=1e-3 if args.tolerance is None else args.tolerance,
+                stop=args.stop,
                 time_limit=args.time_limit,
                 seed=args.seed,
                 horizon=args.horizon,

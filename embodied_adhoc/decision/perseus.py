@@ -31,15 +31,19 @@ from embodied_adhoc.decision.policy import AlphaVectorPolicy, SolverStats
 from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import SolverError
 
+STOP_RULES = ("bound", "gain")
+
 
 @dataclass(frozen=True)
 class PerseusConfig:
     """Perseus options. ``time_limit`` in seconds (None: none); ``horizon`` for a finite-horizon solve."""
 
     n_beliefs: int = 1000
-    # Stop when the geometric bound on the remaining gain, improvement * gamma / (1 - gamma), is <= tolerance
-    # (improvement: the largest gain of any belief in one iteration), confirmed by a full backup of B.
+    # improvement = the largest gain of any belief of B in one iteration (confirmed by a full backup of B).
+    # stop="bound": stop when the geometric bound on the remaining gain, improvement * gamma / (1 - gamma), is
+    # <= tolerance; stop="gain": the classic Perseus rule, stop when improvement itself is <= tolerance.
     tolerance: float = 1e-3
+    stop: str = "bound"
     max_iterations: int = 10_000
     time_limit: float | None = None
     seed: int = 0
@@ -53,6 +57,8 @@ class PerseusConfig:
             raise SolverError(f"n_beliefs must be >= 1, got {self.n_beliefs}")
         if self.tolerance < 0:
             raise SolverError(f"tolerance must be >= 0, got {self.tolerance}")
+        if self.stop not in STOP_RULES:
+            raise SolverError(f"stop must be one of {', '.join(STOP_RULES)}, got {self.stop!r}")
         if self.horizon is not None and self.horizon < 1:
             raise SolverError(f"horizon must be a positive number of steps, got {self.horizon}")
         if not 0.0 <= self.epsilon <= 1.0:
@@ -121,7 +127,8 @@ def _infinite_horizon(
     trace = [(time.perf_counter() - start, float((alphas @ b0).max()))]
     improvement, converged, iteration = np.inf, False, 0
     gamma = pomdp.discount
-    threshold = config.tolerance * (1.0 - gamma) / gamma if gamma > 0 else config.tolerance
+    bound = config.stop == "bound" and gamma > 0
+    threshold = config.tolerance * (1.0 - gamma) / gamma if bound else config.tolerance
     deadline = None if config.time_limit is None else start + config.time_limit
     for iteration in range(1, config.max_iterations + 1):
         new_alphas, new_actions, new_values, timed_out = _perseus_iteration(

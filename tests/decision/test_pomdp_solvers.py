@@ -192,3 +192,15 @@ def test_belief_updates_stay_on_the_simplex(case):
         assert np.all(posterior >= 0) and posterior.sum() == pytest.approx(1.0, abs=1e-12)
         np.testing.assert_allclose(stepper.update(belief, 0, observation), posterior, atol=1e-12)
         belief = posterior
+
+
+def test_perseus_stop_rules_gain_is_the_looser_one(tiger):
+    """'gain' stops when one iteration's largest gain is <= tolerance; 'bound' when gamma/(1-gamma) x that gain is."""
+    loose = perseus(tiger, PerseusConfig(n_beliefs=200, tolerance=0.05, stop="gain"))
+    strict = perseus(tiger, PerseusConfig(n_beliefs=200, tolerance=0.05, stop="bound"))
+    assert loose.stats.converged and strict.stats.converged
+    assert loose.stats.iterations <= strict.stats.iterations
+    assert loose.stats.residual <= 0.05 + 1e-12
+    assert strict.stats.residual <= 0.05 * (1 - tiger.discount) / tiger.discount + 1e-12
+    with pytest.raises(SolverError, match="stop must be one of"):
+        PerseusConfig(stop="never")
