@@ -45,6 +45,7 @@ from embodied_adhoc.teammates.lab_human import HumanOutcome, LabHuman
 __all__ = [
     "DEFAULT_GRAPH",
     "DEFAULT_TASKS",
+    "RESET_OPTIONS",
     "LabConfig",
     "LabGraph",
     "LabLibrary",
@@ -117,6 +118,10 @@ def average_over_teammate(joint: Sequence[sp.csr_matrix], policy: np.ndarray) ->
     return sum(sp.diags(policy[:, h]) @ joint[h] for h in range(len(joint))).tocsr()
 
 
+RESET_OPTIONS = ("task", "robot_node", "human_node")
+"""The ``reset(options=...)`` keys of the toxic-waste envs (abstract and physics)."""
+
+
 @dataclass(frozen=True, eq=False)
 class LabLibrary:
     """The task library: per-task MMDPs, averaged MDPs and POMDPs over one shared state/action/observation space."""
@@ -150,6 +155,30 @@ class LabLibrary:
 
     def state_index(self, robot_node: int, human_node: int, ball_status: Sequence[int], rfid_event: bool = False) -> int:
         return self.states.index(robot_node, human_node, ball_status, rfid_event)
+
+    def episode_start(
+        self, options: dict | None, fixed_task: int | None, rng: np.random.Generator
+    ) -> tuple[int, int, int]:
+        """``(task, robot_node, human_node)`` of a new episode, from Gymnasium ``reset`` options.
+
+        Options ``task``, ``robot_node``, ``human_node`` fix them; what is not fixed (nor by ``fixed_task``) is
+        drawn uniformly from ``rng`` in that order (the model's initial belief). Shared by the abstract and the
+        physics env, so the same seed and options start both in the same place.
+        """
+        options = dict(options or {})
+        unknown = set(options) - set(RESET_OPTIONS)
+        if unknown:
+            raise ConfigError(f"reset options {sorted(unknown)} not understood; use {', '.join(RESET_OPTIONS)}")
+        n = self.graph.n_nodes
+        task = options.get("task", fixed_task)
+        task = int(rng.integers(self.n_tasks)) if task is None else int(task)
+        robot = int(options.get("robot_node", rng.integers(n)))
+        human = int(options.get("human_node", rng.integers(n)))
+        if not 0 <= task < self.n_tasks:
+            raise ConfigError(f"reset option task={task} outside 0..{self.n_tasks - 1}")
+        if not (0 <= robot < n and 0 <= human < n):
+            raise ConfigError(f"reset options robot_node={robot}, human_node={human} must lie in 0..{n - 1}")
+        return task, robot, human
 
 
 def build_lab_library(

@@ -18,7 +18,6 @@ from embodied_adhoc.errors import ConfigError
 __all__ = ["ToxicWasteEnv"]
 
 BALL_STATUS = {"ground": GROUND, "held": HELD, "container": DISPOSED}
-RESET_OPTIONS = ("task", "robot_node", "human_node")
 FrameSink = Callable[[np.ndarray, dict], None]
 
 
@@ -175,21 +174,8 @@ class ToxicWasteEnv(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - set(RESET_OPTIONS)
-        if unknown:
-            raise ConfigError(
-                f"reset options {sorted(unknown)} not understood; use {', '.join(RESET_OPTIONS)}"
-            )
-        lib, n = self.library, self.library.graph.n_nodes
-        task = options.get("task", self.task)
-        self._task = int(self.np_random.integers(lib.n_tasks)) if task is None else int(task)
-        robot = int(options.get("robot_node", self.np_random.integers(n)))
-        human = int(options.get("human_node", self.np_random.integers(n)))
-        if not 0 <= self._task < lib.n_tasks:
-            raise ConfigError(f"reset option task={self._task} outside 0..{lib.n_tasks - 1}")
-        if not (0 <= robot < n and 0 <= human < n):
-            raise ConfigError(f"reset options robot_node={robot}, human_node={human} must lie in 0..{n - 1}")
+        lib = self.library
+        self._task, robot, human = lib.episode_start(options, self.task, self.np_random)
         world_seed, human_seed, speech_seed = self.np_random.integers(0, 2**63 - 1, size=3)
         self._human_rng = np.random.default_rng(int(human_seed))
         self._speech_rng = np.random.default_rng(int(speech_seed))

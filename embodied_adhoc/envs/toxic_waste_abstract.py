@@ -100,21 +100,8 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        options = dict(options or {})
-        unknown = set(options) - {"task", "robot_node", "human_node"}
-        if unknown:
-            raise ConfigError(
-                f"reset options {sorted(unknown)} not understood; use task, robot_node, human_node"
-            )
-        n, lib = self.library.graph.n_nodes, self.library
-        task = options.get("task", self.task)
-        self._task = int(self.np_random.integers(lib.n_tasks)) if task is None else int(task)
-        if not 0 <= self._task < lib.n_tasks:
-            raise ConfigError(f"reset option task={self._task} outside 0..{lib.n_tasks - 1}")
-        self._robot = int(options.get("robot_node", self.np_random.integers(n)))
-        self._human = int(options.get("human_node", self.np_random.integers(n)))
-        if not (0 <= self._robot < n and 0 <= self._human < n):
-            raise ConfigError(f"reset options robot_node/human_node must lie in 0..{n - 1}")
+        lib = self.library
+        self._task, self._robot, self._human = lib.episode_start(options, self.task, self.np_random)
         self._status = (GROUND,) * len(lib.tasks[0])
         self._steps = 0
         return self._observe(lib.stay_action, False)
