@@ -15,9 +15,8 @@ Prints three tables:
 
 from __future__ import annotations
 
-import argparse
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ from embodied_adhoc.decision.beliefs import collect_beliefs
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 from embodied_adhoc.decision.pomdp_io import read_pomdp
+from embodied_adhoc.experiments.script_args import parse_dataclass_args
 
 # SARSOP lower / upper bound at b0 and its run time, from ../shared/pomdp/README.md.
 SARSOP = {
@@ -56,33 +56,22 @@ class Args:
 
     corpus: Path = Path(__file__).resolve().parents[1] / ".." / "shared" / "pomdp"
     problems: tuple[str, ...] = tuple(SARSOP)
-    beliefs: int = 3000  # Perseus belief-set size for corpus problems
-    time_limit: float = 60.0  # seconds per corpus problem
+    beliefs: int = 3000
+    """Perseus belief-set size for corpus problems"""
+    time_limit: float = 60.0
+    """seconds per corpus problem"""
     seed: int = 0
     generated_beliefs: int = 5000
     generated_time_limit: float = 300.0
-    generated_tolerance: float = 0.01  # the thesis's Perseus tolerance
-    naive_beliefs: int = 3  # beliefs backed up by the naive reference (seconds each on Tag-size models)
+    generated_tolerance: float = 0.01
+    """the thesis's Perseus tolerance (Table 5.4)"""
+    naive_beliefs: int = 3
+    """beliefs backed up by the naive reference (seconds each on Tag-size models)"""
     skip_generated: bool = False
 
 
 def parse_args() -> Args:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
-    defaults = Args()
-    for item in fields(Args):
-        flag = "--" + item.name.replace("_", "-")
-        default = getattr(defaults, item.name)
-        if isinstance(default, bool):
-            parser.add_argument(flag, action="store_true")
-        elif isinstance(default, tuple):
-            parser.add_argument(flag, nargs="+", default=list(default))
-        else:
-            parser.add_argument(flag, type=type(default), default=default)
-    namespace = vars(parser.parse_args())
-    namespace["problems"] = tuple(namespace["problems"])
-    return Args(**namespace)
+    return parse_dataclass_args(Args, __doc__)
 
 
 def generated_pursuit_size_pomdp(seed: int, side: int = 5, noise: float = 0.2) -> POMDP:

@@ -1,7 +1,8 @@
 """Command-line flags from a frozen dataclass of script arguments (the CleanRL pattern, without a dependency).
 
 Each field ``name: T = default`` becomes ``--name`` (underscores -> dashes) of type ``T`` (int, float, str, Path),
-or a switch for ``bool`` fields (default False). A string literal right below a field is its help text.
+a list of values for ``tuple[T, ...]`` fields (``--name A B C``), or a switch for ``bool`` fields (default False).
+A string literal right below a field is its help text.
 """
 
 from __future__ import annotations
@@ -48,6 +49,13 @@ def parse_dataclass_args(cls: type[T], description: str | None = None, argv: lis
     for field in dataclasses.fields(cls):
         flag = "--" + field.name.replace("_", "-")
         kind: Any = hints[field.name]
+        if typing.get_origin(kind) is tuple:
+            item = typing.get_args(kind)[0]
+            if item not in _TYPES.values() or item is bool:
+                raise TypeError(f"{cls.__name__}.{field.name}: unsupported tuple item type {item!r}")
+            help_text = f"{docs.get(field.name, '')} (default {' '.join(map(str, field.default))})".strip()
+            parser.add_argument(flag, type=item, nargs="+", default=field.default, help=help_text)
+            continue
         if kind not in _TYPES.values():
             raise TypeError(f"{cls.__name__}.{field.name}: unsupported argument type {kind!r}")
         if kind is bool:
@@ -55,4 +63,5 @@ def parse_dataclass_args(cls: type[T], description: str | None = None, argv: lis
         else:
             help_text = f"{docs.get(field.name, '')} (default {field.default})".strip()
             parser.add_argument(flag, type=kind, default=field.default, help=help_text)
-    return cls(**vars(parser.parse_args(argv)))
+    values = vars(parser.parse_args(argv))
+    return cls(**{name: tuple(v) if isinstance(v, list) else v for name, v in values.items()})
