@@ -1,8 +1,10 @@
 """The recognition grammar (JSGF) and pronunciation dictionary, GENERATED from the vocabulary and templates.
 
 The recogniser only considers word sequences of the reply grammar ``[opening] (located | uninformative)
-[closing]``, so its transcripts are always in-vocabulary. The dictionary holds only the grammar's words (with
-every pronunciation variant of the CMU dictionary shipped with pocketsphinx), which makes loading the decoder fast.
+[closing]``, so its transcripts are always in-vocabulary. The dictionary holds only the grammar's words, which
+makes loading the decoder fast: every pronunciation variant of the CMU dictionary shipped with pocketsphinx, a
+non-rhotic reading of each, and each word's pronunciation in every accent of the default voices
+(:mod:`embodied_adhoc.comms.lexicon`, from espeak-ng).
 
 The generated files are committed under ``assets/speech/`` so they can be read and reused; regenerate them with
 ``embodied-adhoc speech grammar`` (a test checks that the committed files are up to date).
@@ -13,10 +15,12 @@ from __future__ import annotations
 import functools
 import os
 import re
+from collections.abc import Sequence
 from pathlib import Path
 
 from embodied_adhoc import paths
 from embodied_adhoc.atomic import atomic_write_text
+from embodied_adhoc.comms import lexicon
 from embodied_adhoc.comms.phrases import CLOSINGS, LOCATED_TEMPLATES, OPENINGS, UNINFORMATIVE_REPLIES
 from embodied_adhoc.comms.vocabulary import PLACES, normalise
 from embodied_adhoc.errors import SpeechError
@@ -94,10 +98,11 @@ def non_rhotic(phones: list[str]) -> list[str]:
     return result
 
 
-def dictionary_text(cmudict_path: str | os.PathLike) -> str:
-    """Pronunciations of the grammar's words taken from the CMU dictionary at ``cmudict_path``: every variant
-    listed there, plus the non-rhotic reading of each (:func:`non_rhotic`) where it differs, so that British
-    voices saying "door" as /dɔː/ are not forced onto a rhotic path."""
+def dictionary_text(cmudict_path: str | os.PathLike, accents: Sequence[str] = lexicon.ACCENTS) -> str:
+    """Pronunciations of the grammar's words: every variant listed in the CMU dictionary at ``cmudict_path``, the
+    non-rhotic reading of each (:func:`non_rhotic`) where it differs, so that British voices saying "door" as
+    /dɔː/ are not forced onto a rhotic path, and the word's pronunciation in each of ``accents``
+    (:func:`embodied_adhoc.comms.lexicon.accent_pronunciations`; ``()`` for the CMU entries only)."""
     wanted = set(grammar_words())
     lines: dict[str, list[str]] = {word: [] for word in wanted}
     with open(cmudict_path, encoding="utf-8") as handle:
@@ -112,6 +117,9 @@ def dictionary_text(cmudict_path: str | os.PathLike) -> str:
             variant = non_rhotic(phones)
             if variant not in pronunciations:
                 pronunciations.append(variant)
+        for phones in lexicon.accent_pronunciations(word, accents) if entries else []:
+            if phones not in pronunciations:
+                pronunciations.append(phones)
         entries[:] = [
             f"{word if i == 0 else f'{word}({i + 1})'} {' '.join(p)}" for i, p in enumerate(pronunciations)
         ]

@@ -1,4 +1,4 @@
-"""Vocabulary, phrase generator, grammar and parser: pure text, no audio."""
+"""Vocabulary, phrase generator, grammar, accent lexicon and parser: text only, no audio."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from embodied_adhoc import paths
-from embodied_adhoc.comms import grammar, parsing, phrases
+from embodied_adhoc.comms import grammar, lexicon, parsing, phrases
 from embodied_adhoc.comms.vocabulary import NODE_NAMES, PLACE_SYNONYMS, PLACE_TO_NODE, normalise
-from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.errors import ConfigError, SpeechError
 
 
 def test_vocabulary_matches_the_lab_nodes_and_synonyms():
@@ -117,3 +117,36 @@ def test_grammar_language_matches_the_jsgf_reading():
         assert grammar.is_complete(phrase.reference) and jsgf.match(phrase.reference)
     for partial in ("come to the middle", "i'm at the", "i'm at the docking station right", "the open"):
         assert not grammar.is_complete(partial) and not jsgf.match(partial)
+
+
+@pytest.mark.parametrize(
+    ("ipa", "phones"),
+    [
+        ("dˈoə", "D AO"),  # Caribbean "door"
+        ("stˈandɪn", "S T AE N D IH N"),  # Caribbean "standing": no velar nasal
+        ("wˈɜːkbɛntʃ", "W ER K B EH N CH"),  # length mark dropped, affricate as one phone
+        ("rˈʉːm", "R UW M"),  # Scottish "room"
+        ("ðə", "DH AH"),
+        ("t̪ˈaŋk", "T AE NG K"),  # dental diacritic ignored
+    ],
+)
+def test_espeak_ipa_maps_onto_cmu_phones(ipa, phones):
+    assert lexicon.ipa_to_arpabet(ipa) == phones.split()
+
+
+def test_unknown_ipa_symbol_names_the_table_to_extend():
+    with pytest.raises(SpeechError, match=r"'ʀ'.*'rouge'.*IPA_TO_ARPABET in embodied_adhoc/comms/lexicon.py"):
+        lexicon.ipa_to_arpabet("ʀuʒ", "rouge")
+
+
+def test_dictionary_adds_each_accent_pronunciation():
+    assert lexicon.ACCENTS == ("en-us", "en-gb", "en-gb-scotland", "en-gb-x-rp", "en-029")
+    assert ["D", "AH"] in lexicon.accent_pronunciations("the", ["en-029"])  # TH-stopping
+    full = grammar.dictionary_text(grammar.cmudict_path()).splitlines()
+    cmu_only = grammar.dictionary_text(grammar.cmudict_path(), accents=()).splitlines()
+    assert set(cmu_only) < set(full)
+    pronunciations = {line.split(" ", 1)[1] for line in full if line.split()[0].split("(")[0] == "standing"}
+    assert {"S T AE N D IH NG", "S T AE N D IH N"} <= pronunciations
+    # Variants are numbered after the CMU entries, none repeated.
+    heads = [line.split()[0] for line in full]
+    assert len(heads) == len(set(heads)) and len(full) == len(set(full))
