@@ -20,6 +20,7 @@ import numpy as np
 
 from embodied_adhoc.comms import parsing, synthesis
 from embodied_adhoc.comms.phrases import Phrase, PhraseConfig, sample_phrases
+from embodied_adhoc.comms.recognition import DecoderSettings, shared_recognizer
 from embodied_adhoc.comms.vocabulary import NODE_NAMES
 from embodied_adhoc.domains.confusion import ConfusionMatrix, smooth_confusion
 from embodied_adhoc.errors import ConfigError
@@ -43,6 +44,7 @@ class EvalConfig:
         noise: ``"babble"`` or ``"white"``.
         phrase_config: share of uninformative replies, fillers and politeness.
         workers: decoding processes (one pocketsphinx decoder each).
+        decoder: the recogniser's search settings (saved in the matrix's provenance).
     """
 
     voices: tuple[str, ...] = synthesis.DEFAULT_VOICES
@@ -52,6 +54,7 @@ class EvalConfig:
     noise: str = "babble"
     phrase_config: PhraseConfig = PhraseConfig()
     workers: int = 1
+    decoder: DecoderSettings = DecoderSettings()
 
     def __post_init__(self) -> None:
         if not self.voices:
@@ -92,8 +95,6 @@ def phrase_list(config: EvalConfig) -> list[tuple[int, Phrase]]:
 
 
 def _decode_one(task: tuple[EvalConfig, int, int, int, int, Phrase]) -> UtteranceResult:
-    from embodied_adhoc.comms.recognition import shared_recognizer
-
     config, voice_index, phrase_index, level_index, true_node, phrase = task
     voice_rng = np.random.default_rng([config.seed, 1, voice_index, phrase_index])
     voice = synthesis.sample_voice(voice_rng, config.voices[voice_index : voice_index + 1])
@@ -102,7 +103,7 @@ def _decode_one(task: tuple[EvalConfig, int, int, int, int, Phrase]) -> Utteranc
     if snr_db is not None:
         noise_rng = np.random.default_rng([config.seed, 2, voice_index, phrase_index, level_index])
         audio = synthesis.add_noise(audio, snr_db, noise_rng, config.noise)
-    recognizer = shared_recognizer()
+    recognizer = shared_recognizer(config.decoder)
     start, start_cpu = time.perf_counter(), time.process_time()
     transcript = recognizer.transcribe(audio)
     parsed = parsing.parse(transcript)
@@ -213,6 +214,7 @@ def measured_confusion(
         "phrases_per_voice": config.phrases,
         "seed": config.seed,
         "phrase_config": asdict(config.phrase_config),
+        "decoder": {**asdict(config.decoder), "extra": dict(config.decoder.extra)},
         "utterances": len(results),
         "pooled_over": "all voices and SNR levels",
         "counts": counts.tolist(),

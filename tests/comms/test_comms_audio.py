@@ -132,6 +132,7 @@ def test_eval_metrics_confusion_and_provenance(tmp_path):
     # Raised to the floor, then renormalised (as the thesis's .027 entries): no entry below floor / (1 + 6 floor).
     assert confusion.matrix.min() >= 0.03 / 1.18 - 1e-12 and np.allclose(confusion.matrix.sum(axis=1), 1.0)
     assert confusion.provenance["voices"] == ["en-us"] and "pocketsphinx" in confusion.provenance["packages"]
+    assert confusion.provenance["decoder"]["beam"] == config.decoder.beam
     loaded = load_confusion(save_confusion(confusion, tmp_path / "m.json"))
     assert np.allclose(loaded.matrix, confusion.matrix, atol=1e-5)
     # Same seed, same results, whatever the number of worker processes (and so the decoding order).
@@ -145,7 +146,9 @@ def test_committed_measured_matrix_is_smoothed_with_provenance():
     measured = load_confusion("measured")
     floor = measured.smoothing_floor
     assert floor == 0.03 and measured.matrix.min() >= floor / (1 + 6 * floor) - 1e-6
-    assert {"command", "voices", "snr_db", "packages", "date", "counts"} <= set(measured.provenance)
+    assert {"command", "voices", "snr_db", "packages", "date", "counts", "decoder"} <= set(
+        measured.provenance
+    )
 
 
 def test_robot_utterances_as_text_and_wav(tmp_path):
