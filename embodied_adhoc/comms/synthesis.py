@@ -12,7 +12,6 @@ import io
 import os
 import shutil
 import subprocess
-import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
+from embodied_adhoc.atomic import atomic_path
 from embodied_adhoc.errors import ConfigError, SpeechError
 
 SAMPLE_RATE = 16_000
@@ -169,9 +169,6 @@ def write_wav(path: str | os.PathLike, audio: np.ndarray, sample_rate: int = SAM
         raise SpeechError(
             f"audio peak {peak:.2f} exceeds full scale 1.0; scale it down before writing {path}"
         )
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile(dir=path.parent, suffix=".wav.tmp", delete=False) as handle:
-        soundfile.write(handle, audio, sample_rate, subtype="PCM_16", format="WAV")
-    os.replace(handle.name, path)
-    return path
+    with atomic_path(path) as temporary:
+        soundfile.write(temporary, audio, sample_rate, subtype="PCM_16", format="WAV")
+    return Path(path)
