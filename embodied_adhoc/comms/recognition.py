@@ -35,9 +35,10 @@ N_BEST = 20
 class DecoderSettings:
     """pocketsphinx search settings (its option names). Defaults: pocketsphinx's, with batch CMN and wider beams.
 
-    The beams are wider than pocketsphinx's (1e-48, 7e-29, 1e-48): on a held-out tuning set (seed 1, six voices,
-    clean) they raised node accuracy from 88.9 to 92.5 % with the accent dictionary, mostly for the accents
-    furthest from the American model, at about three times the decoding cost (``scripts/tune_speech.py``).
+    The beams are wider than pocketsphinx's (1e-48, 7e-29, 1e-48): on a tuning set held out from the evaluation
+    (seed 1, six voices, clean) they raise node accuracy from 89.4 to 92.5 % with the accent dictionary (88.1 to
+    91.7 % without), mostly for the accents furthest from the American model, at about 3.3 times the decoding
+    CPU (``scripts/tune_speech.py``; docs/speech.md).
     ``extra`` holds any other pocketsphinx options as ``(name, value)`` pairs (they override the ones set by
     :class:`Recognizer`, e.g. ``(("dict", "my.dict"),)``); settings are hashable, so decoders can be shared."""
 
