@@ -158,12 +158,16 @@ def main() -> None:
         raw_rtf = raw_step_rate(world, args.raw_seconds)
         world.reset(seed=0, robot_node=1, human_node=1, ball_nodes=(0, 1, 2))
         fps = {}
+        default_config = world.config
         for quality in ("fast", "high"):
-            world.config = dataclasses.replace(world.config, render_quality=quality)
+            world.config = dataclasses.replace(default_config, render_quality=quality)
             for cam in ("overhead", "robot"):
                 fps[f"{cam}, {quality}"] = render_rate(
                     world, cam, args.render_frames, args.width, args.height
                 )
+        # The episodes below render at the default quality, as `run --record` does (an earlier version left "high"
+        # set here, so its video episode looked far more expensive per frame than the main job's recordings).
+        world.config = default_config
         episode_plain = run_episode(world, args.width, args.height, video=False)
         episode_video = run_episode(world, args.width, args.height, video=True)
     world_rtf = sim_total / cpu_total
@@ -199,7 +203,8 @@ def main() -> None:
     )
     wall, cpu, sim, count, states = episode_video
     print(
-        f"| same with overhead video {args.width}x{args.height}, {count} frames at {world.config.video_fps:g} fps: "
+        f"| same with overhead video {args.width}x{args.height} ({world.config.render_quality} quality), {count} frames "
+        f"at {world.config.video_fps:g} fps: "
         f"wall s / CPU s | {wall:.1f} / {cpu:.1f} |"
     )
     print(f"| ball states at the end of the episode | {', '.join(states)} |")
