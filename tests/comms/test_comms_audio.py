@@ -14,7 +14,7 @@ from embodied_adhoc.comms import channels, robot_speech, synthesis
 from embodied_adhoc.comms import eval as speech_eval
 from embodied_adhoc.comms.parsing import parse
 from embodied_adhoc.comms.phrases import sample_phrases
-from embodied_adhoc.comms.recognition import shared_recognizer
+from embodied_adhoc.comms.recognition import DecoderSettings, shared_recognizer
 from embodied_adhoc.domains.confusion import ConfusionMatrix, load_confusion, save_confusion
 from embodied_adhoc.errors import ConfigError, SpeechError
 
@@ -71,6 +71,25 @@ def test_clean_american_speech_is_recognised_to_the_right_node():
     # Decoding is independent of what was decoded before: same audio, same transcript, any order.
     again = recognizer.transcribe(synthesis.synthesize(pairs[0][1].text, synthesis.Voice("en-us", 160, 50)))
     assert again == transcripts[0]
+
+
+def test_accented_speech_regression_with_default_settings():
+    """A fixed set of Scottish and Caribbean utterances: the default recogniser (accent dictionary, wide beams)
+    keeps at least 12 of 16 right, and more than pocketsphinx's own beams (10 of 16 when this was written).
+    Deterministic (seeded phrases, fixed voices, a decoder independent of order), so this is a regression check."""
+    pairs = sample_phrases(8, np.random.default_rng(3))
+    audio = [
+        (synthesis.synthesize(p.text, synthesis.Voice(voice, 160, 50)), p.node)
+        for voice in ("en-gb-scotland", "en-029")
+        for _, p in pairs
+    ]
+
+    def correct(recognizer) -> int:
+        return sum(parse(recognizer.transcribe(clip)).node == node for clip, node in audio)
+
+    default = correct(shared_recognizer())
+    narrow = correct(shared_recognizer(DecoderSettings(beam=1e-48, wbeam=7e-29, pbeam=1e-48)))
+    assert default >= 12 and default > narrow, (default, narrow)
 
 
 def test_recognizer_rejects_bad_audio():
