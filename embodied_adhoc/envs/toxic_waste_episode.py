@@ -152,7 +152,9 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
                 None if posterior is None else max(0.0, float(normalised_entropy(np.asarray(posterior))))
             )
             description = _describe_observation(library, observation_index)
-            metrics.end_step(action, description, float(reward), info["sim_time"], posterior, entropy)
+            metrics.end_step(
+                action, description, float(reward), info["sim_time"], posterior, entropy, info["utterances"]
+            )
             if rerun is not None:
                 _log_step(rerun, step, info, library.action_names[action], description, posterior, entropy)
                 rerun.log_camera("robot", env.unwrapped.render_camera("robot"))

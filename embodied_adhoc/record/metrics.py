@@ -14,7 +14,9 @@ field                  meaning
 ``wall_time_s``        wall-clock seconds of the whole episode (rendering and recording included)
 ``macro_step_time_s``  mean / median / max wall seconds per macro step, and the per-step list
 ``sim_time_s``         simulated seconds
-``per_step``           list of {step, action, observation, reward, entropy, sim_time_s, wall_time_s}
+``per_step``           list of {step, action, observation, reward, entropy, sim_time_s, wall_time_s}, plus
+                       ``utterances`` (the "locate human" dialogue: question, reply, transcript, node heard)
+                       on steps that had one
 ``config``             the run's configuration (agent, seed, task, env kwargs, ...)
 =====================  ===============================================================================
 """
@@ -66,6 +68,7 @@ class EpisodeMetrics:
         sim_time_s: float,
         task_posterior: np.ndarray | None,
         entropy: float | None,
+        utterances: tuple[str, ...] | list[str] = (),
     ) -> float:
         """Record the step just finished; returns its wall time in seconds."""
         elapsed = time.perf_counter() - self._step_started
@@ -83,6 +86,8 @@ class EpisodeMetrics:
                 "wall_time_s": round(elapsed, 4),
             }
         )
+        if utterances:
+            self.per_step[-1]["utterances"] = list(utterances)
         return elapsed
 
     def finish(self, success: bool, truncated: bool) -> None:

@@ -107,6 +107,11 @@ def test_a_hotspot_episode_succeeds():
     assert metrics["success"], metrics["per_step"]
     assert metrics["steps"] <= 40 and metrics["identify_step"] is not None
     assert metrics["per_step"][-1]["observation"].endswith("rfid YES")  # the last ball was read going in
+    # Every "locate human" (action 4) keeps its dialogue; other steps have none.
+    asked = [record for record in metrics["per_step"] if record["action"] == 4]
+    assert asked and all(record["utterances"][0] == 'robot: "Where are you?"' for record in asked)
+    assert all("utterances" not in record for record in metrics["per_step"] if record["action"] != 4)
+    assert all(record["utterances"][-1].startswith("heard node: ") for record in asked)
 
 
 def test_bad_kwargs_and_reset_options_are_clear_errors():
