@@ -1,13 +1,16 @@
-"""Recogniser settings on a held-out tuning set: dictionary (CMU only vs CMU + accents) x search beams.
+"""Recogniser settings on a held-out tuning set: dictionary (CMU only vs CMU + accents) x search beams x MLLR.
 
-The default recogniser (``comms/recognition.py``) uses the multi-accent dictionary (``comms/lexicon.py``) and
-beams wider than pocketsphinx's. This script measures each choice on phrases drawn with a different seed from the
+The default recogniser (``comms/recognition.py``) uses the multi-accent dictionary (``comms/lexicon.py``), beams
+wider than pocketsphinx's, and the MLLR transform of ``assets/speech/synthetic.mllr`` (``comms/adaptation.py``,
+estimated from seed-2 phrases). This script measures each choice on phrases drawn with a different seed from the
 evaluation's (default ``--seed 1``; ``speech eval`` uses seed 0), clean speech, every default voice, so that the
 settings are not chosen on the numbers they are reported with. It prints clean node accuracy (metric 6) pooled
 and per voice, transcript accuracy (metric 4), and each configuration's decoding CPU time as a ratio to
 pocketsphinx's own settings (CMU dictionary, default beams) measured in the same run.
 
     .venv/bin/python scripts/tune_speech.py [--seed 1 --phrases 60 --workers 2]
+
+The MLLR rows use the committed transform; `embodied-adhoc speech adapt` re-estimates it.
 """
 
 from __future__ import annotations
@@ -38,13 +41,16 @@ class Args:
 
 def configurations(cmu_only_dictionary: Path) -> dict[str, DecoderSettings]:
     cmu = (("dict", str(cmu_only_dictionary)),)
-    narrow = DecoderSettings(**POCKETSPHINX_BEAMS)
-    wide = DecoderSettings()
+    narrow = DecoderSettings(**POCKETSPHINX_BEAMS, adaptation=None)
+    wide = DecoderSettings(adaptation=None)
     return {
-        "CMU dictionary, pocketsphinx beams": replace(narrow, extra=cmu),
-        "CMU + accents, pocketsphinx beams": narrow,
-        "CMU dictionary, wide beams": replace(wide, extra=cmu),
-        "CMU + accents, wide beams (default)": wide,
+        "CMU dictionary, pocketsphinx beams, no MLLR": replace(narrow, extra=cmu),
+        "CMU + accents, pocketsphinx beams, no MLLR": narrow,
+        "CMU dictionary, wide beams, no MLLR": replace(wide, extra=cmu),
+        "CMU + accents, wide beams, no MLLR": wide,
+        "CMU + accents, pocketsphinx beams, MLLR": replace(narrow, adaptation=DecoderSettings().adaptation),
+        "CMU dictionary, wide beams, MLLR": replace(DecoderSettings(), extra=cmu),
+        "CMU + accents, wide beams, MLLR (default)": DecoderSettings(),
     }
 
 

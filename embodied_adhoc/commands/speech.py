@@ -5,6 +5,7 @@
 - ``speech try "TEXT"``: synthesise TEXT, recognise it, print transcript, place and node.
 - ``speech say ACT``: the robot's utterance ("where", "arrived", "ready") as text and WAV.
 - ``speech grammar``: regenerate the recognition grammar and dictionary from the vocabulary.
+- ``speech adapt``: estimate the acoustic model's MLLR transform from synthesised speech or from recordings.
 """
 
 from __future__ import annotations
@@ -59,6 +60,13 @@ def register(subparsers) -> None:
         help="where to save the confusion matrix JSON "
         "(default assets/data/speech_confusion_measured.json; 'none' = do not save)",
     )
+    evaluate.add_argument(
+        "--adaptation",
+        default=None,
+        metavar="PATH|none",
+        help="MLLR transform of the acoustic model (default the committed assets/speech/synthetic.mllr; "
+        "'none' = the unadapted model)",
+    )
     evaluate.add_argument("--json", action="store_true", help="print one JSON document instead of tables")
     evaluate.set_defaults(func=handle_eval)
 
@@ -96,6 +104,31 @@ def register(subparsers) -> None:
     )
     grammar.set_defaults(func=handle_grammar)
 
+    adapt = commands.add_parser(
+        "adapt",
+        help="estimate the acoustic model's MLLR transform (speaker adaptation)",
+        description="Estimate a global MLLR mean transform of pocketsphinx's English model from utterances "
+        "with known words: by default every voice reading --phrases synthesised phrases (seed 2, held out "
+        "from `speech eval`'s seed 0), or your own recordings with --recordings.",
+    )
+    adapt.add_argument("--voices", default=None, metavar="V,V,...", help="espeak-ng voices (default: the six)")
+    adapt.add_argument("--phrases", type=int, default=60, help="synthesised phrases per voice (default 60)")
+    adapt.add_argument("--seed", type=int, default=2, help="seed of the synthesised phrases (default 2)")
+    adapt.add_argument(
+        "--recordings",
+        default=None,
+        metavar="LIST",
+        help="a text file of 'path.wav<TAB>what was said' lines (16 kHz mono WAV; paths relative to the "
+        "list's folder) to adapt to real speakers instead of synthesised ones",
+    )
+    adapt.add_argument(
+        "--out",
+        default=None,
+        metavar="PATH",
+        help="where to write the transform (default assets/speech/synthetic.mllr, the recogniser's default)",
+    )
+    adapt.set_defaults(func=handle_adapt)
+
 
 def _parse_list(text: str | None, kind: str) -> tuple:
     from embodied_adhoc.errors import ConfigError
@@ -113,6 +146,18 @@ def _parse_list(text: str | None, kind: str) -> tuple:
     return items
 
 
+def _decoder_settings(adaptation: str | None):
+    from pathlib import Path
+
+    from embodied_adhoc.comms.recognition import DecoderSettings
+
+    if adaptation is None:
+        return DecoderSettings()
+    if adaptation.lower() == "none":
+        return DecoderSettings(adaptation=None)
+    return DecoderSettings(adaptation=str(Path(adaptation).resolve()))
+
+
 def handle_eval(args: argparse.Namespace) -> int:
     from embodied_adhoc import paths
     from embodied_adhoc.comms import eval as speech_eval
@@ -127,6 +172,7 @@ def handle_eval(args: argparse.Namespace) -> int:
         seed=args.seed,
         noise=args.noise,
         workers=args.workers,
+        decoder=_decoder_settings(args.adaptation),
     )
     command = (
         "embodied-adhoc " + " ".join(shlex.quote(a) for a in sys.argv[1:])
@@ -222,4 +268,66 @@ def handle_grammar(args: argparse.Namespace) -> int:
         return 0
     for path in grammar.write_generated_files():
         print(f"wrote {path}")
+    return 0
+
+
+def _recordings(list_path: str):
+    """(audio, text) pairs from a 'path.wav<TAB>text' list; errors name the file and line."""
+    from pathlib import Path
+
+    import soundfile
+
+    from embodied_adhoc.comms.synthesis import SAMPLE_RATE
+    from embodied_adhoc.errors import ConfigError
+
+    listing = Path(list_path)
+    if not listing.is_file():
+        raise ConfigError(f"--recordings {list_path}: no such file")
+    for number, line in enumerate(listing.read_text(encoding="utf-8").splitlines(), start=1):
+        if not line.strip() or line.startswith("#"):
+            continue
+        if "\t" not in line:
+            raise ConfigError(f"{listing}:{number}: expected 'path.wav<TAB>what was said'")
+        name, text = line.split("\t", 1)
+        wav = (listing.parent / name.strip()).resolve()
+        try:
+            audio, rate = soundfile.read(wav, dtype="float32")
+        except (OSError, RuntimeError) as error:
+            raise ConfigError(f"{listing}:{number}: cannot read {wav} ({error})") from None
+        if audio.ndim != 1 or rate != SAMPLE_RATE:
+            raise ConfigError(
+                f"{listing}:{number}: {wav} is {audio.ndim}-channel at {rate} Hz; "
+                f"convert it to mono {SAMPLE_RATE} Hz (e.g. sox in.wav -r 16000 -c 1 out.wav)"
+            )
+        yield audio, text.strip()
+
+
+def handle_adapt(args: argparse.Namespace) -> int:
+    import time
+
+    from embodied_adhoc import paths
+    from embodied_adhoc.comms import adaptation, synthesis
+    from embodied_adhoc.comms import eval as speech_eval
+
+    start = time.perf_counter()
+    if args.recordings:
+        utterances = _recordings(args.recordings)
+        source = f"recordings listed in {args.recordings}"
+    else:
+        voices = _parse_list(args.voices, "voices") or synthesis.DEFAULT_VOICES
+        config = speech_eval.EvalConfig(voices=voices, snr_levels=(None,), phrases=args.phrases, seed=args.seed)
+        phrases = speech_eval.phrase_list(config)
+        utterances = (
+            (speech_eval.utterance_audio(config, v, p, 0, phrase)[1], phrase.reference)
+            for v in range(len(voices))
+            for p, (_, phrase) in enumerate(phrases)
+        )
+        source = f"{len(voices)} voices x {args.phrases} synthesised phrases, seed {args.seed}"
+    result = adaptation.estimate(utterances)
+    out = args.out or paths.assets_dir() / adaptation.ADAPTATION_FILE
+    written = adaptation.write_transform(result, out)
+    print(
+        f"MLLR transform from {source}: {result.aligned} of {result.utterances} utterances aligned, "
+        f"{result.frames} frames, {time.perf_counter() - start:.0f} s\nwrote {written}"
+    )
     return 0

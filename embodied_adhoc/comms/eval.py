@@ -94,8 +94,10 @@ def phrase_list(config: EvalConfig) -> list[tuple[int, Phrase]]:
     return sample_phrases(config.phrases, np.random.default_rng([config.seed, 0]), config.phrase_config)
 
 
-def _decode_one(task: tuple[EvalConfig, int, int, int, int, Phrase]) -> UtteranceResult:
-    config, voice_index, phrase_index, level_index, true_node, phrase = task
+def utterance_audio(
+    config: EvalConfig, voice_index: int, phrase_index: int, level_index: int, phrase: Phrase
+) -> tuple[synthesis.Voice, np.ndarray]:
+    """The speaker and waveform of one (voice, phrase, SNR level) utterance, seeded by those indices."""
     voice_rng = np.random.default_rng([config.seed, 1, voice_index, phrase_index])
     voice = synthesis.sample_voice(voice_rng, config.voices[voice_index : voice_index + 1])
     audio = synthesis.synthesize(phrase.text, voice)
@@ -103,6 +105,13 @@ def _decode_one(task: tuple[EvalConfig, int, int, int, int, Phrase]) -> Utteranc
     if snr_db is not None:
         noise_rng = np.random.default_rng([config.seed, 2, voice_index, phrase_index, level_index])
         audio = synthesis.add_noise(audio, snr_db, noise_rng, config.noise)
+    return voice, audio
+
+
+def _decode_one(task: tuple[EvalConfig, int, int, int, int, Phrase]) -> UtteranceResult:
+    config, voice_index, phrase_index, level_index, true_node, phrase = task
+    voice, audio = utterance_audio(config, voice_index, phrase_index, level_index, phrase)
+    snr_db = config.snr_levels[level_index]
     recognizer = shared_recognizer(config.decoder)
     start, start_cpu = time.perf_counter(), time.process_time()
     transcript = recognizer.transcribe(audio)

@@ -15,9 +15,11 @@ from __future__ import annotations
 import functools
 import itertools
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
+from embodied_adhoc.comms.adaptation import ADAPTATION_FILE
 from embodied_adhoc.comms.grammar import DICTIONARY_FILE, GRAMMAR_FILE, asset_path, is_complete
 from embodied_adhoc.errors import SpeechError
 
@@ -25,6 +27,24 @@ DITHER_LSB = 10.0
 """Standard deviation of the fixed dither added to 16-bit samples. espeak-ng writes exact digital silence
 between words; its log-energy features are degenerate and make the decoder drop words, so a tiny, fixed noise
 floor (as a real microphone has) is added. Its pattern is the same for every utterance (deterministic)."""
+
+
+@functools.lru_cache(maxsize=1)
+def _dither(length: int) -> np.ndarray:
+    return np.random.default_rng(0).standard_normal(length) * DITHER_LSB
+
+
+def pcm16(audio: np.ndarray) -> np.ndarray:
+    """What the decoder hears: ``audio`` (mono float in [-1, 1]) as 16-bit samples with the fixed dither.
+
+    Beyond 16-bit full scale a microphone saturates, so values are clipped there (low-SNR mixtures)."""
+    audio = np.asarray(audio, dtype=np.float64)
+    if audio.ndim != 1 or len(audio) == 0:
+        raise SpeechError(f"audio must be a non-empty mono waveform, got shape {audio.shape}")
+    # The first len(audio) values of one seeded stream: the same pattern for every utterance.
+    length = 1 << max(14, (len(audio) - 1).bit_length())
+    samples = audio * 32767.0 + _dither(length)[: len(audio)]
+    return np.clip(np.rint(samples), -32768, 32767).astype(np.int16)
 
 
 N_BEST = 20
@@ -47,6 +67,9 @@ class DecoderSettings:
     pbeam: float = 1e-60
     wip: float = 0.65
     lw: float = 6.5
+    adaptation: str | None = ADAPTATION_FILE
+    """MLLR transform applied to the acoustic model (:mod:`embodied_adhoc.comms.adaptation`): an asset path, a
+    file path, or None for the unadapted model."""
     extra: tuple[tuple[str, object], ...] = ()
 
 
@@ -71,6 +94,8 @@ class Recognizer:
             wip=settings.wip,
             lw=settings.lw,
         )
+        if settings.adaptation is not None:
+            options["mllr"] = str(_adaptation_path(settings.adaptation))
         options.update(dict(settings.extra))
         try:
             self._decoder = pocketsphinx.Decoder(pocketsphinx.Config(**options))
@@ -79,23 +104,10 @@ class Recognizer:
                 f"pocketsphinx decoder could not be configured ({error}); "
                 "regenerate the grammar with `embodied-adhoc speech grammar`"
             ) from None
-        self._dither: np.ndarray = np.zeros(0)
-
-    def _fixed_dither(self, length: int) -> np.ndarray:
-        if len(self._dither) < length:
-            self._dither = (
-                np.random.default_rng(0).standard_normal(max(length, 2 * len(self._dither))) * DITHER_LSB
-            )
-        return self._dither[:length]
 
     def transcribe(self, audio: np.ndarray) -> str:
         """The best grammar path for ``audio`` (mono float at the recogniser's rate), normalised lower-case text."""
-        audio = np.asarray(audio, dtype=np.float64)
-        if audio.ndim != 1 or len(audio) == 0:
-            raise SpeechError(f"audio must be a non-empty mono waveform, got shape {audio.shape}")
-        samples = audio * 32767.0 + self._fixed_dither(len(audio))
-        # Beyond 16-bit full scale a microphone saturates: that is what the decoder would hear.
-        pcm = np.clip(np.rint(samples), -32768, 32767).astype(np.int16).tobytes()
+        pcm = pcm16(audio).tobytes()
         self._decoder.start_utt()
         self._decoder.process_raw(pcm, no_search=False, full_utt=True)
         self._decoder.end_utt()
@@ -110,10 +122,20 @@ class Recognizer:
         return best
 
 
+def _adaptation_path(value: str) -> Path:
+    path = Path(value)
+    if path.is_file():
+        return path
+    try:
+        return asset_path(value)
+    except SpeechError:
+        raise SpeechError(
+            f"MLLR transform {value!r} not found; run `embodied-adhoc speech adapt` or pass adaptation=None"
+        ) from None
+
+
 def asset_path_model():
     """Folder of the English acoustic model inside the pocketsphinx wheel."""
-    from pathlib import Path
-
     import pocketsphinx
 
     path = Path(pocketsphinx.get_model_path()) / "en-us" / "en-us"
