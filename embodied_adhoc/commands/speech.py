@@ -115,6 +115,13 @@ def register(subparsers) -> None:
     adapt.add_argument("--phrases", type=int, default=60, help="synthesised phrases per voice (default 60)")
     adapt.add_argument("--seed", type=int, default=2, help="seed of the synthesised phrases (default 2)")
     adapt.add_argument(
+        "--snr",
+        default="none,20,10",
+        metavar="DB,...",
+        help="conditions of the synthesised adaptation speech, 'none' = clean (default none,20,10: a transform "
+        "estimated on clean speech only helps clean speech and hurts noisy speech)",
+    )
+    adapt.add_argument(
         "--recordings",
         default=None,
         metavar="LIST",
@@ -315,14 +322,19 @@ def handle_adapt(args: argparse.Namespace) -> int:
         source = f"recordings listed in {args.recordings}"
     else:
         voices = _parse_list(args.voices, "voices") or synthesis.DEFAULT_VOICES
-        config = speech_eval.EvalConfig(voices=voices, snr_levels=(None,), phrases=args.phrases, seed=args.seed)
+        levels = _parse_list(args.snr, "snr") or (None,)
+        config = speech_eval.EvalConfig(voices=voices, snr_levels=levels, phrases=args.phrases, seed=args.seed)
         phrases = speech_eval.phrase_list(config)
         utterances = (
-            (speech_eval.utterance_audio(config, v, p, 0, phrase)[1], phrase.reference)
+            (speech_eval.utterance_audio(config, v, p, k, phrase)[1], phrase.reference)
             for v in range(len(voices))
             for p, (_, phrase) in enumerate(phrases)
+            for k in range(len(levels))
         )
-        source = f"{len(voices)} voices x {args.phrases} synthesised phrases, seed {args.seed}"
+        source = (
+            f"{len(voices)} voices x {args.phrases} synthesised phrases x {len(levels)} conditions "
+            f"({args.snr}), seed {args.seed}"
+        )
     result = adaptation.estimate(utterances)
     out = args.out or paths.assets_dir() / adaptation.ADAPTATION_FILE
     written = adaptation.write_transform(result, out)
