@@ -98,3 +98,16 @@ def test_adapt_cli_reads_a_recording_list_and_names_bad_lines(tmp_path):
 def test_committed_transform_is_the_default_and_loads():
     assert DecoderSettings().adaptation == adaptation.ADAPTATION_FILE
     assert shared_recognizer().transcribe(synthesis.synthesize("I'm at the door", synthesis.Voice()))
+
+
+def test_adapt_cli_on_synthesised_speech(tmp_path):
+    done = subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", "speech", "adapt", "--voices", "en-us", "--phrases", "2"]
+        + ["--snr", "none,10", "--out", str(tmp_path / "s.mllr")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 0, done.stderr
+    assert "of 4 utterances aligned" in done.stdout and "2 conditions (none,10)" in done.stdout
+    assert (tmp_path / "s.mllr").is_file()
