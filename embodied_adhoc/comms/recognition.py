@@ -108,6 +108,9 @@ class Recognizer:
     def transcribe(self, audio: np.ndarray) -> str:
         """The best grammar path for ``audio`` (mono float at the recogniser's rate), normalised lower-case text."""
         pcm = pcm16(audio).tobytes()
+        # A fresh front end per utterance: its noise-removal statistics would otherwise carry over from the previous
+        # utterance, making a transcript depend on what was decoded before (and so on worker scheduling).
+        self._decoder.reinit_feat()
         self._decoder.start_utt()
         self._decoder.process_raw(pcm, no_search=False, full_utt=True)
         self._decoder.end_utt()

@@ -14,7 +14,7 @@ from embodied_adhoc.comms import channels, robot_speech, synthesis
 from embodied_adhoc.comms import eval as speech_eval
 from embodied_adhoc.comms.parsing import parse
 from embodied_adhoc.comms.phrases import sample_phrases
-from embodied_adhoc.comms.recognition import DecoderSettings, shared_recognizer
+from embodied_adhoc.comms.recognition import DecoderSettings, Recognizer, shared_recognizer
 from embodied_adhoc.domains.confusion import ConfusionMatrix, load_confusion, save_confusion
 from embodied_adhoc.errors import ConfigError, SpeechError
 
@@ -93,6 +93,24 @@ def test_accented_speech_regression_with_default_settings():
     unadapted = correct(DecoderSettings(adaptation=None))
     narrow = correct(DecoderSettings(beam=1e-48, wbeam=7e-29, pbeam=1e-48, adaptation=None))
     assert default >= 15 and default > unadapted > narrow, (default, unadapted, narrow)
+
+
+def test_decoding_does_not_depend_on_the_previous_utterance():
+    """pocketsphinx's noise-removal statistics would carry over between utterances; the recogniser resets its
+    front end, so the same audio gets the same transcript and score after anything else."""
+    recognizer = Recognizer(DecoderSettings(adaptation=None))
+    clean = synthesis.synthesize("hey robot i'm at the charging station", synthesis.Voice("en-gb", 150, 40))
+    noisy = synthesis.add_noise(
+        synthesis.synthesize("just a second", synthesis.Voice()), 0.0, np.random.default_rng(0), "white"
+    )
+
+    def decode(audio):
+        transcript = recognizer.transcribe(audio)
+        return transcript, recognizer._decoder.hyp().score
+
+    first = decode(clean)
+    decode(noisy)
+    assert decode(clean) == first
 
 
 def test_recognizer_rejects_bad_audio():
