@@ -25,8 +25,9 @@ def register(subparsers) -> None:
         "trials",
         help="run agents over the same episodes of a domain: statistics, Welch tests, CSVs and plots",
         description="Run every agent on the same episodes (tasks and start states drawn once from --seed), "
-        "print steps to finish (mean, 95 % CI), success rate, steps to identify the task (thesis Metric 2), "
-        "final task-belief entropy and Welch t-tests between agents.",
+        "print steps to finish (mean, 95 % percentile-bootstrap CI, IQM), success rate, steps to identify the "
+        "task (thesis Metric 2), final task-belief entropy, and between agents Welch t-tests and the "
+        "probability of improvement.",
     )
     domains = parser.add_subparsers(dest="domain", metavar="DOMAIN")
     for name in trial_domain_names():
@@ -123,7 +124,7 @@ def _run_one(args: argparse.Namespace, config, out):
     from embodied_adhoc.atomic import atomic_write_text
     from embodied_adhoc.experiments.runner import run_sweep
     from embodied_adhoc.experiments.summary import summary_json
-    from embodied_adhoc.experiments.tables import summary_table, welch_table
+    from embodied_adhoc.experiments.tables import comparison_table, summary_table
 
     result = run_sweep(config, out=out, workers=args.workers, executor=args.executor, progress=not args.json)
     summary = result.summary()
@@ -154,7 +155,7 @@ def _run_one(args: argparse.Namespace, config, out):
     print()
     print(summary_table(summary))
     print()
-    print(welch_table(summary))
+    print(comparison_table(summary))
     if out is not None:
         files = "config.json trials.csv steps.csv summary.json " + " ".join(p.name for p in written)
         print(f"\nwrote {out}/: {files}")
@@ -164,19 +165,26 @@ def _run_one(args: argparse.Namespace, config, out):
 
 
 def _compare_backends(args: argparse.Namespace, results: dict) -> None:
-    """Same agents, episodes and seeds on each backend: per-agent Welch tests between backends (the thesis's
+    """Same agents, episodes and seeds on each backend: per-agent Welch tests and probabilities of improvement between
+    backends (the thesis's
     simulation-vs-reality comparison, here abstract vs physics)."""
     from pathlib import Path
 
     from embodied_adhoc.atomic import atomic_write_text
-    from embodied_adhoc.experiments.summary import summary_json, welch_between_runs, welch_json
-    from embodied_adhoc.experiments.tables import welch_table
+    from embodied_adhoc.experiments.summary import (
+        comparisons_between_runs,
+        comparisons_json,
+        statistics_json,
+        summary_json,
+    )
+    from embodied_adhoc.experiments.tables import comparison_table
 
     first = next(iter(results.values()))
-    tests = welch_between_runs({b: r.records for b, r in results.items()}, first.config.agents)
+    tests = comparisons_between_runs({b: r.records for b, r in results.items()}, first.config.agents)
     document = {
         "backends": {b: summary_json(r.summary(), r.config.describe()) for b, r in results.items()},
-        "welch_backends": welch_json(tests),
+        "backend_comparisons": comparisons_json(tests),
+        "statistics": statistics_json(),
     }
     if args.out is not None:
         from embodied_adhoc.experiments.plots import plot_settings
@@ -191,6 +199,6 @@ def _compare_backends(args: argparse.Namespace, results: dict) -> None:
     if args.json:
         print(json.dumps(document))
         return
-    print(welch_table(tests))
+    print(comparison_table(tests))
     if args.out is not None:
         print(f"\nwrote {args.out}/: comparison.json backends.png (and one folder per backend)")

@@ -1,9 +1,13 @@
 """PNG plots of sweeps (matplotlib, Agg backend, files written atomically): analogues of thesis Figs. 7.8, 7.9, 7.11.
 
-* :func:`plot_steps` (Fig. 7.8): per agent, mean steps to finish and to identify the task, 95 % t-CI error bars.
+* :func:`plot_steps` (Fig. 7.8): per agent, mean steps to finish and to identify the task, 95 % CI error bars.
 * :func:`plot_entropy` (Fig. 7.9): mean normalised task-belief entropy per time step with a 95 % CI band.
 * :func:`plot_settings` (Fig. 7.11): steps to finish per agent under several settings (e.g. with and without
   communication), grouped bars with 95 % CI error bars.
+
+Every bar and band is the percentile-bootstrap interval of :mod:`embodied_adhoc.experiments.stats`, so it lies
+inside the data's range by construction (no identify-step bar below 0, no entropy band outside [0, 1]); error bars
+are asymmetric where the interval is.
 """
 
 from __future__ import annotations
@@ -38,9 +42,17 @@ def _save(figure, path: Path) -> Path:
     return path
 
 
-def _mean_and_error(sample: SampleSummary) -> tuple[float, float]:
+def _mean_and_error(sample: SampleSummary) -> tuple[float, tuple[float, float]]:
+    """Bar height and its (below, above) error-bar lengths: the bootstrap interval around the mean."""
     mean = 0.0 if math.isnan(sample.mean) else sample.mean
-    return mean, (0.0 if math.isnan(sample.ci_half_width) else sample.ci_half_width)
+    if math.isnan(sample.ci_low):
+        return mean, (0.0, 0.0)
+    return mean, (mean - sample.ci_low, sample.ci_high - mean)
+
+
+def _error_bars(values: list[tuple[float, tuple[float, float]]]) -> np.ndarray:
+    """matplotlib's asymmetric ``yerr``: shape (2, bars), row 0 below, row 1 above."""
+    return np.array([error for _, error in values], dtype=np.float64).reshape(-1, 2).T
 
 
 def _save_bars(figure, axes, names: list[str], ylabel: str, title: str, path: Path) -> Path:
@@ -65,13 +77,15 @@ def plot_steps(
         (-width / 2, "steps to finish", "steps"),
         (width / 2, "steps to identify", "identify"),
     ):
-        values = [_mean_and_error(getattr(summary.agents[n], key)) for n in names]
         present = [not math.isnan(getattr(summary.agents[n], key).mean) for n in names]
+        values = [
+            _mean_and_error(getattr(summary.agents[n], key)) for n, p in zip(names, present, strict=True) if p
+        ]
         axes.bar(
             x[present] + offset,
-            [v[0] for v, p in zip(values, present, strict=True) if p],
+            [v[0] for v in values],
             width,
-            yerr=[v[1] for v, p in zip(values, present, strict=True) if p],
+            yerr=_error_bars(values),
             capsize=4,
             label=label,
         )
@@ -83,7 +97,8 @@ def plot_entropy(
     path: Path,
     title: str = "Task-belief entropy per time step",
 ) -> Path:
-    """Fig. 7.9 analogue: mean normalised entropy per step (finished trials hold their last value), 95 % CI band.
+    """Fig. 7.9 analogue: mean normalised entropy per step (finished trials hold their last value), 95 % bootstrap
+    band (inside [0, 1]).
 
     Agents whose entropy is zero throughout (a posterior fixed on the true task) are left out.
     """
@@ -126,7 +141,7 @@ def plot_settings(
             x[present] + offset,
             [v[0] for v in values],
             width,
-            yerr=[v[1] for v in values],
+            yerr=_error_bars(values),
             capsize=4,
             label=setting,
         )

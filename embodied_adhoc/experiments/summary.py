@@ -1,4 +1,5 @@
-"""Per-agent summaries of a sweep (thesis Metrics 1-3) and Welch tests between agents; the ``--json`` document."""
+"""Per-agent summaries of a sweep (thesis Metrics 1-3 with IQM and bootstrap intervals), pairwise comparisons (Welch
+tests and probability of improvement) between agents; the ``--json`` document."""
 
 from __future__ import annotations
 
@@ -9,11 +10,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from embodied_adhoc.experiments.stats import (
+    BOOTSTRAP_REPS,
+    BOOTSTRAP_SEED,
+    CI_METHOD,
+    CONFIDENCE,
+    IDENTIFY_MARGIN,
+    PairComparison,
     SampleSummary,
-    WelchTest,
-    pairwise_welch,
+    compare_pairs,
+    compare_samples,
     summarise_sample,
-    welch_test,
 )
 from embodied_adhoc.experiments.storage import TrialRecord
 
@@ -33,7 +39,7 @@ class AgentSummary:
 @dataclass(frozen=True)
 class RunSummary:
     agents: dict[str, AgentSummary]
-    welch: list[WelchTest]  # steps to finish, every pair of agents
+    comparisons: list[PairComparison]  # steps to finish, every pair of agents
 
 
 def summarise_records(records: Sequence[TrialRecord], agents: Sequence[str]) -> RunSummary:
@@ -57,40 +63,57 @@ def summarise_records(records: Sequence[TrialRecord], agents: Sequence[str]) -> 
             ),
             total_reward=summarise_sample([r.total_reward for r in rows]),
         )
-    welch = pairwise_welch({name: [r.steps for r in rows] for name, rows in by_agent.items()}, "steps")
-    return RunSummary(summaries, welch)
+    comparisons = compare_pairs({name: [r.steps for r in rows] for name, rows in by_agent.items()}, "steps")
+    return RunSummary(summaries, comparisons)
 
 
-def welch_between_runs(runs: dict[str, Sequence[TrialRecord]], agents: Sequence[str]) -> list[WelchTest]:
-    """Per agent, Welch tests on steps between runs of the same episodes under different settings or backends
+def comparisons_between_runs(
+    runs: dict[str, Sequence[TrialRecord]], agents: Sequence[str]
+) -> list[PairComparison]:
+    """Per agent, comparisons of steps between runs of the same episodes under different settings or backends
     (e.g. abstract vs physics, the thesis's simulation-vs-reality comparison); ``runs`` maps a label to records."""
     labels = list(runs)
-    tests = []
-    for agent in agents:
-        for i, first in enumerate(labels):
-            for second in labels[i + 1 :]:
-                statistic, p_value = welch_test(
-                    [r.steps for r in runs[first] if r.agent == agent],
-                    [r.steps for r in runs[second] if r.agent == agent],
-                )
-                tests.append(
-                    WelchTest(f"{agent} ({first})", f"{agent} ({second})", "steps", statistic, p_value)
-                )
-    return tests
+    return [
+        compare_samples(
+            [r.steps for r in runs[first] if r.agent == agent],
+            [r.steps for r in runs[second] if r.agent == agent],
+            (f"{agent} ({first})", f"{agent} ({second})"),
+            "steps",
+        )
+        for agent in agents
+        for i, first in enumerate(labels)
+        for second in labels[i + 1 :]
+    ]
 
 
-def welch_json(tests: Sequence[WelchTest]) -> list[dict]:
+def comparisons_json(comparisons: Sequence[PairComparison]) -> list[dict]:
     return [
         {
-            "a": test.first,
-            "b": test.second,
-            "metric": test.metric,
-            "t": _number(test.statistic),
-            "p": _number(test.p_value),
-            "significant": None if math.isnan(test.p_value) else test.significant(),
+            "a": c.first,
+            "b": c.second,
+            "metric": c.metric,
+            "t": _number(c.statistic),
+            "p": _number(c.p_value),
+            "significant": None if math.isnan(c.p_value) else c.significant(),
+            "p_improvement": _number(c.improvement),
+            "p_improvement_ci95": [_number(c.improvement_low), _number(c.improvement_high)],
         }
-        for test in tests
+        for c in comparisons
     ]
+
+
+def statistics_json() -> dict:
+    """How the document's numbers were computed (so a reader never has to guess the interval)."""
+    return {
+        "ci": f"{CI_METHOD} of the statistic, {CONFIDENCE:.0%}",
+        "bootstrap_resamples": BOOTSTRAP_REPS,
+        "bootstrap_seed": BOOTSTRAP_SEED,
+        "iqm": "interquartile mean: mean of the middle 50 % (25 % trimmed each side), as rliable",
+        "p_improvement": "P(a takes fewer steps than b) + P(tie) / 2 over trial pairs (rliable's probability of "
+        "improvement; Mann-Whitney U / (n m))",
+        "welch": "two-sided Welch t-test, scipy.stats.ttest_ind(equal_var=False)",
+        "identify_margin": IDENTIFY_MARGIN,
+    }
 
 
 def _number(value: float) -> float | None:
@@ -98,28 +121,37 @@ def _number(value: float) -> float | None:
     return None if value is None or math.isnan(value) else float(value)
 
 
-def _interval(sample: SampleSummary) -> list[float | None]:
-    return [_number(sample.ci_low), _number(sample.ci_high)]
+def _sample_json(prefix: str, sample: SampleSummary) -> dict:
+    return {
+        f"{prefix}_mean": _number(sample.mean),
+        f"{prefix}_sd": _number(sample.sd),
+        f"{prefix}_ci95": [_number(sample.ci_low), _number(sample.ci_high)],
+        f"{prefix}_iqm": _number(sample.iqm),
+        f"{prefix}_iqm_ci95": [_number(sample.iqm_ci_low), _number(sample.iqm_ci_high)],
+    }
 
 
 def summary_json(summary: RunSummary, config: dict) -> dict:
-    """The ``--json`` document: ``{"agents": {NAME: {...}}, "welch": [...], "config": {...}}``.
+    """The ``--json`` document: ``{"agents": {NAME: {...}}, "comparisons": [...], "statistics": {...},
+    "config": {...}}``.
 
-    ``steps_ci95`` and ``identify_steps_ci95`` are ``[low, high]`` 95 % t-intervals of the mean.
+    ``*_ci95`` are ``[low, high]`` 95 % percentile-bootstrap intervals (``statistics`` says how they were made).
     """
     agents = {}
     for name, s in summary.agents.items():
         agents[name] = {
             "trials": s.trials,
-            "steps_mean": _number(s.steps.mean),
-            "steps_sd": _number(s.steps.sd),
-            "steps_ci95": _interval(s.steps),
+            **_sample_json("steps", s.steps),
             "success_rate": _number(s.success_rate),
-            "identify_steps_mean": _number(s.identify.mean),
-            "identify_steps_sd": _number(s.identify.sd),
-            "identify_steps_ci95": _interval(s.identify),
+            **_sample_json("identify_steps", s.identify),
             "identified_rate": _number(s.identified_rate),
             "final_entropy_mean": _number(s.final_entropy.mean),
+            "final_entropy_ci95": [_number(s.final_entropy.ci_low), _number(s.final_entropy.ci_high)],
             "return_mean": _number(s.total_reward.mean),
         }
-    return {"agents": agents, "welch": welch_json(summary.welch), "config": config}
+    return {
+        "agents": agents,
+        "comparisons": comparisons_json(summary.comparisons),
+        "statistics": statistics_json(),
+        "config": config,
+    }

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-from embodied_adhoc.experiments.stats import SampleSummary, WelchTest
+from embodied_adhoc.experiments.stats import PairComparison, SampleSummary
 from embodied_adhoc.experiments.summary import RunSummary
 
 
@@ -41,12 +41,13 @@ def mean_sd(sample: SampleSummary, digits: int = 2) -> str:
     return fmt(sample.mean, digits) + ("" if math.isnan(sample.sd) else f" ± {fmt(sample.sd, digits)}")
 
 
+def bounds(low: float, high: float, digits: int = 2) -> str:
+    return "n/a" if low is None or math.isnan(low) else f"[{fmt(low, digits)}, {fmt(high, digits)}]"
+
+
 def interval(sample: SampleSummary, digits: int = 2) -> str:
-    return (
-        "n/a"
-        if math.isnan(sample.ci_low)
-        else f"[{fmt(sample.ci_low, digits)}, {fmt(sample.ci_high, digits)}]"
-    )
+    """The sample's percentile-bootstrap interval of the mean."""
+    return bounds(sample.ci_low, sample.ci_high, digits)
 
 
 def p_value(value: float) -> str:
@@ -55,11 +56,15 @@ def p_value(value: float) -> str:
     return f"{value:.3g}" if value >= 1e-3 else f"{value:.2e}"
 
 
+CI_HEADER = "95% CI (bootstrap)"
+"""Every interval in the tables is a percentile bootstrap (:mod:`embodied_adhoc.experiments.stats`)."""
+
 SUMMARY_HEADERS = (
     "agent",
     "trials",
     "steps mean ± sd",
-    "steps 95% CI",
+    f"steps {CI_HEADER}",
+    "steps IQM",
     "success",
     "identify mean ± sd",
     "identified",
@@ -76,6 +81,7 @@ def summary_rows(summary: RunSummary) -> list[list[str]]:
                 str(s.trials),
                 mean_sd(s.steps),
                 interval(s.steps),
+                fmt(s.steps.iqm),
                 fmt(s.success_rate),
                 mean_sd(s.identify),
                 fmt(s.identified_rate),
@@ -86,23 +92,29 @@ def summary_rows(summary: RunSummary) -> list[list[str]]:
 
 
 def summary_table(summary: RunSummary, markdown: bool = False) -> str:
-    """Per agent: Metric 1 (steps to finish, mean ± sd and 95 % t-CI), success rate, Metric 2 (steps to identify,
-    over the trials that identified; ``identified`` = their fraction), Metric 3 (final normalised entropy)."""
+    """Per agent: Metric 1 (steps to finish: mean ± sd, 95 % percentile-bootstrap interval of the mean, IQM), success
+    rate, Metric 2 (steps to identify, over the trials that identified; ``identified`` = their fraction), Metric 3
+    (final normalised entropy)."""
     return format_table(SUMMARY_HEADERS, summary_rows(summary), markdown)
 
 
-def welch_table(
-    summary: RunSummary | Sequence[WelchTest], markdown: bool = False, alpha: float = 0.05
+def comparison_table(
+    summary: RunSummary | Sequence[PairComparison], markdown: bool = False, alpha: float = 0.05
 ) -> str:
-    """Welch's t-tests on steps to finish: between every pair of agents of a summary, or the tests given."""
-    tests = summary.welch if isinstance(summary, RunSummary) else summary
+    """Steps to finish compared between every pair of agents of a summary (or the comparisons given): Welch's
+    t-test, and the probability that the first takes fewer steps than the second (rliable's probability of
+    improvement) with its bootstrap interval."""
+    comparisons = summary.comparisons if isinstance(summary, RunSummary) else summary
     rows = [
         [
-            f"{t.first} vs {t.second}",
-            fmt(t.statistic),
-            p_value(t.p_value),
-            "n/a" if math.isnan(t.p_value) else ("yes" if t.significant(alpha) else "no"),
+            f"{c.first} vs {c.second}",
+            fmt(c.statistic),
+            p_value(c.p_value),
+            "n/a" if math.isnan(c.p_value) else ("yes" if c.significant(alpha) else "no"),
+            fmt(c.improvement),
+            bounds(c.improvement_low, c.improvement_high),
         ]
-        for t in tests
+        for c in comparisons
     ]
-    return format_table(("Welch t-test (steps)", "t", "p", f"p < {alpha}"), rows, markdown)
+    headers = ("steps: a vs b", "Welch t", "p", f"p < {alpha}", "P(a fewer steps)", CI_HEADER)
+    return format_table(headers, rows, markdown)

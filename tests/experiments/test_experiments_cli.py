@@ -30,18 +30,22 @@ def test_json_output_is_exactly_the_summary_document(tmp_path):
     result = trials("guess", "--agents", "bayes,random", "--episodes", "6", "--seed", "2", "--json")
     assert result.returncode == 0, result.stderr
     document = json.loads(result.stdout)
-    assert set(document) == {"agents", "welch", "config"}
+    assert set(document) == {"agents", "comparisons", "statistics", "config"}
     assert set(document["agents"]) == {"bayes", "random"}
     for summary in document["agents"].values():
-        assert {"steps_mean", "steps_ci95", "success_rate", "identify_steps_mean"} <= set(summary)
-    assert document["welch"][0]["a"] == "bayes" and document["welch"][0]["b"] == "random"
+        assert {"steps_mean", "steps_ci95", "steps_iqm", "success_rate", "identify_steps_mean"} <= set(
+            summary
+        )
+    assert document["comparisons"][0]["a"] == "bayes" and document["comparisons"][0]["b"] == "random"
+    assert "p_improvement" in document["comparisons"][0]
 
 
 def test_table_files_plots_and_resume(tmp_path):
     out = tmp_path / "run"
     first = trials("guess", "--agents", "bayes,random", "--episodes", "4", "--out", str(out))
     assert first.returncode == 0, first.stderr
-    assert "steps mean ± sd" in first.stdout and "Welch t-test" in first.stdout
+    assert "steps mean ± sd" in first.stdout and "Welch t" in first.stdout
+    assert "95% CI (bootstrap)" in first.stdout and "P(a fewer steps)" in first.stdout
     expected = {"config.json", "trials.csv", "steps.csv", "summary.json", "steps.png", "entropy.png"}
     assert expected <= {p.name for p in out.iterdir()}
     second = trials(
@@ -89,11 +93,11 @@ def test_backend_comparison_runs_the_same_episodes_on_each(tmp_path):
     )
     assert result.returncode == 0, result.stderr
     document = json.loads(result.stdout)
-    assert set(document) == {"backends", "welch_backends"}
+    assert set(document) == {"backends", "backend_comparisons", "statistics"}
     assert set(document["backends"]) == {"abstract", "twin"}
     # the twin backend is the same env: same episodes and seeds give the same trials
     assert document["backends"]["abstract"]["agents"] == document["backends"]["twin"]["agents"]
-    assert [(t["a"], t["b"]) for t in document["welch_backends"]] == [
+    assert [(t["a"], t["b"]) for t in document["backend_comparisons"]] == [
         ("bayes (abstract)", "bayes (twin)"),
         ("random (abstract)", "random (twin)"),
     ]

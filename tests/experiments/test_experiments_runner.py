@@ -9,7 +9,7 @@ from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments import executors, runner
 from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
 from embodied_adhoc.experiments.summary import summary_json
-from embodied_adhoc.experiments.tables import summary_table, welch_table
+from embodied_adhoc.experiments.tables import comparison_table, summary_table
 
 AGENTS = ("bayes", "known-task", "oracle", "random")
 
@@ -66,7 +66,7 @@ def test_resume_after_partial_runs_has_no_duplicates_and_same_table(tmp_path):
     assert (header, rows) == sorted_lines(tmp_path / "fresh" / "trials.csv")
     assert sorted_lines(partial / "steps.csv") == sorted_lines(tmp_path / "fresh" / "steps.csv")
     assert summary_table(again.summary()) == summary_table(fresh.summary())
-    assert welch_table(again.summary()) == welch_table(fresh.summary())
+    assert comparison_table(again.summary()) == comparison_table(fresh.summary())
     assert again.entropy_curves == fresh.entropy_curves
 
 
@@ -153,16 +153,28 @@ def test_json_summary_schema():
     document = json.loads(
         json.dumps(summary_json(result.summary(), result.config.describe()), allow_nan=False)
     )
-    assert set(document) == {"agents", "welch", "config"}
+    assert set(document) == {"agents", "comparisons", "statistics", "config"}
+    assert document["statistics"]["ci"].startswith("percentile bootstrap")
     assert list(document["agents"]) == list(AGENTS)
     for name, agent in document["agents"].items():
-        for key in ("steps_mean", "steps_ci95", "success_rate", "identify_steps_mean", "final_entropy_mean"):
+        for key in (
+            "steps_mean",
+            "steps_ci95",
+            "steps_iqm",
+            "steps_iqm_ci95",
+            "success_rate",
+            "identify_steps_mean",
+            "final_entropy_mean",
+        ):
             assert key in agent, (name, key)
-        assert len(agent["steps_ci95"]) == 2
+        low, high = agent["steps_ci95"]
+        assert low <= agent["steps_mean"] <= high
     assert document["agents"]["known-task"]["identify_steps_mean"] == 0.0
     assert document["agents"]["oracle"]["identify_steps_mean"] is None
-    assert len(document["welch"]) == 6
-    assert {"a", "b", "metric", "t", "p", "significant"} <= set(document["welch"][0])
+    assert len(document["comparisons"]) == 6
+    first = document["comparisons"][0]
+    assert {"a", "b", "metric", "t", "p", "significant", "p_improvement", "p_improvement_ci95"} <= set(first)
+    assert 0.0 <= first["p_improvement"] <= 1.0
     assert document["config"]["episodes"] == 12 and document["config"]["agents"] == list(AGENTS)
 
 

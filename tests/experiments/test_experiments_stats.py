@@ -4,33 +4,82 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scipy import stats
 
 from embodied_adhoc.experiments.stats import (
+    compare_pairs,
     identify_step,
+    improvement_interval,
+    interquartile_mean,
     mean_curve,
     normalised_entropies,
-    pairwise_welch,
+    probability_of_improvement,
     summarise_sample,
     welch_test,
 )
 
 
-def test_confidence_interval_by_hand():
+def test_mean_and_sd_by_hand():
     summary = summarise_sample([1, 2, 3, 4, 5])
     assert summary.n == 5 and summary.mean == 3.0
     assert summary.sd == pytest.approx(math.sqrt(2.5))
-    # t_{0.975, 4} = 2.776445105; half width = t * sd / sqrt(n)
-    half = 2.776445105 * math.sqrt(2.5) / math.sqrt(5)
-    assert summary.ci_low == pytest.approx(3.0 - half, abs=1e-8)
-    assert summary.ci_high == pytest.approx(3.0 + half, abs=1e-8)
+    assert summary.iqm == pytest.approx(3.0)  # int(0.25 * 5) = 1 trimmed each side: mean of 2, 3, 4
 
 
-def test_confidence_interval_matches_scipy():
+def test_bootstrap_interval_agrees_with_scipy_percentile_bootstrap():
     values = np.random.default_rng(0).normal(12.0, 2.0, size=32)
     summary = summarise_sample(values)
-    low, high = stats.t.interval(0.95, len(values) - 1, loc=values.mean(), scale=stats.sem(values))
-    assert (summary.ci_low, summary.ci_high) == pytest.approx((low, high))
+    reference = stats.bootstrap(
+        (values,), np.mean, method="percentile", n_resamples=20_000, rng=np.random.default_rng(1)
+    ).confidence_interval
+    # Two independent Monte-Carlo estimates of the same interval (half width ~0.7 here) agree to within 0.05.
+    assert summary.ci_low == pytest.approx(reference.low, abs=0.05)
+    assert summary.ci_high == pytest.approx(reference.high, abs=0.05)
+
+
+def test_interval_of_a_skewed_sample_stays_inside_its_range():
+    # 30 trials at the 100-step cap and two quick ones, and the mirror image: the t-interval (mean ± t sd / sqrt n)
+    # of the first reaches above 100, that of the second below 0; the bootstrap interval cannot leave [min, max].
+    for values in ([100] * 30 + [3, 5], [0] * 30 + [100, 100]):
+        summary = summarise_sample(values)
+        half = stats.t.ppf(0.975, len(values) - 1) * summary.sd / math.sqrt(len(values))
+        assert summary.mean - half < min(values) or summary.mean + half > max(values)  # the old interval lied
+        assert min(values) <= summary.ci_low <= summary.mean <= summary.ci_high <= max(values)
+        assert min(values) <= summary.iqm_ci_low <= summary.iqm <= summary.iqm_ci_high <= max(values)
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.floats(0.0, 100.0), min_size=2, max_size=40))
+def test_interval_inside_the_sample_range_for_any_sample(values):
+    summary = summarise_sample(values, reps=300)
+    assert min(values) <= summary.ci_low <= summary.ci_high <= max(values)
+
+
+def test_intervals_are_seeded():
+    values = np.random.default_rng(3).exponential(5.0, size=20)
+    assert summarise_sample(values) == summarise_sample(values)
+    assert summarise_sample(values, seed=1) != summarise_sample(values, seed=2)
+
+
+def test_iqm_matches_scipy_trim_mean():
+    for size in (4, 7, 32, 33):
+        values = np.random.default_rng(size).normal(size=size)
+        assert interquartile_mean(values) == pytest.approx(stats.trim_mean(values, 0.25))
+
+
+def test_probability_of_improvement_is_rliables_mann_whitney_u():
+    rng = np.random.default_rng(5)
+    a, b = rng.integers(8, 20, size=30), rng.integers(9, 25, size=25)  # integers: ties count one half
+    u = stats.mannwhitneyu(a, b, alternative="greater").statistic
+    assert probability_of_improvement(a, b) == pytest.approx(u / (30 * 25))
+    # for steps (lower is better) the roles swap: P(a < b) + P(a = b) / 2 = 1 - P(a > b) - P(a = b) / 2
+    assert probability_of_improvement(a, b, lower_is_better=True) == pytest.approx(1 - u / (30 * 25))
+    assert probability_of_improvement([1, 2], [1, 2]) == 0.5
+    assert probability_of_improvement([1, 1], [5, 6], lower_is_better=True) == 1.0
+    low, high = improvement_interval(a, b, lower_is_better=True)
+    assert 0.0 <= low <= probability_of_improvement(a, b, lower_is_better=True) <= high <= 1.0
 
 
 def test_degenerate_samples():
@@ -59,9 +108,11 @@ def test_welch_undefined_cases_are_nan():
     assert t < 0 and 0 < p < 0.05
 
 
-def test_pairwise_welch_covers_every_pair_in_order():
-    tests = pairwise_welch({"a": [1, 2, 3], "b": [2, 3, 4], "c": [5, 6, 8]}, "steps")
+def test_compare_pairs_covers_every_pair_in_order():
+    tests = compare_pairs({"a": [1, 2, 3], "b": [2, 3, 4], "c": [5, 6, 8]}, "steps")
     assert [(t.first, t.second) for t in tests] == [("a", "b"), ("a", "c"), ("b", "c")]
+    assert tests[1].improvement == 1.0  # every trial of a takes fewer steps than every trial of c
+    assert tests[1].p_value == pytest.approx(welch_test([1, 2, 3], [5, 6, 8])[1])
 
 
 def test_normalised_entropy():
@@ -82,6 +133,9 @@ def test_normalised_entropy():
         ([[0.5, 0.5], [0.3, 0.7], [0.6, 0.4]], 1, None),  # wrong at the end: never identified
         ([[0.5, 0.5], [0.5, 0.5]], 0, None),  # a tie is not identification
         ([[1.0, 0.0], [1.0, 0.0]], 0, 0),  # known from the start
+        ([[0.5, 0.5], [0.5000000000000001, 0.5]], 0, None),  # a rounding artefact is not a lead
+        ([[0.5, 0.5], [0.5000000000000001, 0.5], [0.6, 0.4]], 0, 2),
+        ([[0.5, 0.5], [0.5 + 1e-5, 0.5 - 1e-5]], 0, 1),  # a lead above the 1e-6 margin counts
         ([[0.2, 0.3, 0.5], [0.2, 0.5, 0.3], [0.1, 0.6, 0.3]], 1, 1),
     ],
 )
@@ -95,3 +149,16 @@ def test_mean_curve_holds_last_value_of_finished_trials():
     assert curve["mean"] == pytest.approx([1.0, 0.65, 0.35, 0.25])
     assert curve["low"][0] == pytest.approx(1.0) and curve["high"][0] == pytest.approx(1.0)
     assert np.all(curve["low"] <= curve["mean"]) and np.all(curve["mean"] <= curve["high"])
+
+
+def test_entropy_band_stays_inside_0_1():
+    # Skewed entropy curves: most trials resolve the task at once, a few stay undecided. mean ± t sd / sqrt(n)
+    # leaves [0, 1] here; the bootstrap band cannot.
+    curves = [[1.0, 0.0]] * 14 + [[1.0, 1.0, 1.0]] * 2
+    curve = mean_curve(curves)
+    padded = np.array([c + [c[-1]] * (3 - len(c)) for c in curves])
+    half = stats.t.ppf(0.975, 15) * padded.std(axis=0, ddof=1) / 4.0
+    assert np.any(padded.mean(axis=0) - half < 0.0)
+    assert np.all(curve["low"] >= 0.0) and np.all(curve["high"] <= 1.0)
+    assert np.all(curve["low"] <= curve["mean"]) and np.all(curve["mean"] <= curve["high"])
+    assert mean_curve(curves)["low"] == pytest.approx(curve["low"])  # seeded
