@@ -126,11 +126,35 @@ class GridState:
                 "alive": self.alive.tolist()}
 
 
+@dataclass
+class GridBatch:
+    """B states stacked on a leading axis (the vector env's state; a single env is B=1)."""
+
+    agents: np.ndarray  # (B, N, 2)
+    agent_levels: np.ndarray  # (B, N)
+    targets: np.ndarray  # (B, M, 2)
+    target_levels: np.ndarray  # (B, M)
+    alive: np.ndarray  # (B, M) bool
+
+    @classmethod
+    def stack(cls, states: list[GridState]) -> GridBatch:
+        return cls(*(np.stack([getattr(s, name) for s in states]) for name in
+                     ("agents", "agent_levels", "targets", "target_levels", "alive")))
+
+    def state(self, index: int) -> GridState:
+        return GridState(self.agents[index].copy(), self.agent_levels[index].copy(), self.targets[index].copy(),
+                         self.target_levels[index].copy(), self.alive[index].copy())
+
+    def put(self, index: int, state: GridState) -> None:
+        self.agents[index], self.agent_levels[index] = state.agents, state.agent_levels
+        self.targets[index], self.target_levels[index], self.alive[index] = state.targets, state.target_levels, state.alive
+
+
 @dataclass(frozen=True)
 class StepPlan:
     """The outcome of one grid step decided by the rules, before it is applied (or executed physically)."""
 
-    agents: np.ndarray  # (N, 2) cells after the move
+    agents: np.ndarray  # (N, 2) cells after the move ((B, N, 2) from plan_batch)
     targets: np.ndarray  # (M, 2) cells after the prey's move
     completed: np.ndarray  # (M,) bool: foraged/captured this step
 
@@ -145,7 +169,6 @@ class GridRules:
         wanted, inside = self.normalise(cells[:, None, :] + MOVES[None, :4, :])
         # neighbours[flat cell, action] = flat index of the cell that move leads to, or -1 (a wall)
         self.neighbours = np.where(inside, wanted[..., 0] * config.cols + wanted[..., 1], -1)
-        self.neighbour_lists: list[list[int]] = self.neighbours.tolist()
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def normalise(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -178,14 +201,6 @@ class GridRules:
         corner = np.all((cells == 1) | (cells == self.shape - 2), axis=-1)
         return interior & ~corner
 
-    def occupancy(self, state: GridState) -> np.ndarray:
-        """(R, C) int grid: 0 free, 1 + i for agent i, -1 - m for live target m."""
-        grid = np.zeros((self.config.rows, self.config.cols), dtype=np.int64)
-        alive = state.targets[state.alive]
-        grid[alive[:, 0], alive[:, 1]] = -1 - np.flatnonzero(state.alive)
-        grid[state.agents[:, 0], state.agents[:, 1]] = 1 + np.arange(len(state.agents))
-        return grid
-
     # -- spawning ---------------------------------------------------------------------------------------------
     def sample_state(self, rng: np.random.Generator) -> GridState:
         """A random initial state: targets on valid cells, agents on the remaining free cells."""
@@ -204,64 +219,91 @@ class GridRules:
         return GridState(all_cells[agent_idx].copy(), agent_levels.astype(np.int64),
                          all_cells[target_idx].copy(), target_levels.astype(np.int64))
 
-    # -- one step ---------------------------------------------------------------------------------------------
-    def completed_targets(self, state: GridState, task: Task, actions: np.ndarray) -> np.ndarray:
-        """Targets foraged/captured by ``actions`` in ``state`` (section 6.2.1): every agent stands at its task
-        position around the target, all execute Forage/Capture (unless ``interact_required`` is off) and, for
-        LBF, their levels sum to at least the target's level."""
-        n = self.config.n_agents
-        if len(task.offsets) != n:
-            raise ConfigError(f"task {task.name} has {len(task.offsets)} positions for {n} agents")
-        done = np.zeros(len(state.targets), dtype=bool)
-        interacting = np.asarray(actions) == INTERACT
-        if self.config.interact_required and not interacting.all():
-            return done
-        offsets = np.array(task.offsets, dtype=np.int64)
-        for m in np.flatnonzero(state.alive):
-            rel = self.delta(state.targets[m], state.agents)  # (N, 2)
-            if task.interchangeable:
-                ok = sorted(map(tuple, rel.tolist())) == sorted(map(tuple, offsets.tolist()))
-            else:
-                ok = bool(np.all(rel == offsets))
-            if ok and state.agent_levels.sum() >= state.target_levels[m]:
-                done[m] = True
+    # -- one step (batched: one implementation for the single envs, B=1, and the vector env) ---------------
+    def flat(self, cells: np.ndarray) -> np.ndarray:
+        """Flat index ``row * cols + col`` of (inside) cells."""
+        return cells[..., 0] * self.config.cols + cells[..., 1]
+
+    def occupied(self, batch: GridBatch) -> np.ndarray:
+        """(B, R*C) bool: cells holding an agent or a live target."""
+        b, cells = len(batch.agents), self.config.rows * self.config.cols
+        grid = np.zeros((b, cells), dtype=bool)
+        grid[np.arange(b)[:, None], self.flat(batch.agents)] = True
+        rows, slots = np.nonzero(batch.alive)
+        grid[rows, self.flat(batch.targets[rows, slots])] = True
+        return grid
+
+    def completed_targets(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool,
+                          actions: np.ndarray) -> np.ndarray:
+        """(B, M) targets foraged/captured by ``actions`` (B, N) (section 6.2.1): every agent stands at its
+        task position ``offsets`` (B, N, 2) around the target, all execute Forage/Capture (unless
+        ``interact_required`` is off) and, for LBF, their levels sum to at least the target's level."""
+        rel = self.delta(batch.targets[:, :, None, :], batch.agents[:, None, :, :])  # (B, M, N, 2)
+        offsets = offsets[:, None, :, :]
+        if interchangeable:  # the same multiset of offsets, in any agent order
+            rows, cols = int(self.shape[0]), int(self.shape[1])
+            code = lambda d: (d[..., 0] + rows) * (2 * cols + 1) + d[..., 1] + cols  # noqa: E731
+            placed = np.all(np.sort(code(rel), axis=-1) == np.sort(code(offsets), axis=-1), axis=-1)
+        else:
+            placed = np.all(rel == offsets, axis=(-1, -2))
+        strong = batch.agent_levels.sum(axis=1)[:, None] >= batch.target_levels
+        done = placed & strong & batch.alive
+        if self.config.interact_required:
+            done &= np.all(actions == INTERACT, axis=1)[:, None]
         return done
 
     def resolve_moves(self, movers: np.ndarray, moves: np.ndarray, blocked: np.ndarray) -> np.ndarray:
-        """New cells of ``movers`` (K, 2) moving by ``moves`` (K, 2): a move fails if it leaves the walls, enters
-        a ``blocked`` (R, C) cell, or claims a cell another mover also claims."""
+        """New cells of ``movers`` (B, K, 2) moving by ``moves`` (B, K, 2): a move fails if it leaves the walls,
+        enters a ``blocked`` (B, R*C) cell, or claims a cell another mover of the same env also claims."""
         wanted, inside = self.normalise(movers + moves)
         moving = np.any(moves != 0, axis=-1) & inside
-        rows, cols = np.where(inside, wanted[:, 0], 0), np.where(inside, wanted[:, 1], 0)
-        moving &= ~blocked[rows, cols]
-        flat = rows * self.config.cols + cols
-        claims = np.bincount(flat[moving], minlength=self.config.rows * self.config.cols)
-        moving &= claims[flat] == 1
-        return np.where(moving[:, None], wanted, movers)
+        flat = np.where(inside, self.flat(wanted), 0)
+        env = np.arange(len(movers))[:, None]
+        moving &= ~blocked[env, flat]
+        cells = blocked.shape[1]
+        key = env * cells + flat
+        claims = np.bincount(key[moving], minlength=blocked.size)
+        moving &= claims[key] == 1
+        return np.where(moving[..., None], wanted, movers)
+
+    def plan_batch(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, actions: np.ndarray,
+                   prey_uniforms: np.ndarray | None = None) -> StepPlan:
+        """Decide one step of B envs: completions (checked first, on the current state), agent moves, then prey
+        moves into cells free both before and after the agents move. Pursuit needs ``prey_uniforms`` (B, M, 2)
+        in [0, 1): the first decides whether a prey stays, the second which of the 4 moves it tries."""
+        completed = self.completed_targets(batch, offsets, interchangeable, actions)
+        blocked = self.occupied(batch)
+        agents = self.resolve_moves(batch.agents, MOVES[actions], blocked)
+        targets = batch.targets
+        if self.config.domain == "pursuit":
+            alive = batch.alive & ~completed
+            stay = prey_uniforms[..., 0] < self.config.prey_stay_probability
+            direction = np.minimum((prey_uniforms[..., 1] * 4).astype(np.int64), 3)
+            moves = np.where((stay | ~alive)[..., None], 0, MOVES[direction])
+            wanted, _ = self.normalise(targets + moves)
+            moves = np.where(self.target_cells_valid(wanted)[..., None], moves, 0)
+            blocked = blocked.copy()
+            blocked[np.arange(len(agents))[:, None], self.flat(agents)] = True
+            targets = self.resolve_moves(targets, moves, blocked)
+        return StepPlan(agents, targets.copy(), completed)
+
+    def prey_draws(self) -> int:
+        """Uniforms one step of :meth:`plan` consumes (2 per prey in pursuit, none in LBF)."""
+        return 2 * self.config.n_targets if self.config.domain == "pursuit" else 0
 
     def plan(self, state: GridState, task: Task, actions: np.ndarray, rng: np.random.Generator) -> StepPlan:
-        """Decide one step: completions (checked first, on the current state), agent moves, then prey moves
-        into cells free both before and after the agents move. Only pursuit consumes ``rng``."""
+        """Decide one step of one env (:meth:`plan_batch` with B=1). Only pursuit consumes ``rng``: a fixed
+        ``rng.random((M, 2))`` per step, so that the vector env reproduces the single env draw for draw."""
         actions = np.asarray(actions, dtype=np.int64)
         if actions.shape != (self.config.n_agents,) or np.any((actions < 0) | (actions > 4)):
             raise ConfigError(f"actions {actions.tolist()}: need {self.config.n_agents} integers in 0..4")
-        completed = self.completed_targets(state, task, actions)
-        alive = state.alive & ~completed
-        blocked = self.occupancy(state) != 0
-        agents = self.resolve_moves(state.agents, MOVES[actions], blocked)
-        targets = state.targets.copy()
-        if self.config.domain == "pursuit" and alive.any():
-            m = len(targets)
-            stay = rng.random(m) < self.config.prey_stay_probability
-            direction = rng.integers(0, 4, size=m)
-            moves = np.where((stay | ~alive)[:, None], 0, MOVES[direction])
-            wanted, _ = self.normalise(targets + moves)
-            valid = self.target_cells_valid(wanted)
-            moves = np.where(valid[:, None], moves, 0)
-            blocked = blocked.copy()
-            blocked[agents[:, 0], agents[:, 1]] = True
-            targets = self.resolve_moves(targets, moves, blocked)
-        return StepPlan(agents, targets, completed)
+        n = self.config.n_agents
+        if len(task.offsets) != n:
+            raise ConfigError(f"task {task.name} has {len(task.offsets)} positions for {n} agents")
+        uniforms = rng.random((1, self.config.n_targets, 2)) if self.prey_draws() else None
+        offsets = np.array(task.offsets, dtype=np.int64)[None]
+        plan = self.plan_batch(GridBatch.stack([state]), offsets, task.interchangeable, actions[None], uniforms)
+        return StepPlan(plan.agents[0], plan.targets[0], plan.completed[0])
 
     def apply(self, state: GridState, plan: StepPlan) -> GridState:
         """The state after ``plan`` (the grid twin's transition)."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from embodied_adhoc.domains.grid_rules import GridRules, GridState
+from embodied_adhoc.domains.grid_rules import GridBatch, GridRules, GridState
 from embodied_adhoc.errors import ConfigError
 
 
@@ -26,47 +26,57 @@ def observation_high(rules: GridRules) -> float:
     return float(max(1, cfg.n_agents * cfg.max_agent_level)) if cfg.domain == "foraging" else 1.0
 
 
-def _padded_layers(rules: GridRules, state: GridState, half: int) -> np.ndarray:
-    """World-frame layers (N agents, M targets, boundary, levels), padded by ``half`` cells on every side:
-    with the boundary marked beyond walls, or wrapped around on a torus."""
+def _padded_layers(rules: GridRules, batch: GridBatch, half: int) -> np.ndarray:
+    """(B, N + M + 2, R + 2 half, C + 2 half) world-frame layers (N agents, M targets, boundary, levels), padded
+    by ``half`` cells on every side: with the boundary marked beyond walls, or wrapped around on a torus."""
     cfg = rules.config
-    layers = np.zeros((cfg.n_agents + cfg.n_targets + 2, cfg.rows, cfg.cols), dtype=np.float32)
-    layers[np.arange(cfg.n_agents), state.agents[:, 0], state.agents[:, 1]] = 1.0
-    live = np.flatnonzero(state.alive)
-    layers[cfg.n_agents + live, state.targets[live, 0], state.targets[live, 1]] = 1.0
-    levels = layers[-1]
-    levels[state.agents[:, 0], state.agents[:, 1]] = state.agent_levels
-    levels[state.targets[live, 0], state.targets[live, 1]] = state.target_levels[live]
+    b = len(batch.agents)
+    env = np.arange(b)[:, None]
+    layers = np.zeros((b, cfg.n_agents + cfg.n_targets + 2, cfg.rows, cfg.cols), dtype=np.float32)
+    layers[env, np.arange(cfg.n_agents), batch.agents[..., 0], batch.agents[..., 1]] = 1.0
+    rows, live = np.nonzero(batch.alive)
+    cells = batch.targets[rows, live]
+    layers[rows, cfg.n_agents + live, cells[:, 0], cells[:, 1]] = 1.0
+    layers[env, -1, batch.agents[..., 0], batch.agents[..., 1]] = batch.agent_levels
+    layers[rows, -1, cells[:, 0], cells[:, 1]] = batch.target_levels[rows, live]
     if cfg.toroidal:
-        return np.pad(layers, ((0, 0), (half, half), (half, half)), mode="wrap")
-    padded = np.pad(layers, ((0, 0), (half, half), (half, half)))
-    padded[-2] = 1.0
-    padded[-2, half:half + cfg.rows, half:half + cfg.cols] = 0.0
+        return np.pad(layers, ((0, 0), (0, 0), (half, half), (half, half)), mode="wrap")
+    padded = np.pad(layers, ((0, 0), (0, 0), (half, half), (half, half)))
+    padded[:, -2] = 1.0
+    padded[:, -2, half:half + cfg.rows, half:half + cfg.cols] = 0.0
     return padded
 
 
-def egocentric_observations(rules: GridRules, state: GridState, view: int = 5) -> np.ndarray:
-    """Every agent's observation at once, ``(N, channels, view, view)`` (one padded world, N slices)."""
+def observation_layers(rules: GridRules) -> np.ndarray:
+    """(N, channels): for each observer, the padded layers its channels read, in order (its teammates, the
+    targets, the boundary and, for LBF, the levels)."""
+    cfg = rules.config
+    n = cfg.n_agents
+    rest = list(range(n, n + cfg.n_targets + (2 if cfg.domain == "foraging" else 1)))
+    return np.array([[j for j in range(n) if j != i] + rest for i in range(n)], dtype=np.int64)
+
+
+def egocentric_batch(rules: GridRules, batch: GridBatch, observers: np.ndarray, view: int = 5) -> np.ndarray:
+    """The observations of agents ``observers`` (B, K) in each of B states, ``(B, K, channels, view, view)``
+    (one padded world per state, K windows gathered at once)."""
     if view < 1 or view % 2 == 0:
         raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
-    cfg = rules.config
-    padded = _padded_layers(rules, state, view // 2)
-    keep = -1 if cfg.domain == "pursuit" else None  # pursuit has no level channel
-    out = np.empty((cfg.n_agents, observation_channels(rules), view, view), dtype=np.float32)
-    for i, (r, c) in enumerate(state.agents.tolist()):
-        window = padded[:keep, r:r + view, c:c + view]
-        out[i, :cfg.n_agents - 1] = np.delete(window[:cfg.n_agents], i, axis=0)
-        out[i, cfg.n_agents - 1:] = window[cfg.n_agents:]
-    return out
+    padded = _padded_layers(rules, batch, view // 2)
+    env = np.arange(len(observers))[:, None]
+    cells = batch.agents[env, observers]  # (B, K, 2): the window's top-left in the padded frame
+    span = np.arange(view)
+    rows = (cells[..., 0, None] + span)[:, :, None, :, None]
+    cols = (cells[..., 1, None] + span)[:, :, None, None, :]
+    channels = observation_layers(rules)[observers][..., None, None]
+    return padded[env[..., None, None, None], channels, rows, cols]
+
+
+def egocentric_observations(rules: GridRules, state: GridState, view: int = 5) -> np.ndarray:
+    """Every agent's observation at once, ``(N, channels, view, view)``."""
+    observers = np.arange(rules.config.n_agents)[None]
+    return egocentric_batch(rules, GridBatch.stack([state]), observers, view)[0]
 
 
 def egocentric_observation(rules: GridRules, state: GridState, agent: int, view: int = 5) -> np.ndarray:
     """The ``(channels, view, view)`` observation of ``agent`` in ``state``."""
-    if view < 1 or view % 2 == 0:
-        raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
-    cfg = rules.config
-    padded = _padded_layers(rules, state, view // 2)
-    r, c = state.agents[agent].tolist()
-    keep = -1 if cfg.domain == "pursuit" else None
-    window = padded[:keep, r:r + view, c:c + view]
-    return np.concatenate([np.delete(window[:cfg.n_agents], agent, axis=0), window[cfg.n_agents:]])
+    return egocentric_batch(rules, GridBatch.stack([state]), np.array([[agent]]), view)[0, 0]

@@ -3,18 +3,27 @@
 A team member picks a target, a cell to reach (its task slot, or a point on the closing ring) and a way to get
 there (greedy ignoring obstacles, or a shortest path around them). Every member computes the same target and
 slot assignment from the full state, which is how the thesis's teams "assume teammates do the same".
-Randomness only breaks ties and stalemates (seeded Generator).
+Randomness only breaks ties and stalemates (uniforms from a seeded Generator). The policy is batched over B
+envs (:class:`TeamPlanner`); the single envs call it with B=1 and the vector env (``learning/vector_grid.py``)
+with many, so both run one implementation.
 The same policy drives the ad hoc robot as the thesis's *original teammate* baseline.
 """
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 
-from embodied_adhoc.domains.grid_rules import INTERACT, MOVES, GridRules, GridState, Task
-from embodied_adhoc.domains.grid_rules_plan import assign_slots, navigate, ring_goal, slot_cells
+from embodied_adhoc.domains.grid_rules import INTERACT, MOVES, GridBatch, GridRules, GridState, Task
+from embodied_adhoc.domains.grid_rules_plan import (
+    CellBits,
+    assign_slots,
+    navigate,
+    permutations_table,
+    ring_goal,
+)
 from embodied_adhoc.errors import ConfigError
 
 
@@ -41,64 +50,108 @@ class TeamSpec:
                 raise ConfigError(f"TeamSpec {self.name}: {field_name}={value!r}, use one of {allowed}")
 
 
-def choose_target(rules: GridRules, state: GridState, agent: int, spec: TeamSpec) -> int:
-    """Index of the live target this member works on."""
-    alive = np.flatnonzero(state.alive)
-    if spec.target == "highest_level":
-        return int(alive[np.argmax(state.target_levels[alive])])
-    if spec.target == "team_closest":
-        cost = rules.distance(state.agents[None, :, :], state.targets[alive][:, None, :]).sum(axis=1)
-    else:
-        cost = rules.distance(state.agents[agent], state.targets[alive])
-    return int(alive[np.argmin(cost)])
+TEAM_DRAWS = 3  # uniforms per member and step (see navigate): drawn always, so Generators stay aligned
+TARGET_RULES = ("closest", "highest_level", "team_closest")
 
 
-def member_goal(rules: GridRules, state: GridState, task: Task, agent: int, spec: TeamSpec) -> np.ndarray:
-    """The cell member ``agent`` heads for now: its task slot around its target, or its point on the ring."""
-    target = choose_target(rules, state, agent, spec)
-    slots = slot_cells(rules, state, target, task)
-    if not task.interchangeable:
-        slot = agent
-    elif spec.slot == "closest":
-        # greedy: the closest slot, skipping slots another agent already stands on
-        taken = np.array([any(np.array_equal(s, a) for j, a in enumerate(state.agents) if j != agent)
-                          for s in slots])
-        slot = int(np.argmin(rules.distance(state.agents[agent], slots) + 1000 * taken))
-    else:
-        slot = assign_slots(rules, state.agents, slots)[agent]
-    if spec.goal == "ring":
-        return ring_goal(rules, state.agents[agent], state.targets[target], np.array(task.offsets[slot]))
-    return slots[slot]
+@dataclass(frozen=True)
+class TeamTable:
+    """The :class:`TeamSpec` of each of B envs as arrays, so that one batched pass serves mixed teams."""
+
+    target: np.ndarray  # (B,) index into TARGET_RULES
+    slot_closest: np.ndarray  # (B,) bool
+    ring: np.ndarray  # (B,) bool
+    greedy: np.ndarray  # (B,) bool: greedy navigation (ignores members on the move, axis habit)
+
+    @classmethod
+    def of(cls, specs) -> TeamTable:
+        return cls(np.array([TARGET_RULES.index(s.target) for s in specs], dtype=np.int64),
+                   np.array([s.slot == "closest" for s in specs]), np.array([s.goal == "ring" for s in specs]),
+                   np.array([s.navigation == "greedy" for s in specs]))
+
+    def take(self, index: np.ndarray) -> TeamTable:
+        return TeamTable(self.target[index], self.slot_closest[index], self.ring[index], self.greedy[index])
+
+
+class TeamPlanner:
+    """The scripted team policy of one grid, batched over B envs (a single env is B=1)."""
+
+    def __init__(self, rules: GridRules) -> None:
+        self.rules, self.cellbits = rules, CellBits(rules)
+        self.orders = permutations_table(rules.config.n_agents)
+
+    def goals(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable) -> np.ndarray:
+        """(B, N, 2) the cell each member heads for now: its task slot around its target, or its point on the
+        ring. Every member computes the same target rule and slot assignment from the full state."""
+        rules, agents = self.rules, batch.agents
+        n = agents.shape[1]
+        env = np.arange(len(agents))[:, None]
+        distance = rules.distance(agents[:, :, None, :], batch.targets[:, None, :, :])  # (B, member, target)
+        cost = np.where(teams.target[:, None, None] == 0, distance, -batch.target_levels[:, None, :])
+        cost = np.where(teams.target[:, None, None] == 2, distance.sum(axis=1, keepdims=True), cost)
+        target = np.argmin(np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1)  # (B, N)
+        target_cells = batch.targets[env, target]  # (B, N, 2)
+        slots, _ = rules.normalise(target_cells[:, :, None, :] + offsets[:, None, :, :])  # (B, member, slot, 2)
+        if interchangeable:
+            # greedy: the closest slot, skipping slots another agent already stands on
+            on_slot = np.all(agents[:, None, :, None, :] == slots[:, :, None, :, :], axis=-1)  # (B, m, agent, s)
+            taken = np.any(on_slot & ~np.eye(n, dtype=bool)[None, :, :, None], axis=2)
+            closest = np.argmin(rules.distance(agents[:, :, None, :], slots) + 1000 * taken, axis=-1)
+            slot = np.where(teams.slot_closest[:, None], closest, assign_slots(rules, agents, slots, self.orders))
+        else:
+            slot = np.broadcast_to(np.arange(n), target.shape)
+        goal = slots[env, np.arange(n)[None, :], slot]
+        ring = ring_goal(rules, agents, target_cells, offsets[env, slot])
+        return np.where(teams.ring[:, None, None], ring, goal)
+
+    def actions(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable,
+                uniforms: np.ndarray) -> np.ndarray:
+        """(B, N) actions of every member of each env's team (``uniforms``: (B, N, TEAM_DRAWS) in [0, 1)).
+
+        Every member computes the whole team's plan (assuming all follow the team policy) and members resolve
+        stalemates by index, as the thesis's teams do: every member plans around teammates already on their
+        goal; path-planning members also plan around lower-index members (prioritised planning); and when
+        several intend to enter the same cell all but the lowest index wait. The uniforms break ties between
+        equally short moves and let a blocked member sidestep at random (see :func:`navigate`).
+        """
+        rules, bits = self.rules, self.cellbits
+        agents = batch.agents
+        n = agents.shape[1]
+        goals = self.goals(batch, offsets, interchangeable, teams)
+        settled = np.all(goals == agents, axis=-1)  # (B, N)
+        lower = np.tril(np.ones((n, n), dtype=bool), -1)  # lower[i, j]: j < i
+        obstacle = (settled[:, None, :] | (lower[None] & ~teams.greedy[:, None, None])) & ~np.eye(n, dtype=bool)
+        agent_bits = bits.of(rules.flat(agents))  # (B, N)
+        obstacles = bits.union(np.where(obstacle, agent_bits[:, None, :], bits.zero), axis=2)
+        static = bits.union(np.where(batch.alive, bits.of(rules.flat(batch.targets)), bits.zero), axis=1)
+        free = bits.full ^ (static | bits.union(agent_bits, axis=1))
+        intended = navigate(rules, bits, agents, goals, static, obstacles, free, teams.greedy, uniforms)
+        intended = np.where(batch.alive.any(axis=1)[:, None], intended, INTERACT)
+        wanted, _ = rules.normalise(agents + MOVES[intended])
+        flat, moving = rules.flat(wanted), intended != INTERACT
+        clash = np.any(lower[None] & moving[:, None, :] & (flat[:, None, :] == flat[:, :, None]), axis=-1)
+        return np.where(moving & clash, INTERACT, intended)
+
+
+_PLANNERS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def planner_for(rules: GridRules) -> TeamPlanner:
+    """The (cached) batched planner of ``rules``."""
+    if rules not in _PLANNERS:
+        _PLANNERS[rules] = TeamPlanner(rules)
+    return _PLANNERS[rules]
 
 
 def team_actions(rules: GridRules, state: GridState, task: Task, spec: TeamSpec, rng: np.random.Generator,
                  members: range | list[int] | None = None) -> np.ndarray:
-    """Actions of the listed members (default: everyone) of a team of type ``spec`` doing ``task``.
-
-    Every member computes the whole team's plan (assuming all follow the team policy) and members resolve
-    stalemates by index, as the thesis's teams do: every member plans around teammates already on their goal;
-    path-planning members also plan around lower-index members (prioritised planning); and when several intend to enter
-    the same cell all but the lowest index wait. ``rng`` breaks ties between equally short moves and lets a
-    blocked member sidestep at random (see :func:`navigate`); the team is deterministic given its Generator.
-    """
+    """Actions of the listed members (default: everyone) of a team of type ``spec`` doing ``task`` in one env:
+    :meth:`TeamPlanner.actions` with B=1 on ``rng.random((N, TEAM_DRAWS))`` (drawn every call)."""
     n = rules.config.n_agents
-    if not state.alive.any():
-        intended = np.full(n, INTERACT, dtype=np.int64)
-    else:
-        goals = np.array([member_goal(rules, state, task, i, spec) for i in range(n)])
-        settled = np.all(goals == state.agents, axis=1)
-        intended = np.empty(n, dtype=np.int64)
-        for i in range(n):
-            # greedy members ignore teammates on the move; path planners also avoid lower-index members
-            obstacles = settled | (np.arange(n) < i) if spec.navigation == "path" else settled
-            intended[i] = navigate(rules, state, i, goals[i], obstacles, rng,
-                                   greedy_axis=spec.navigation == "greedy")
-    wanted, _ = rules.normalise(state.agents + MOVES[intended])
-    flat = wanted[:, 0] * rules.config.cols + wanted[:, 1]
-    moving = intended != INTERACT
-    for i in range(n):
-        if moving[i] and np.any(moving[:i] & (flat[:i] == flat[i])):
-            intended[i] = INTERACT
+    uniforms = rng.random((1, n, TEAM_DRAWS))
+    offsets = np.array(task.offsets, dtype=np.int64)[None]
+    intended = planner_for(rules).actions(GridBatch.stack([state]), offsets, task.interchangeable,
+                                          TeamTable.of([spec]), uniforms)[0]
     return intended[list(range(n)) if members is None else list(members)]
 
 

@@ -1,0 +1,156 @@
+"""Many foraging or pursuit grid envs stepped at once in numpy, for training (ATLPO, thesis chapter 6).
+
+:class:`GridVectorEnv` is a ``gymnasium.vector.VectorEnv`` equivalent to ``SyncVectorEnv`` over copies of
+``EmbodiedAdhoc/ForagingGrid-v0`` or ``EmbodiedAdhoc/PursuitGrid-v0`` (abstract backend, grid observations),
+step for step and draw for draw: each sub-env keeps its own seeded ``numpy.random.Generator`` and consumes it
+exactly as the single env does (the episode draw at reset through the env's own
+:meth:`~embodied_adhoc.envs.grid_world_env.GridWorldCore.reset`; per step ``TEAM_DRAWS`` uniforms per member for
+the scripted team, then two per prey in pursuit). The rules, the scripted teams (tau0-tau2 and the others) and
+the observations are the single env's own batched implementation (:meth:`GridRules.plan_batch`,
+:class:`TeamPlanner`, :func:`egocentric_batch`), called once for all sub-envs instead of once per env.
+
+Autoreset: gymnasium's default ``AutoresetMode.NEXT_STEP``. The step that ends an episode returns its last
+observation with ``terminated``/``truncated`` set; the next ``step`` ignores that sub-env's action, resets it and
+returns the first observation of the new episode with reward 0 and both flags False. ``truncated`` comes from
+``max_episode_steps`` (the registered spec's TimeLimit, 200, unless given), as the TimeLimit wrapper does.
+
+``infos``: ``task`` (1-based) and ``team`` (index into ``team_names``) of every sub-env's current episode, with
+their ``_task``/``_team`` masks (ground truth for evaluation and for training per-environment policies).
+"""
+
+from __future__ import annotations
+
+import gymnasium
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from embodied_adhoc.domains.grid_rules import GridBatch
+from embodied_adhoc.domains.grid_rules_obs import egocentric_batch
+from embodied_adhoc.domains.grid_rules_team import TEAM_DRAWS, TeamTable, planner_for
+from embodied_adhoc.errors import ConfigError
+
+GRID_IDS = {"foraging": "EmbodiedAdhoc/ForagingGrid-v0", "pursuit": "EmbodiedAdhoc/PursuitGrid-v0"}
+
+
+class GridVectorEnv(gymnasium.vector.VectorEnv):
+    """``num_envs`` ad hoc grid envs (``domain`` foraging or pursuit; ``env_kwargs`` as for the single env's
+    ``gymnasium.make``: tasks, teams, rows, cols, n_agents, toroidal, view, ...). Agent 0 of each sub-env is the
+    learner (the action), agents 1..N-1 its episode's scripted team."""
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, domain: str, num_envs: int, max_episode_steps: int | None = None, **env_kwargs) -> None:
+        import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+
+        if domain not in GRID_IDS:
+            raise ConfigError(f"domain={domain!r}: use one of {sorted(GRID_IDS)}")
+        if not isinstance(num_envs, int) or num_envs < 1:
+            raise ConfigError(f"num_envs={num_envs!r}: give a positive integer")
+        for key in ("backend", "obs_mode", "render_mode"):
+            if key in env_kwargs:
+                raise ConfigError(f"{key}: the vector env is the abstract grid twin with grid observations only")
+        probe = gymnasium.make(GRID_IDS[domain], **env_kwargs)
+        self.max_episode_steps = int(max_episode_steps or probe.spec.max_episode_steps or 10**9)
+        if self.max_episode_steps < 1:
+            raise ConfigError(f"max_episode_steps={max_episode_steps}: give a positive integer")
+        self.core = probe.unwrapped.core  # its reset draws every episode (one mechanism with the single env)
+        self.rules, self.view = self.core.rules, self.core.view
+        self.planner = planner_for(self.rules)
+        self.offsets = np.array([task.offsets for task in self.core.tasks], dtype=np.int64)  # (T, N, 2)
+        self.interchangeable = self.core.tasks[0].interchangeable
+        self.team_names = tuple(self.core.teams)
+        self.team_table = TeamTable.of([self.core.teams[name] for name in self.team_names])
+        cfg = self.rules.config
+        self.draws = TEAM_DRAWS * cfg.n_agents + self.rules.prey_draws()
+
+        self.num_envs = num_envs
+        self.single_observation_space = self.core.observation_space()
+        self.single_action_space = gymnasium.spaces.Discrete(5)
+        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self.action_space = batch_space(self.single_action_space, num_envs)
+        self.batch = GridBatch(np.zeros((num_envs, cfg.n_agents, 2), np.int64), np.ones((num_envs, cfg.n_agents), np.int64),
+                               np.zeros((num_envs, cfg.n_targets, 2), np.int64),
+                               np.ones((num_envs, cfg.n_targets), np.int64), np.ones((num_envs, cfg.n_targets), bool))
+        self.task_index = np.zeros(num_envs, np.int64)  # 0-based into core.tasks
+        self.team_index = np.zeros(num_envs, np.int64)
+        self.steps = np.zeros(num_envs, np.int64)
+        self.needs_reset = np.zeros(num_envs, bool)
+        self.rngs: list[np.random.Generator] = []
+        self.observers = np.zeros((num_envs, 1), np.int64)
+
+    def _reset_one(self, index: int, options: dict | None) -> None:
+        self.core.reset(self.rngs[index], options)
+        episode = self.core.episode
+        self.batch.put(index, episode.state)
+        self.task_index[index] = episode.task_number - 1
+        self.team_index[index] = self.team_names.index(episode.team)
+        self.steps[index] = 0
+        self.needs_reset[index] = False
+
+    def _observations(self) -> np.ndarray:
+        return egocentric_batch(self.rules, self.batch, self.observers, self.view)[:, 0]
+
+    def _infos(self) -> dict:
+        every = np.ones(self.num_envs, bool)
+        return {"task": self.task_index + 1, "_task": every, "team": self.team_index.copy(), "_team": every}
+
+    def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
+        """Reset every sub-env; ``seed`` an int (sub-env ``i`` gets ``seed + i``, as ``SyncVectorEnv``) or one
+        seed per sub-env; ``options`` as the single env's (task, team, state), applied to every sub-env."""
+        if seed is None or isinstance(seed, int):
+            seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ConfigError(f"seed: {len(seeds)} seeds for {self.num_envs} sub-envs; give one each or an int")
+        if not self.rngs or seed is not None:
+            self.rngs = [seeding.np_random(s)[0] for s in seeds]
+        for index in range(self.num_envs):
+            self._reset_one(index, options)
+        return self._observations(), self._infos()
+
+    def step(self, actions):
+        if not self.rngs:
+            raise gymnasium.error.ResetNeeded("call reset() before step()")
+        actions = np.asarray(actions)
+        if actions.shape != (self.num_envs,) or actions.dtype.kind not in "iu" or np.any((actions < 0) | (actions > 4)):
+            raise ConfigError(f"actions {actions.tolist()!r}: need {self.num_envs} integers in 0..4 "
+                              "(up, down, left, right, interact)")
+        resetting = self.needs_reset.copy()
+        stepping = np.flatnonzero(~resetting)
+        rewards = np.zeros(self.num_envs, np.float64)
+        terminated = np.zeros(self.num_envs, bool)
+        truncated = np.zeros(self.num_envs, bool)
+        if stepping.size:
+            self._step_batch(stepping, actions[stepping].astype(np.int64), rewards, terminated, truncated)
+        for index in np.flatnonzero(resetting):
+            self._reset_one(int(index), None)
+        return self._observations(), rewards, terminated, truncated, self._infos()
+
+    def _step_batch(self, idx: np.ndarray, actions: np.ndarray, rewards, terminated, truncated) -> None:
+        cfg = self.rules.config
+        n = cfg.n_agents
+        uniforms = np.stack([self.rngs[i].random(self.draws) for i in idx.tolist()])  # same order as one env
+        team_uniforms = uniforms[:, :TEAM_DRAWS * n].reshape(len(idx), n, TEAM_DRAWS)
+        prey_uniforms = uniforms[:, TEAM_DRAWS * n:].reshape(len(idx), cfg.n_targets, 2) if self.rules.prey_draws() else None
+        full = idx.size == self.num_envs
+        b = self.batch
+        sub = b if full else GridBatch(b.agents[idx], b.agent_levels[idx], b.targets[idx], b.target_levels[idx],
+                                       b.alive[idx])
+        offsets = self.offsets[self.task_index[idx]]
+        team = self.planner.actions(sub, offsets, self.interchangeable, self.team_table.take(self.team_index[idx]),
+                                    team_uniforms)
+        joint = np.concatenate([actions[:, None], team[:, 1:]], axis=1)
+        plan = self.rules.plan_batch(sub, offsets, self.interchangeable, joint, prey_uniforms)
+        b.agents[idx], b.targets[idx] = plan.agents, plan.targets
+        b.alive[idx] = sub.alive & ~plan.completed
+        self.steps[idx] += 1
+        done = ~b.alive[idx].any(axis=1)
+        terminated[idx], rewards[idx] = done, done.astype(np.float64)
+        truncated[idx] = self.steps[idx] >= self.max_episode_steps
+        self.needs_reset[idx] = done | truncated[idx]
+
+    def close_extras(self, **kwargs) -> None:
+        self.core.backend.close()

@@ -1,0 +1,67 @@
+"""The vectorised grid core against the single env (thesis section 6.2; issue 15 item 1)."""
+
+import gymnasium
+import numpy as np
+import pytest
+
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.vector_grid import GRID_IDS, GridVectorEnv
+
+CASES = [
+    ("foraging", {}),
+    ("pursuit", {}),
+    ("foraging", {"teams": ("tau2",), "tasks": (3,), "toroidal": True}),
+    ("foraging", {"n_apples": 2, "rows": 6, "cols": 7}),
+    ("pursuit", {"pairs": True}),
+    ("pursuit", {"n_agents": 3, "toroidal": True, "rows": 6}),
+]
+
+
+def reference_vector(domain, num_envs, max_steps, kwargs):
+    return gymnasium.vector.SyncVectorEnv(
+        [lambda: gymnasium.make(GRID_IDS[domain], max_episode_steps=max_steps, **kwargs) for _ in range(num_envs)],
+        autoreset_mode=gymnasium.vector.AutoresetMode.NEXT_STEP)
+
+
+@pytest.mark.parametrize(("domain", "kwargs"), CASES)
+def test_vector_env_matches_the_single_env_step_for_step(domain, kwargs):
+    """Every sub-env equals a SyncVectorEnv of the registered single env: observations, rewards, flags,
+    autoresets (NEXT_STEP) and the episode's task/team, over every team and task the library draws."""
+    num_envs, max_steps = 12, 25
+    fast = GridVectorEnv(domain, num_envs, max_episode_steps=max_steps, **kwargs)
+    slow = reference_vector(domain, num_envs, max_steps, kwargs)
+    for seed in (0, 100):
+        obs, info = fast.reset(seed=seed)
+        ref_obs, ref_info = slow.reset(seed=seed)
+        assert np.array_equal(obs, ref_obs)
+        assert np.array_equal(info["task"], ref_info["task"])
+        assert [fast.team_names[t] for t in info["team"]] == list(ref_info["team"])
+        actions_rng = np.random.default_rng(seed)
+        ended = 0
+        for _ in range(120):
+            actions = actions_rng.integers(0, 5, num_envs)
+            obs, reward, terminated, truncated, info = fast.step(actions)
+            ref = slow.step(actions)
+            assert np.array_equal(obs, ref[0])
+            assert np.array_equal(reward, ref[1])
+            assert np.array_equal(terminated, ref[2]) and np.array_equal(truncated, ref[3])
+            assert [fast.team_names[t] for t in info["team"]] == list(ref[4]["team"])
+            ended += int(terminated.sum() + truncated.sum())
+        assert ended > num_envs  # autoresets were exercised
+
+
+def test_vector_env_seeding_is_deterministic_and_checks_actions():
+    first, second = GridVectorEnv("pursuit", 4), GridVectorEnv("pursuit", 4)
+    a, _ = first.reset(seed=7)
+    b, _ = second.reset(seed=7)
+    assert np.array_equal(a, b)
+    for _ in range(30):
+        actions = np.array([0, 1, 4, 3])
+        assert np.array_equal(first.step(actions)[0], second.step(actions)[0])
+    assert first.observation_space.shape == (4, 5, 5, 5)
+    with pytest.raises(ConfigError, match="actions"):
+        first.step(np.array([0, 1, 5, 3]))
+    with pytest.raises(ConfigError, match="actions"):
+        first.step(np.array([0, 1, 2]))
+    with pytest.raises(ConfigError, match="backend"):
+        GridVectorEnv("foraging", 2, backend="mujoco")
