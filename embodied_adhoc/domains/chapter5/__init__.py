@@ -11,10 +11,9 @@ pursuit-task/-teammate/   :func:`pursuit.build_pursuit`                     626
 -both
 ntu isr mit pentagon cit  :func:`navigation.build_map_library`              n(n-1)+1: 241 ... 4,831
 map (``map=PATH``)        :func:`navigation.build_map_library`              n(n-1)+1
+power-plant               :func:`power_plant.build_power_plant`             105 / 97 (one per task)
 overcooked                :func:`overcooked.build_overcooked`               1,730
 ========================  ================================================  ===========================
-
-The abandoned power plant (105 / 97 states, one state space per task) is not built yet.
 """
 
 from __future__ import annotations
@@ -29,6 +28,7 @@ CHAPTER5_DOMAINS = (
     "pursuit-task",
     "pursuit-teammate",
     "pursuit-both",
+    "power-plant",
     "ntu",
     "isr",
     "mit",
@@ -42,7 +42,7 @@ CHAPTER5_DOMAINS = (
 def build_library(name: str, **options):
     """The :class:`~embodied_adhoc.domains.chapter5.library.ModelLibrary` of domain ``name`` (options: the
     builder's keyword arguments; ``map`` needs ``map=PATH``)."""
-    from embodied_adhoc.domains.chapter5 import navigation, overcooked, panic_buttons, pursuit
+    from embodied_adhoc.domains.chapter5 import navigation, overcooked, panic_buttons, power_plant, pursuit
 
     if name == "panic-buttons":
         return panic_buttons.build_panic_buttons(**options)
@@ -60,6 +60,8 @@ def build_library(name: str, **options):
                 "domain 'map' needs a map file: --map PATH ('#' blocked, '.' open, 'S' start, 'G' goal)"
             )
         return navigation.build_map_library(path, **options)
+    if name == "power-plant":
+        return power_plant.build_power_plant(**options)
     if name == "overcooked":
         return overcooked.build_overcooked(**options)
     raise ConfigError(f"unknown chapter-5 domain {name!r}; choose from {', '.join(CHAPTER5_DOMAINS)}")

@@ -59,6 +59,18 @@ class ModelLibrary:
     absorbing_state: int
     description: str = ""
     settings: dict = field(default_factory=dict)
+    # Power plant: the tasks' own state spaces (the ``pomdps`` are padded to one size) and absorbing states.
+    native_pomdps: tuple[POMDP, ...] | None = None
+    absorbing_states: tuple[int, ...] | None = None
+
+    def absorbing(self, model: int) -> int:
+        """The absorbing state of ``model`` (where an episode is over)."""
+        return self.absorbing_state if self.absorbing_states is None else self.absorbing_states[model]
+
+    @property
+    def shares_states(self) -> bool:
+        """Whether every model has the same state space (BOPA and ``mdps`` need it)."""
+        return self.native_pomdps is None
 
     @property
     def n_models(self) -> int:
@@ -103,6 +115,8 @@ class ModelLibrary:
             self.absorbing_state,
             self.description,
             {**self.settings, "models": models},
+            None if self.native_pomdps is None else tuple(self.native_pomdps[m] for m in models),
+            None if self.absorbing_states is None else tuple(self.absorbing_states[m] for m in models),
         )
 
 
