@@ -58,7 +58,7 @@ def abstract_step_seconds(episodes: int) -> float:
 
 def physics_step_seconds(episodes: int, record: bool, args: BenchArgs) -> tuple[float, float]:
     """Mean wall seconds per macro step and simulated seconds per macro step of ``run toxic-waste``."""
-    from embodied_adhoc.envs.toxic_waste_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
 
     wall = sim = steps = 0.0
     with tempfile.TemporaryDirectory() as folder:

@@ -108,8 +108,8 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     if not os.environ.get("DISPLAY"):
         os.environ.setdefault("MUJOCO_GL", "egl")
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
-    from embodied_adhoc.envs.toxic_waste_episode import EpisodeConfig, run_episode
     from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
 
     if args.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {args.max_steps}")
@@ -146,6 +146,9 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
 
     try:
         outcome = run_episode(config, progress)
+        if bar is not None and outcome.metrics["success"]:
+            bar.total = bar.n  # finished before the step cap: close the bar as done (100 %, no ETA)
+            bar.refresh()
     finally:
         if bar is not None:
             bar.close()

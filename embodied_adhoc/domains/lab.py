@@ -32,6 +32,7 @@ from embodied_adhoc.domains.lab_graph import (
     LabGraph,
     validate_tasks,
 )
+from embodied_adhoc.domains.lab_human import HumanOutcome, LabHuman
 from embodied_adhoc.domains.lab_observations import (
     LabObservation,
     ObservationConfig,
@@ -40,7 +41,6 @@ from embodied_adhoc.domains.lab_observations import (
 )
 from embodied_adhoc.domains.lab_states import LabStateSpace
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.teammates.lab_human import HumanOutcome, LabHuman
 
 __all__ = [
     "DEFAULT_GRAPH",

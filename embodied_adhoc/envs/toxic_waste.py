@@ -219,9 +219,7 @@ class ToxicWasteEnv(gymnasium.Env):
                 command = HumanCommand.move_to(outcome.next_node)
             else:
                 command = HumanCommand.stay()
-        target = (
-            lib.graph.move_target(self._robot_believed_node, action) if action < lib.stay_action else None
-        )
+        target = self.move_target(action)
         self._step_index += 1
         result = self.world.step_macro(target, command, self._on_frame if self._frame_sink else None)
         truth = self.world.ground_truth()
@@ -246,6 +244,14 @@ class ToxicWasteEnv(gymnasium.Env):
         info = self._info(observation, truth, entered, result, utterances, speech_audio)
         info["human_command"] = f"{command.kind}" + ("" if command.target is None else f" {command.target}")
         return observation.to_vector(), reward, terminated, truncated, info
+
+    def move_target(self, action: int) -> int | None:
+        """The node ``action`` drives to if taken now: that neighbour of the robot's believed (odometry) node,
+        exactly as ``step`` maps it (a k beyond the degree: the lowest); None for "stay" and "locate human"."""
+        lib = self.library
+        if int(action) >= lib.stay_action:
+            return None
+        return lib.graph.move_target(self._robot_believed_node, int(action))
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array":

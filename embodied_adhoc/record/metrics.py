@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import json
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -32,17 +33,22 @@ from typing import Any
 import numpy as np
 
 from embodied_adhoc.atomic import atomic_write_text
-from embodied_adhoc.experiments.stats import identify_step
 
 SCHEMA_VERSION = 1
 
 
 @dataclass
 class EpisodeMetrics:
-    """Accumulates one episode's per-step records; :meth:`summary` gives the ``metrics.json`` payload."""
+    """Accumulates one episode's per-step records; :meth:`summary` gives the ``metrics.json`` payload.
+
+    ``identify`` computes thesis Metric 2 from the posterior history (rows: prior, then after each step) and the
+    true task: the caller passes the project's one definition (``experiments.stats.identify_step``), so that this
+    layer does not import ``experiments/`` (``tests/test_layers.py``); None leaves ``identify_step`` null.
+    """
 
     config: dict[str, Any] = field(default_factory=dict)
     true_task: int | None = None
+    identify: Callable[[np.ndarray, int], int | None] | None = None
     per_step: list[dict[str, Any]] = field(default_factory=list)
     task_posteriors: list[np.ndarray] = field(default_factory=list)
     success: bool = False
@@ -97,9 +103,9 @@ class EpisodeMetrics:
 
     @property
     def identify_step(self) -> int | None:
-        if self.true_task is None or not self.task_posteriors:
+        if self.identify is None or self.true_task is None or not self.task_posteriors:
             return None
-        return identify_step(np.stack(self.task_posteriors), self.true_task)
+        return self.identify(np.stack(self.task_posteriors), self.true_task)
 
     def summary(self) -> dict[str, Any]:
         step_times = np.array([record["wall_time_s"] for record in self.per_step], dtype=np.float64)

@@ -48,8 +48,8 @@ class LabWorldConfig:
         min_macro_seconds: a macro step lasts at least this long (a "stay" still lets time pass).
         video_fps: rate (simulated frames per second) at which ``frame_callback`` is called.
         render_width, render_height: default image size of ``render``.
-        render_quality: "fast" (no shadows, no reflections, untextured floor: software EGL without a GPU
-            renders several times faster) or "high" (everything; what ``render lab`` uses for stills).
+        render_quality: "fast" (no shadows, reflections, floor texture or anti-aliasing: software EGL without
+            a GPU renders several times faster) or "high" (everything; what ``render lab`` uses for stills).
         scene: scene file in ``scenes/``.
     """
 
@@ -291,11 +291,11 @@ class LabWorld:
                 f"render size {width}x{height} outside 1x1..{max_width}x{max_height} (the scene's offscreen "
                 "buffer, <visual><global offwidth offheight> in scenes/lab.xml)"
             )
-        renderer = self._renderers.get((width, height))
-        if renderer is None:
-            renderer = mujoco.Renderer(self.model, height=height, width=width)
-            self._renderers[(width, height)] = renderer
         high = self.config.render_quality == "high"
+        renderer = self._renderers.get((width, height, high))
+        if renderer is None:
+            renderer = self._make_renderer(width, height, high)
+            self._renderers[(width, height, high)] = renderer
         self.model.geom_matid[self.ids.floor_tiles] = (
             self.ids.floor_textured if high else self.ids.floor_plain
         )
@@ -317,6 +317,22 @@ class LabWorld:
         self.close()
 
     # ------------------------------------------------------------------------------------------ internals
+    def _make_renderer(self, width: int, height: int, high: bool) -> mujoco.Renderer:
+        """An offscreen renderer whose framebuffer is exactly ``width`` x ``height``; "fast" quality also drops
+        multisample anti-aliasing. MuJoCo sizes the framebuffer from ``<global offwidth offheight>`` and
+        ``<quality offsamples>`` (1920x1536 and 4 samples in ``scenes/lab.xml``, for stills) when the context is
+        made; with software EGL clearing and resolving that buffer dominated a small frame (4x the CPU per
+        640x512 frame, ``scripts/bench_sim.py``). The model's values are restored right after."""
+        visual = self.model.vis
+        saved = (visual.global_.offwidth, visual.global_.offheight, visual.quality.offsamples)
+        visual.global_.offwidth, visual.global_.offheight = width, height
+        if not high:
+            visual.quality.offsamples = 0
+        try:
+            return mujoco.Renderer(self.model, height=height, width=width)
+        finally:
+            visual.global_.offwidth, visual.global_.offheight, visual.quality.offsamples = saved
+
     def _physics(self, steps: int) -> None:
         mujoco.mj_step(self.model, self.data, nstep=steps)
 

@@ -5,8 +5,9 @@ import subprocess
 import sys
 
 import imageio.v2 as imageio
+import numpy as np
 
-from embodied_adhoc.envs.toxic_waste_episode import EpisodeConfig, run_episode
+from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
 from embodied_adhoc.record.rerun_recorder import ENTITY_PATHS
 
 
@@ -37,7 +38,10 @@ def test_recorded_episode_files(tmp_path):
     assert len(frames) == outcome.video_frames > 0
     assert frames[0].shape == (48, 64, 3)
     simulated = metrics["sim_time_s"] - 0.3  # the world settles for 0.3 s before the first frame
-    assert abs(len(frames) - simulated * 10.0 / 5.0) <= 2
+    hold = 10  # the final state, held for video_hold = 1 s at 10 fps
+    assert abs(len(frames) - (simulated * 10.0 / 5.0 + hold)) <= 2
+    # the video ends on the final state, rendered after the last step: the held frames are one image
+    assert all(np.abs(frame.astype(int) - frames[-1]).mean() < 2 for frame in frames[-hold:])
     entities = recorded_entities(tmp_path / "episode.rrd")
     expected = [e for e in ENTITY_PATHS if e != "speech/audio"]  # audio only with --speech audio
     missing = [e for e in expected if not any(n == e or n.startswith(e + "/") for n in entities)]

@@ -1,7 +1,9 @@
 """The scripted human cleaner of the toxic-waste lab (thesis section 7.1, "The Human Teammate").
 
 One policy, used by the abstract model (to build the task MMDPs and the averaged transitions of Eq. 7.1), by the
-abstract simulator and by the embodied MuJoCo env. The human knows the task (where the balls lie) and sees the
+abstract simulator and by the embodied MuJoCo env. It lives in ``domains/`` because the lab's models are built from
+it (it is one of the lab's rules); ``teammates/`` sits above ``domains/`` and holds the grid domains' labelled team
+types (``tests/test_layers.py`` checks the direction). The human knows the task (where the balls lie) and sees the
 state. Rules:
 
 * holding a ball: wait where it was picked up (humans "were unable to move if they had picked up any balls");

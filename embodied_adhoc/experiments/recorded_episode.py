@@ -1,0 +1,325 @@
+"""One recorded toxic-waste episode on physics: what ``embodied-adhoc run toxic-waste`` runs.
+
+Seeds, episode draw, agent construction and the loop are exactly those of the trial runner (the ``toxic-waste``
+trial domain and :func:`embodied_adhoc.experiments.episode.run_episode_loop`), so ``run --seed S`` replays
+episode 0 of ``trials toxic-waste --backend mujoco --seed S`` for the same agent. On top, an observer records every
+step: video frames (overhead camera at the rate the video keeps, encoded on a writer thread, the final state held
+for ``video_hold`` seconds), a rerun recording and ``metrics.json``. Recorders are closed in ``finally``: an
+interrupted run keeps what it finished.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord, run_episode_loop
+
+ENV_ID = "EmbodiedAdhoc/ToxicWaste-v0"
+HUD_ORDER = ("balls", "action", "heard", "belief")
+
+
+@dataclass(frozen=True)
+class EpisodeConfig:
+    """What one ``run toxic-waste`` episode is (CLI flags map one to one)."""
+
+    agent: str = "hotspot"
+    seed: int = 0
+    task: int | None = None
+    robot_node: int | None = None
+    human_node: int | None = None
+    human_epsilon: float = 0.05
+    communication: bool = True
+    speech: str = "channel"
+    confusion: str = DEFAULT_CONFUSION
+    max_steps: int = 100
+    record_dir: Path | None = None
+    video_fps: float = 15.0
+    video_speed: float = 4.0  # simulated seconds per second of video (time-lapse keeps rendering affordable)
+    video_hold: float = 1.0  # seconds of video that show the final state
+    render_quality: str = "fast"
+    width: int = 640
+    height: int = 480
+    rerun_camera_hz: float = 2.0
+    video_overlay: bool = True  # heads-up text (step, action, what was heard, task belief) on the video
+    env_kwargs: dict = field(default_factory=dict)
+
+
+@dataclass
+class EpisodeOutcome:
+    metrics: dict[str, Any]
+    files: dict[str, Path]
+    video_frames: int = 0
+
+
+def describe_observation(library, observation_index: int) -> str:
+    """The decoded observation in words: odometry node, human node heard, RFID."""
+    z = library.decode_observation(observation_index)
+    names = library.graph.names
+    robot = "unknown" if z.robot_node is None else f"{z.robot_node} {names[z.robot_node]}"
+    human = "none" if z.human_node is None else f"{z.human_node} {names[z.human_node]}"
+    return f"robot at {robot}; human at {human}; rfid {'YES' if z.rfid else 'no'}"
+
+
+def action_label(library, action: int, target: int | None) -> str:
+    """A macro action by what it does: a move by the node it drives to (``env.move_target``), else its name."""
+    if target is None:
+        return library.action_names[action]
+    return f"move to {target} {library.graph.names[target]}"
+
+
+class _Progress(EpisodeObserver):
+    def __init__(self, progress: Callable[[int, dict], None]):
+        self.progress = progress
+
+    def step_finished(self, record: StepRecord) -> None:
+        self.progress(record.step, record.info)
+
+
+class _Metrics(EpisodeObserver):
+    """Feeds :class:`~embodied_adhoc.record.metrics.EpisodeMetrics` (``metrics.json``)."""
+
+    def __init__(self, metrics, library):
+        self.metrics, self.library = metrics, library
+
+    def episode_started(self, info: dict, task_posterior) -> None:
+        self.metrics.start_episode(task_posterior)
+
+    def step_started(self, step: int) -> None:
+        self.metrics.start_step()
+
+    def step_finished(self, record: StepRecord) -> None:
+        from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
+
+        posterior = record.task_posterior
+        entropy = None if posterior is None else max(0.0, float(normalised_entropy(posterior)))
+        self.metrics.end_step(
+            record.action,
+            describe_observation(self.library, record.observation_index),
+            record.reward,
+            record.info["sim_time"],
+            posterior,
+            entropy,
+            record.info["utterances"],
+        )
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        self.metrics.finish(success=trace.success, truncated=trace.truncated)
+
+
+class _Recording(EpisodeObserver):
+    """Video and rerun recording of a physics episode, fed by the env's frame sink and the loop's hooks."""
+
+    def __init__(self, config: EpisodeConfig, env, library, spec: dict, files: dict[str, Path]):
+        from embodied_adhoc.record.rerun_recorder import RerunRecorder
+        from embodied_adhoc.record.video import VideoWriter
+
+        self.config, self.env, self.library, self.spec = config, env, library, spec
+        folder = Path(config.record_dir)
+        folder.mkdir(parents=True, exist_ok=True)
+        files["video"] = folder / "episode.mp4"
+        files["rerun"] = folder / "episode.rrd"
+        self.video = VideoWriter(files["video"], config.width, config.height, fps=config.video_fps)
+        name = f"toxic-waste {config.agent} seed {config.seed}"
+        self.rerun = RerunRecorder(files["rerun"], recording_name=name)
+        self.hud: dict[str, str] = {}
+        self.labels: dict[int, str] = {}
+        self._sim_time = 0.0
+        self._next_camera = 0.0
+        self._camera_period = 1.0 / config.rerun_camera_hz if config.rerun_camera_hz > 0 else float("inf")
+        env.unwrapped.set_frame_sink(self._on_frame)
+
+    def _overlay(self, sim_time: float) -> list[str] | None:
+        if not self.config.video_overlay:
+            return None
+        return [self.hud[key] for key in HUD_ORDER if key in self.hud] + [f"t = {sim_time:.1f} s"]
+
+    def _hud_belief(self, posterior, info: dict) -> None:
+        disposed = sum(1 for status in info["ball_status"] if status == 2)
+        self.hud["balls"] = f"{self.config.agent} | balls in container {disposed}/{len(info['ball_status'])}"
+        if posterior is not None:
+            beliefs = "  ".join(
+                f"{list(task)} {p:.2f}" for task, p in zip(self.library.tasks, posterior, strict=True)
+            )
+            self.hud["belief"] = f"P(task): {beliefs}"
+
+    def _on_frame(self, frame: np.ndarray, snapshot: dict) -> None:
+        """Every frame the env renders is a frame of the video; rerun gets its poses, and the image at
+        ``rerun_camera_hz`` of simulated time."""
+        self.video.write(frame, self._overlay(snapshot["sim_time"]))
+        self.rerun.set_time(snapshot["step"], snapshot["sim_time"])
+        self.rerun.log_poses(
+            snapshot["robot_pose"],
+            snapshot["odometry_pose"],
+            snapshot["human_position"],
+            snapshot["ball_positions"],
+        )
+        if snapshot["sim_time"] + 1e-9 >= self._next_camera:
+            self.rerun.log_camera("overhead", frame)
+            self._next_camera = snapshot["sim_time"] + self._camera_period
+
+    # -- loop hooks ---------------------------------------------------------------------------------------
+    def episode_started(self, info: dict, task_posterior) -> None:
+        from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
+
+        self._hud_belief(task_posterior, info)
+        self._sim_time = float(info["sim_time"])
+        rerun, layout = self.rerun, self.env.unwrapped.layout
+        x0, x1, y0, y1 = layout.room_extent
+        rerun.log_lab(
+            np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]]),
+            {
+                f"{n} {name}": np.asarray(polygon)
+                for n, (name, polygon) in enumerate(zip(layout.node_names, layout.area_polygons, strict=True))
+            },
+            layout.node_waypoints,
+            layout.node_names,
+            layout.edges,
+        )
+        rerun.set_time(0, info["sim_time"])
+        rerun.log_poses(
+            info["robot_pose"], info["odometry_pose"], info["human_position"], info["ball_positions"]
+        )
+        if task_posterior is not None:
+            rerun.log_belief(task_posterior, float(normalised_entropy(task_posterior)))
+        tasks = ", ".join(f"{k}: balls at {list(t)}" for k, t in enumerate(self.library.tasks))
+        rerun.log_text(
+            "events",
+            f"start: robot at node {self.spec['robot_node']}, human at node {self.spec['human_node']}; "
+            f"task library {tasks}",
+        )
+
+    def action_chosen(self, step: int, action: int) -> None:
+        label = action_label(self.library, action, self.env.unwrapped.move_target(action))
+        self.labels[step] = label
+        self.hud["action"] = f"step {step}: {label}"
+
+    def step_finished(self, record: StepRecord) -> None:
+        from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
+
+        step, info, posterior, rerun = record.step, record.info, record.task_posterior, self.rerun
+        description = describe_observation(self.library, record.observation_index)
+        rerun.set_time(step, info["sim_time"])
+        rerun.log_text("actions", f"step {step}: {self.labels[step]}")
+        rerun.log_text("observations", f"step {step}: {description}")
+        for line in info.get("utterances", ()):
+            rerun.log_text("utterances", line)
+        if info.get("speech_audio") is not None:
+            rerun.log_audio(info["speech_audio"])
+        if info.get("rfid_event"):
+            rerun.log_text("events", f"step {step}: a ball entered the container")
+        if posterior is not None:
+            rerun.log_belief(posterior, max(0.0, float(normalised_entropy(posterior))))
+        rerun.log_camera("robot", self.env.unwrapped.render_camera("robot"))
+        self._hud_belief(posterior, info)
+        self._sim_time = float(info["sim_time"])
+        self.hud["heard"] = f"observed: {description}"
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        """The video ends on the final state (rendered now, with the final belief and ball count), held for
+        ``video_hold`` seconds; rerun gets the outcome."""
+        outcome = "success" if trace.success else "truncated"
+        self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
+        self.hud["action"] = f"done after {trace.steps} steps: {outcome}"
+        frame = self.env.unwrapped.render_camera("overhead")
+        hold = max(1, round(self.config.video_hold * self.config.video_fps))
+        self.video.write(frame, self._overlay(self._sim_time), repeat=hold)
+
+    def close(self) -> None:
+        try:
+            self.video.close()
+        finally:
+            self.rerun.close()
+
+
+def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+    """Run (and, with ``config.record_dir``, record) one episode; ``progress(step, info)`` after each step."""
+    import gymnasium
+
+    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.registry import get_trial_domain
+    from embodied_adhoc.experiments.stats import identify_step
+    from embodied_adhoc.record.metrics import EpisodeMetrics
+
+    domain = get_trial_domain("toxic-waste")
+    options = domain.options(
+        human_epsilon=config.human_epsilon,
+        communication=config.communication,
+        task=config.task,
+        confusion=config.confusion,
+    )
+    spec = domain.episode_spec(options, seeding.episode_rng(config.seed, 0))
+    if config.robot_node is not None:
+        spec["robot_node"] = int(config.robot_node)
+    if config.human_node is not None:
+        spec["human_node"] = int(config.human_node)
+    session = domain.open_session("mujoco", options)
+    library = session.library
+    recording = config.record_dir is not None
+    if not (config.video_fps > 0 and config.video_speed > 0 and config.video_hold >= 0):
+        raise ConfigError(
+            f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
+            f"video_hold ({config.video_hold}) >= 0"
+        )
+    kwargs = {
+        **session.env_kwargs,
+        "render_mode": "rgb_array" if recording else None,
+        "width": int(config.width),
+        "height": int(config.height),
+        "speech": config.speech,
+        "render_quality": config.render_quality,
+        # the video keeps video_fps frames per video_speed simulated seconds: the env renders exactly those
+        "frame_rate": config.video_fps / config.video_speed,
+        **config.env_kwargs,
+    }
+    # the step cap is the registered TimeLimit's, set to --max-steps
+    env = gymnasium.make(ENV_ID, max_episode_steps=int(config.max_steps), disable_env_checker=True, **kwargs)
+    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
+    metrics = EpisodeMetrics(
+        config={
+            "command": "run toxic-waste",
+            "agent": config.agent,
+            "seed": config.seed,
+            "spec": spec,
+            "options": options,
+            "speech": config.speech,
+            "max_steps": config.max_steps,
+        },
+        true_task=int(spec["task"]),
+        identify=identify_step,
+    )
+    files: dict[str, Path] = {}
+    observers: list[EpisodeObserver] = [_Metrics(metrics, library)]
+    recorder: _Recording | None = None
+    try:
+        if recording:
+            recorder = _Recording(config, env, library, spec, files)
+            observers.append(recorder)
+        if progress is not None:
+            observers.append(_Progress(progress))
+        run_episode_loop(
+            env,
+            agent,
+            env_seed=seeding.env_seed(config.seed, 0, config.agent),
+            agent_rng=seeding.agent_rng(config.seed, 0, config.agent),
+            reset_options=session.reset_options(spec),
+            max_steps=config.max_steps,
+            observation_index=session.observation_index,
+            observers=observers,
+        )
+    finally:
+        try:
+            if recorder is not None:
+                recorder.close()
+        finally:
+            env.close()
+            if recording:
+                files["metrics"] = metrics.write(Path(config.record_dir) / "metrics.json")
+    return EpisodeOutcome(metrics.summary(), files, 0 if recorder is None else recorder.video.frame_count)
