@@ -16,11 +16,12 @@ from __future__ import annotations
 import functools
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.sparse as sp
 
+from embodied_adhoc import checks
 from embodied_adhoc.decision.models import MDP, POMDP
 from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.domains.lab_graph import (
@@ -45,6 +46,7 @@ from embodied_adhoc.errors import ConfigError
 __all__ = [
     "DEFAULT_GRAPH",
     "DEFAULT_TASKS",
+    "LAB_PARAMETERS",
     "RESET_OPTIONS",
     "LabConfig",
     "LabGraph",
@@ -73,14 +75,63 @@ class LabReward:
 
 @dataclass(frozen=True)
 class LabConfig:
-    """Everything that defines a lab library (hashable: libraries are cached per configuration)."""
+    """The lab's parameters with their defaults, defined once (thesis section 7.1).
+
+    :func:`build_lab_library` takes them (same order), the abstract and the physics toxic-waste env take them as
+    their kwargs (:meth:`from_kwargs`) and the ``trials toxic-waste`` options map onto them. Values are checked
+    here, so every entry point refuses the same bad input with the same message (``communication="no"``,
+    ``human_epsilon=2``, a ball outside the graph). Hashable: libraries are cached per configuration.
+
+    ``confusion``: "measured" (default), "thesis" or a JSON path (``domains.confusion``); ``robot_node_accuracy``:
+    probability that the robot-node reading is right (else unknown); ``rfid_miss``: probability that the
+    container's reader misses a ball going in.
+    """
 
     graph: LabGraph = DEFAULT_GRAPH
     tasks: tuple[tuple[int, ...], ...] = DEFAULT_TASKS
     human_epsilon: float = 0.05
-    observation: ObservationConfig = ObservationConfig()
+    communication: bool = True
+    confusion: str = DEFAULT_CONFUSION
+    robot_node_accuracy: float = 0.99
+    rfid_miss: float = 0.0
     reward: LabReward = LabReward()
     discount: float = 0.95
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.graph, LabGraph):
+            raise ConfigError(f"graph={self.graph!r}: must be a domains.lab_graph.LabGraph")
+        if not isinstance(self.reward, LabReward):
+            raise ConfigError(f"reward={self.reward!r}: must be a domains.lab.LabReward")
+        if not isinstance(self.confusion, (str, os.PathLike)):
+            raise ConfigError(f"confusion={self.confusion!r}: use 'measured', 'thesis' or a JSON path")
+        discount = checks.number("discount", self.discount, 0.0, 1.0)
+        if discount >= 1.0:
+            raise ConfigError(f"discount must lie in [0, 1), got {self.discount}")
+        normalised = {
+            "tasks": validate_tasks(self.graph, self.tasks),
+            "human_epsilon": checks.number("human_epsilon", self.human_epsilon, 0.0, 1.0),
+            "communication": checks.flag("communication", self.communication),
+            "confusion": os.fspath(self.confusion),
+            "robot_node_accuracy": checks.number("robot_node_accuracy", self.robot_node_accuracy, 0.0, 1.0),
+            "rfid_miss": checks.number("rfid_miss", self.rfid_miss, 0.0, 1.0),
+            "discount": discount,
+        }
+        for name, value in normalised.items():
+            object.__setattr__(self, name, value)
+
+    @classmethod
+    def from_kwargs(cls, where: str, kwargs: dict) -> LabConfig:
+        """The configuration of keyword arguments given to ``where`` (unknown names refused)."""
+        checks.refuse_unknown(where, kwargs, LAB_PARAMETERS)
+        return cls(**kwargs)
+
+    @property
+    def observation(self) -> ObservationConfig:
+        return ObservationConfig(self.communication, self.robot_node_accuracy, self.rfid_miss, self.confusion)
+
+
+LAB_PARAMETERS = tuple(f.name for f in fields(LabConfig))
+"""The names of the lab's parameters (the toxic-waste envs' lab kwargs)."""
 
 
 def apply_step(
@@ -166,38 +217,27 @@ class LabLibrary:
         physics env, so the same seed and options start both in the same place.
         """
         options = dict(options or {})
-        unknown = set(options) - set(RESET_OPTIONS)
-        if unknown:
-            raise ConfigError(f"reset options {sorted(unknown)} not understood; use {', '.join(RESET_OPTIONS)}")
+        checks.refuse_unknown("reset options", options, RESET_OPTIONS, what="option")
         n = self.graph.n_nodes
         task = options.get("task", fixed_task)
-        task = int(rng.integers(self.n_tasks)) if task is None else int(task)
-        robot = int(options.get("robot_node", rng.integers(n)))
-        human = int(options.get("human_node", rng.integers(n)))
-        if not 0 <= task < self.n_tasks:
-            raise ConfigError(f"reset option task={task} outside 0..{self.n_tasks - 1}")
-        if not (0 <= robot < n and 0 <= human < n):
-            raise ConfigError(f"reset options robot_node={robot}, human_node={human} must lie in 0..{n - 1}")
+        task = int(rng.integers(self.n_tasks)) if task is None else task
+        # Both nodes are drawn even when imposed, so the env's later draws do not depend on which were imposed.
+        drawn_robot, drawn_human = int(rng.integers(n)), int(rng.integers(n))
+        robot = options.get("robot_node", drawn_robot)
+        human = options.get("human_node", drawn_human)
+        task = checks.integer("reset option task", task, 0, self.n_tasks - 1)
+        robot = checks.integer("reset option robot_node", robot, 0, n - 1)
+        human = checks.integer("reset option human_node", human, 0, n - 1)
         return task, robot, human
 
 
-def build_lab_library(
-    graph: LabGraph = DEFAULT_GRAPH,
-    tasks: Sequence[Sequence[int]] = DEFAULT_TASKS,
-    human_epsilon: float = 0.05,
-    communication: bool = True,
-    confusion: str | os.PathLike = DEFAULT_CONFUSION,
-    robot_node_accuracy: float = 0.99,
-    rfid_miss: float = 0.0,
-    reward: LabReward = LabReward(),
-    discount: float = 0.95,
-) -> LabLibrary:
-    """Build (or fetch from the per-process cache) the lab's task library; see the module docstring."""
-    observation = ObservationConfig(communication, float(robot_node_accuracy), float(rfid_miss), str(confusion))
-    if not 0.0 <= float(discount) < 1.0:
-        raise ConfigError(f"discount must lie in [0, 1), got {discount}")
-    config = LabConfig(graph, validate_tasks(graph, tasks), float(human_epsilon), observation, reward, float(discount))
-    return library_from_config(config)
+def build_lab_library(graph: LabGraph = DEFAULT_GRAPH, /, **parameters) -> LabLibrary:
+    """Build (or fetch from the per-process cache) the lab's task library; see the module docstring.
+
+    ``parameters`` are the fields of :class:`LabConfig` (tasks, human_epsilon, communication, confusion,
+    robot_node_accuracy, rfid_miss, reward, discount), with its defaults.
+    """
+    return library_from_config(LabConfig.from_kwargs("build_lab_library", {"graph": graph, **parameters}))
 
 
 @functools.lru_cache(maxsize=32)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from embodied_adhoc import checks
 from embodied_adhoc.errors import ConfigError
 
 __all__ = [
@@ -90,7 +91,16 @@ DEFAULT_TASKS: tuple[tuple[int, ...], ...] = ((0, 1, 2), (1, 2, 3))
 
 def validate_tasks(graph: LabGraph, tasks: Sequence[Sequence[int]]) -> tuple[tuple[int, ...], ...]:
     """Check a task library (ball nodes per task): non-empty, same number of balls, nodes inside the graph."""
-    result = tuple(tuple(int(n) for n in task) for task in tasks)
+    if isinstance(tasks, np.ndarray):
+        tasks = tasks.tolist()
+    placements = (Sequence, np.ndarray)
+    if not isinstance(tasks, Sequence) or isinstance(tasks, str) or not all(
+        isinstance(t, placements) and not isinstance(t, str) for t in tasks
+    ):
+        raise ConfigError(f"tasks={tasks!r}: give a list of ball placements (node lists), e.g. [[0, 1, 2], [1, 2, 3]]")
+    result = tuple(
+        tuple(checks.integer(f"tasks[{i}][{j}]", node) for j, node in enumerate(task)) for i, task in enumerate(tasks)
+    )
     if not result:
         raise ConfigError("tasks: give at least one ball placement, e.g. [[0, 1, 2], [1, 2, 3]]")
     sizes = {len(task) for task in result}

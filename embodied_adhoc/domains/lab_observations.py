@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION, ConfusionMatrix, load_confusion
+from embodied_adhoc.domains.confusion import ConfusionMatrix, load_confusion
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["LabObservation", "ObservationConfig", "ObservationModel", "observation_names"]
@@ -82,18 +82,12 @@ def observation_names(n_nodes: int) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class ObservationConfig:
-    """Sensor settings. ``confusion``: "measured" (default), "thesis" or a JSON path (see ``domains.confusion``)."""
+    """The sensor fields of ``domains.lab.LabConfig`` (which defines and checks them, with their defaults)."""
 
-    communication: bool = True
-    robot_node_accuracy: float = 0.99
-    rfid_miss: float = 0.0
-    confusion: str = DEFAULT_CONFUSION
-
-    def __post_init__(self) -> None:
-        for name in ("robot_node_accuracy", "rfid_miss"):
-            value = float(getattr(self, name))
-            if not 0.0 <= value <= 1.0:
-                raise ConfigError(f"ObservationConfig.{name} must lie in [0, 1], got {value}")
+    communication: bool
+    robot_node_accuracy: float
+    rfid_miss: float
+    confusion: str
 
 
 class ObservationModel:

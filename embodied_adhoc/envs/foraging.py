@@ -3,8 +3,10 @@
 
 from __future__ import annotations
 
+from embodied_adhoc import checks
 from embodied_adhoc.domains.foraging import foraging_config, foraging_tasks
-from embodied_adhoc.envs.grid_world_env_adhoc import AdhocGridEnv
+from embodied_adhoc.envs import contract
+from embodied_adhoc.envs.grid_world_env_adhoc import AdhocGridEnv, grid_sizes
 from embodied_adhoc.teammates.foraging_teams import FORAGING_TEAMS
 
 
@@ -39,12 +41,15 @@ class ForagingEnv(AdhocGridEnv):
     ``1..max_agent_level``, apple levels uniform in ``1..sum of agent levels``.
 
     ## Episode end
-    Terminated when all apples are foraged. Truncated by the registered ``max_episode_steps`` (200).
+    Terminated when all apples are foraged. Truncated by the registered ``TimeLimit`` (200 steps: the thesis
+    states no cap for chapter 6; ``gymnasium.make(id, max_episode_steps=N)`` changes it). ``step`` after the end
+    raises (``envs.contract``).
 
     ## Arguments
     ``gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0", tasks=(1, 2, 3, 4), teams=("tau0", "tau1", "tau2"),
     rows=5, cols=5, n_agents=4, n_apples=1, max_agent_level=2, toroidal=False, view=5, backend="abstract",
-    obs_mode="grid", image_size=64, render_mode=None)``. ``toroidal=True`` gives the thesis's wrap-around
+    obs_mode="grid", image_size=64, render_mode=None, physics=None)``; ``physics`` (a
+    ``sim.grid_arena_world.ArenaPhysics``) and ``image_size`` are MuJoCo-arena options. ``toroidal=True`` gives the thesis's wrap-around
     grid (grid twin only). ``reset(options={"task": 2, "team": "tau1", "state": {...}})`` imposes any of them.
 
     ## Info
@@ -55,10 +60,12 @@ class ForagingEnv(AdhocGridEnv):
     v0: initial release (grid twin and MuJoCo arena share rules and observation function).
     """
 
+    @contract.keywords()
     def __init__(self, tasks=None, teams=None, rows: int = 5, cols: int = 5, n_agents: int = 4, n_apples: int = 1,
                  max_agent_level: int = 2, toroidal: bool = False, view: int = 5, backend: str = "abstract",
-                 obs_mode: str = "grid", image_size: int = 64, render_mode: str | None = None, **backend_kwargs):
-        config = foraging_config(rows=rows, cols=cols, n_agents=n_agents, n_targets=n_apples,
-                                 max_agent_level=max_agent_level, toroidal=toroidal)
-        super().__init__(config, foraging_tasks(n_agents), FORAGING_TEAMS, tasks, teams, view, backend, obs_mode,
-                         image_size, render_mode, **backend_kwargs)
+                 obs_mode: str = "grid", image_size: int = 64, render_mode: str | None = None, physics=None):
+        sizes = grid_sizes(rows=rows, cols=cols, n_agents=n_agents, n_targets=n_apples,
+                           max_agent_level=max_agent_level)
+        config = foraging_config(toroidal=checks.flag("toroidal", toroidal), **sizes)
+        super().__init__(config, foraging_tasks(config.n_agents), FORAGING_TEAMS, tasks, teams, view, backend,
+                         obs_mode, image_size, render_mode, physics)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 
+from embodied_adhoc import checks
 from embodied_adhoc.domains.grid_rules import GridConfig, GridRules, GridState, StepPlan, Task
 from embodied_adhoc.domains.grid_rules_obs import (
     egocentric_observation,
@@ -26,6 +27,7 @@ from embodied_adhoc.errors import ConfigError
 
 BACKENDS = ("abstract", "mujoco")
 OBS_MODES = ("grid", "image")
+RESET_OPTIONS = ("task", "team", "state")
 
 
 class AbstractBackend:
@@ -44,28 +46,33 @@ class AbstractBackend:
         pass
 
 
-def make_backend(name: str, rules: GridRules, **kwargs):
+def make_backend(name: str, rules: GridRules, view: int, image_size: int = 64, physics=None):
+    """The backend ``name``; ``image_size`` and ``physics`` (a ``sim.grid_arena_world.ArenaPhysics``) are options
+    of the MuJoCo arena."""
     if name == "abstract":
+        if physics is not None:
+            raise ConfigError("physics: an option of the MuJoCo arena only (backend='mujoco')")
         return AbstractBackend(rules)
     if name == "mujoco":
         from embodied_adhoc.sim.grid_arena_world import GridArenaBackend
 
-        return GridArenaBackend(rules, **kwargs)
-    if kwargs:
-        raise ConfigError(f"{sorted(kwargs)}: options of the MuJoCo arena only (backend='mujoco')")
+        return GridArenaBackend(rules, view=view, image_size=image_size, physics=physics)
     raise ConfigError(f"backend={name!r}: use one of {BACKENDS}")
 
 
-def pick(name: str, chosen, library: dict | tuple):
-    """Validate a user's selection (task numbers from 1, or team names) against the library."""
+def pick(name: str, chosen, library: dict | tuple) -> tuple:
+    """Validate a user's selection against the library: task numbers (integers from 1) for a tuple library, team
+    names for a dict; one value or a list of them. None selects the whole library."""
+    valid = tuple(range(1, len(library) + 1)) if isinstance(library, tuple) else tuple(library)
     if chosen is None:
-        return tuple(range(1, len(library) + 1)) if isinstance(library, tuple) else tuple(library)
-    chosen = (chosen,) if isinstance(chosen, (int, str)) else tuple(chosen)
-    valid = range(1, len(library) + 1) if isinstance(library, tuple) else library
-    bad = [c for c in chosen if c not in valid]
-    if bad or not chosen:
-        raise ConfigError(f"{name}={list(chosen)}: choose from {list(valid)}")
-    return chosen
+        return valid
+    several = isinstance(chosen, (list, tuple)) or (isinstance(chosen, np.ndarray) and chosen.shape != ())
+    items = tuple(chosen) if several else (chosen,)
+    if not items:
+        raise ConfigError(f"{name}=[]: choose from {list(valid)}")
+    if isinstance(library, tuple):
+        return tuple(checks.integer(name, item, 1, len(library)) for item in items)
+    return tuple(checks.choice(name, item, valid) for item in items)
 
 
 @dataclass
@@ -80,18 +87,18 @@ class GridWorldCore:
     """Rules, library of tasks/teams, backend and the current episode; steps with every agent's action."""
 
     def __init__(self, config: GridConfig, tasks: tuple[Task, ...], teams: dict[str, TeamSpec],
-                 task_set=None, team_set=None, view: int = 5, backend: str = "abstract", **backend_kwargs) -> None:
+                 task_set=None, team_set=None, view: int = 5, backend: str = "abstract", image_size: int = 64,
+                 physics=None) -> None:
         self.config, self.rules = config, GridRules(config)
         self.tasks, self.teams = tasks, teams
         self.task_set = pick("tasks", task_set, tasks)
         self.team_set = pick("teams", team_set, teams)
-        if view < 1 or view % 2 == 0:
+        if checks.integer("view", view, 1) % 2 == 0:
             raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
-        self.view = view
-        self.backend_name = backend
-        if backend == "mujoco":
-            backend_kwargs["view"] = view
-        self.backend = make_backend(backend, self.rules, **backend_kwargs)
+        self.view = int(view)
+        self.backend_name = checks.choice("backend", backend, BACKENDS)
+        image_size = checks.integer("image_size", image_size, 1)
+        self.backend = make_backend(backend, self.rules, self.view, image_size, physics)
         self.episode: Episode | None = None
         self.rng = np.random.default_rng(0)
 
@@ -103,15 +110,15 @@ class GridWorldCore:
         """Draw task, team and start state from ``rng`` (always, so seeds align); ``options`` may impose
         ``task`` (1-based), ``team`` or ``state`` (a dict as in ``info['state']``)."""
         options = dict(options or {})
-        unknown = set(options) - {"task", "team", "state"}
-        if unknown:
-            raise ConfigError(f"reset options {sorted(unknown)}: accepted are task, team, state")
+        checks.refuse_unknown("reset options", options, RESET_OPTIONS, what="option")
         self.rng = rng
         task = self.task_set[int(rng.integers(len(self.task_set)))]
         team = self.team_set[int(rng.integers(len(self.team_set)))]
         state = self.rules.sample_state(rng)
-        task = pick("task", options.get("task", task), self.tasks)[0]
-        team = pick("team", options.get("team", team), self.teams)[0]
+        if "task" in options:
+            task = checks.integer("reset option task", options["task"], 1, len(self.tasks))
+        if "team" in options:
+            team = checks.choice("reset option team", options["team"], tuple(self.teams))
         if "state" in options:
             state = state_from_dict(options["state"], self.rules)
         self.episode = Episode(int(task), str(team), self.backend.reset(state))
@@ -148,10 +155,17 @@ class GridWorldCore:
 
 def state_from_dict(data: dict, rules: GridRules) -> GridState:
     """A state given as in ``info['state']``, checked against the rules (cells on the grid, no overlaps)."""
+    def array(key: str, kinds: str, dtype) -> np.ndarray:
+        values = np.asarray(data[key])
+        if values.dtype.kind not in kinds:  # no silent truncation of 1.5 or "1" to a cell index
+            raise TypeError(f"'{key}' holds {values.dtype} values, expected {dtype.__name__}")
+        return values.astype(dtype)
+
     try:
-        state = GridState(*(np.asarray(data[k], dtype=np.int64) for k in
-                            ("agents", "agent_levels", "targets", "target_levels")),
-                          np.asarray(data.get("alive", [True] * len(data["targets"])), dtype=bool))
+        if not isinstance(data, dict):
+            raise TypeError(f"a dict is needed, got {type(data).__name__}")
+        state = GridState(*(array(k, "iu", np.int64) for k in ("agents", "agent_levels", "targets", "target_levels")),
+                          array("alive", "b", np.bool_) if "alive" in data else np.ones(len(data["targets"]), bool))
     except (KeyError, TypeError, ValueError) as error:
         raise ConfigError(f"reset option 'state': {error!r}; give agents, agent_levels, targets, "
                           "target_levels (and alive) as in info['state']") from None

@@ -6,37 +6,41 @@ from __future__ import annotations
 import gymnasium
 import numpy as np
 
+from embodied_adhoc import checks
 from embodied_adhoc.domains.grid_rules import GridConfig, Task
 from embodied_adhoc.domains.grid_rules_team import TeamSpec
-from embodied_adhoc.envs.grid_world_env import BACKENDS, OBS_MODES, GridWorldCore, draw_grid
+from embodied_adhoc.envs import contract
+from embodied_adhoc.envs.grid_world_env import OBS_MODES, GridWorldCore, draw_grid
 from embodied_adhoc.errors import ConfigError
+
+ACTION_MEANING = "0 up, 1 down, 2 left, 3 right, 4 interact"
+
+
+def grid_sizes(**values) -> dict:
+    """The integer kwargs of the grid envs (rows, cols, agent and target counts, levels), checked."""
+    return {name: checks.integer(name, value, 1) for name, value in values.items()}
 
 
 class AdhocGridEnv(gymnasium.Env):
     """Agent 0 is the ad hoc robot (the env's action); agents 1..N-1 follow the episode's team policy."""
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": 4}
+    metadata = {"render_modes": list(contract.RENDER_MODES), "render_fps": 4}
 
     def __init__(self, config: GridConfig, tasks: tuple[Task, ...], teams: dict[str, TeamSpec],
                  task_set=None, team_set=None, view: int = 5, backend: str = "abstract", obs_mode: str = "grid",
-                 image_size: int = 64, render_mode: str | None = None, **backend_kwargs) -> None:
-        if obs_mode not in OBS_MODES:
-            raise ConfigError(f"obs_mode={obs_mode!r}: use one of {OBS_MODES}")
+                 image_size: int = 64, render_mode: str | None = None, physics=None) -> None:
+        obs_mode = checks.choice("obs_mode", obs_mode, OBS_MODES)
         if obs_mode == "image" and backend != "mujoco":
             raise ConfigError("obs_mode='image' renders the MuJoCo arena's camera: use backend='mujoco'")
-        if backend not in BACKENDS:
-            raise ConfigError(f"backend={backend!r}: use one of {BACKENDS}")
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError(f"render_mode={render_mode!r}: only 'rgb_array' (or None) is supported")
-        if backend == "mujoco":
-            backend_kwargs.setdefault("image_size", image_size)
-        self.core = GridWorldCore(config, tasks, teams, task_set, team_set, view, backend, **backend_kwargs)
-        self.obs_mode, self.render_mode = obs_mode, render_mode
+        self.render_mode = contract.render_mode(render_mode)
+        self.core = GridWorldCore(config, tasks, teams, task_set, team_set, view, backend, image_size, physics)
+        self.obs_mode = obs_mode
         self.action_space = gymnasium.spaces.Discrete(5)
         if obs_mode == "grid":
             self.observation_space = self.core.observation_space()
         else:
             self.observation_space = gymnasium.spaces.Box(0, 255, (image_size, image_size, 3), np.uint8)
+        self._episode = contract.EpisodeGate(type(self).__name__)
 
     def _observation(self) -> np.ndarray:
         if self.obs_mode == "image":
@@ -46,17 +50,17 @@ class AdhocGridEnv(gymnasium.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
         self.core.reset(self.np_random, options)
+        self._episode.open()
         return self._observation(), self.core.info()
 
     def step(self, action):
-        if self.core.episode is None:
-            raise gymnasium.error.ResetNeeded("call reset() before step()")
-        if not self.action_space.contains(action):
-            raise ConfigError(f"action {action!r}: must be an integer in 0..4 (up, down, left, right, interact)")
+        self._episode.check()
+        action = contract.action(action, 5, ACTION_MEANING)
         n = self.core.config.n_agents
-        actions = np.concatenate([[int(action)], self.core.scripted_actions(range(1, n))])
+        actions = np.concatenate([[action], self.core.scripted_actions(range(1, n))])
         completed = self.core.step(actions)
         terminated = not self.core.episode.state.alive.any()
+        self._episode.close_if(terminated)
         reward = 1.0 if terminated else 0.0
         info = self.core.info()
         info["completed"] = int(completed.sum())
@@ -66,6 +70,8 @@ class AdhocGridEnv(gymnasium.Env):
     def render(self):
         if self.render_mode != "rgb_array":
             return None
+        if self.core.episode is None:
+            raise contract.EpisodeOverError(f"{type(self).__name__}.render(): call reset() first")
         if self.core.backend_name == "mujoco":
             return self.core.backend.render_top()
         return draw_grid(self.core.rules, self.core.episode.state)

@@ -3,8 +3,10 @@ and the two-predator variant of Fig. 7.12 (``EmbodiedAdhoc/PursuitPairGrid-v0``,
 
 from __future__ import annotations
 
+from embodied_adhoc import checks
 from embodied_adhoc.domains.pursuit import pursuit_config, pursuit_tasks, two_predator_config
-from embodied_adhoc.envs.grid_world_env_adhoc import AdhocGridEnv
+from embodied_adhoc.envs import contract
+from embodied_adhoc.envs.grid_world_env_adhoc import AdhocGridEnv, grid_sizes
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.teammates.pursuit_teams import PURSUIT_TEAMS
 
@@ -42,13 +44,13 @@ class PursuitEnv(AdhocGridEnv):
     Prey on interior cells (off the border and interior corners on walled grids), predators on free cells.
 
     ## Episode end
-    Terminated when all prey are captured; truncated by ``max_episode_steps`` (200; 150 for the pair variant
-    as in Fig. 7.12).
+    Terminated when all prey are captured; truncated by the registered ``TimeLimit`` (200 steps; 150 for the
+    pair variant as in Fig. 7.12). ``step`` after the end raises (``envs.contract``).
 
     ## Arguments
     ``gymnasium.make("EmbodiedAdhoc/PursuitGrid-v0", tasks=None, teams=None, rows=5, cols=5, n_agents=4,
     n_prey=1, pairs=False, toroidal=False, prey_stay_probability=0.2, view=5, backend="abstract",
-    obs_mode="grid", image_size=64, render_mode=None)``; ``reset(options={"task", "team", "state"})``.
+    obs_mode="grid", image_size=64, render_mode=None, physics=None)``; ``reset(options={"task", "team", "state"})``.
 
     ## Info
     ``task`` (1-based), ``task_name``, ``team``, ``state`` (ground truth, evaluation only), ``steps``,
@@ -58,19 +60,21 @@ class PursuitEnv(AdhocGridEnv):
     v0: initial release.
     """
 
+    @contract.keywords()
     def __init__(self, tasks=None, teams=None, rows: int = 5, cols: int = 5, n_agents: int | None = None,
                  n_prey: int = 1, pairs: bool = False, toroidal: bool = False, prey_stay_probability: float = 0.2,
                  view: int = 5, backend: str = "abstract", obs_mode: str = "grid", image_size: int = 64,
-                 render_mode: str | None = None, **backend_kwargs):
-        common = dict(rows=rows, cols=cols, n_targets=n_prey, toroidal=toroidal,
-                      prey_stay_probability=prey_stay_probability)
-        if pairs:
+                 render_mode: str | None = None, physics=None):
+        common = dict(toroidal=checks.flag("toroidal", toroidal),
+                      prey_stay_probability=checks.number("prey_stay_probability", prey_stay_probability, 0.0, 1.0),
+                      **grid_sizes(rows=rows, cols=cols, n_targets=n_prey))
+        if checks.flag("pairs", pairs):
             if n_agents not in (None, 2):
                 raise ConfigError(f"n_agents={n_agents}: the pair variant (pairs=True) has two predators")
             config, library, teams_lib = two_predator_config(**common), pursuit_tasks(pairs=True), TWO_PREDATOR_TEAMS
         else:
-            n_agents = 4 if n_agents is None else n_agents
+            n_agents = 4 if n_agents is None else checks.integer("n_agents", n_agents, 1)
             config = pursuit_config(n_agents=n_agents, **common)
             library, teams_lib = pursuit_tasks(n_agents), FOUR_PREDATOR_TEAMS
         super().__init__(config, library, teams_lib, tasks, teams, view, backend, obs_mode, image_size,
-                         render_mode, **backend_kwargs)
+                         render_mode, physics)

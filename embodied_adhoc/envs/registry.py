@@ -2,6 +2,12 @@
 
 To add an env, append an :class:`EnvSpec` to ``ENV_SPECS`` (entry points are import strings, so registering
 imports neither mujoco nor the env module). ``embodied-adhoc envs`` lists ids with their descriptions.
+
+The step cap of every id is its ``max_episode_steps`` here, applied by gymnasium's ``TimeLimit`` (override it
+with ``gymnasium.make(id, max_episode_steps=N)``); the ``trials`` command defaults to the same cap
+(:func:`registered_cap`). The thesis states 100 steps for the toxic-waste simulations (Sec. 7.2) and 150 for
+Fig. 7.12's pursuit; chapter 6 (foraging, pursuit) states none: 200 here. Every id also gets
+:class:`~embodied_adhoc.envs.contract.EpisodeEndGuard` (no step after the episode ended).
 """
 
 from __future__ import annotations
@@ -26,11 +32,13 @@ ENV_SPECS: list[EnvSpec] = [
         "EmbodiedAdhoc/ToxicWasteAbstract-v0",
         "embodied_adhoc.envs.toxic_waste_abstract:ToxicWasteAbstractEnv",
         "HOTSPOT toxic-waste lab, abstract (5 nodes, 2 tasks, speech confusion matrix); truncated at 100 steps",
+        max_episode_steps=100,
     ),
     EnvSpec(
         "EmbodiedAdhoc/ToxicWaste-v0",
         "embodied_adhoc.envs.toxic_waste:ToxicWasteEnv",
         "HOTSPOT toxic-waste lab on MuJoCo: wheeled container robot on odometry, walking human, balls, RFID, speech",
+        max_episode_steps=100,
         backend="mujoco",
     ),
     # arenas (issue 6): level-based foraging and predator-prey, grid twin + MuJoCo arena
@@ -55,8 +63,20 @@ ENV_SPECS: list[EnvSpec] = [
 ]
 
 
+GUARD = ("EpisodeEndGuard", "embodied_adhoc.envs.contract:EpisodeEndGuard")
+
+
+def registered_cap(env_id: str) -> int | None:
+    """The registered step cap (``max_episode_steps``) of ``env_id``."""
+    for spec in ENV_SPECS:
+        if spec.id == env_id:
+            return spec.max_episode_steps
+    raise KeyError(env_id)
+
+
 def register_all() -> None:
     import gymnasium
+    from gymnasium.envs.registration import WrapperSpec
 
     for spec in ENV_SPECS:
         if spec.id in gymnasium.registry:
@@ -66,4 +86,5 @@ def register_all() -> None:
             entry_point=spec.entry_point,
             kwargs=dict(spec.kwargs),
             max_episode_steps=spec.max_episode_steps,
+            additional_wrappers=(WrapperSpec(*GUARD, {}),),
         )

@@ -2,16 +2,23 @@
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 
 import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
-from embodied_adhoc.domains.lab import DEFAULT_TASKS, LabObservation, build_lab_library
+from embodied_adhoc import checks
+from embodied_adhoc.domains.lab import (
+    LAB_PARAMETERS,
+    LabConfig,
+    LabObservation,
+    apply_step,
+    library_from_config,
+)
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND, HELD
+from embodied_adhoc.domains.lab_human import HumanOutcome
+from embodied_adhoc.envs import contract
 from embodied_adhoc.envs.toxic_waste_speech import SPEECH_KINDS, SpeechTurn, make_speech
 from embodied_adhoc.errors import ConfigError
 
@@ -56,7 +63,7 @@ class ToxicWasteEnv(gymnasium.Env):
 
     | element | value |
     |---|---|
-    | robot node | area containing the wheel-odometry (dead-reckoning) pose; 5 if outside every area |
+    | robot node | area containing the wheel-odometry (dead-reckoning) pose; 5 if outside every area, and 5 with probability 1 - ``robot_node_accuracy`` (the model's robot-node factor, drawn from its own seeded stream) |
     | human node | after "locate human": the node recognised from the human's reply through ``speech`` (5 = no location); without communication: the robot's true area when the human is in it; else 5 |
     | rfid | 1 if the container's reader read a ball entering during this step (missed w.p. ``rfid_miss``) |
 
@@ -65,22 +72,23 @@ class ToxicWasteEnv(gymnasium.Env):
     0 per ball in the container.
 
     ## Episode end
-    Terminated when all balls are in the container (physically: inside the RFID site). Truncated after
-    ``max_episode_steps`` macro steps (default 100, the thesis's cap).
+    Terminated when all balls are in the container (physically: inside the RFID site). Truncated by the
+    registered ``TimeLimit`` after 100 macro steps (the thesis's cap; ``gymnasium.make(id, max_episode_steps=N)``
+    changes it). ``step`` after the end raises (``envs.contract``).
 
     ## Arguments (``gymnasium.make`` kwargs)
+    The lab parameters of ``domains.lab.LabConfig``, which holds their defaults, exactly as the abstract env:
+    ``tasks``, ``human_epsilon``, ``communication`` (False: no "locate human"; the human is seen only when
+    co-located), ``confusion`` (the "channel" speech's matrix and the agents' model), ``robot_node_accuracy``,
+    ``rfid_miss`` (also the physical reader's miss rate), ``graph`` (must be the MuJoCo lab's map), ``reward``,
+    ``discount``. The physics env's own:
+
     | kwarg | default | meaning |
     |---|---|---|
     | ``task`` | None | fixed task index; None = drawn uniformly at each reset |
-    | ``tasks`` | [[0,1,2],[1,2,3]] | task library (ball nodes per task) |
-    | ``human_epsilon`` | 0.05 | probability that a human move or pick fails |
-    | ``communication`` | True | False: no "locate human"; the human is seen only when co-located |
     | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx on every query), "perfect" |
-    | ``confusion`` | "measured" | confusion matrix of "channel": "thesis", "measured" or a JSON path (also the agents' model) |
     | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig`` defaults) |
-    | ``rfid_miss`` | 0.0 | probability that the reader misses a ball entering the container |
     | ``macro_timeout`` | 60.0 | simulated seconds after which an unfinished macro step ends |
-    | ``max_episode_steps`` | 100 | truncation |
     | ``render_mode`` | None | "rgb_array": ``render()`` returns the overhead camera image |
     | ``width``, ``height`` | 640, 480 | image size of ``render()`` and of recorded frames |
     | ``render_quality`` | "fast" | "fast" (no shadows, reflections or floor texture: several times faster on CPU) or "high" |
@@ -103,47 +111,39 @@ class ToxicWasteEnv(gymnasium.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 15}
 
+    @contract.keywords(*LAB_PARAMETERS)
     def __init__(
         self,
         task: int | None = None,
-        tasks: Sequence[Sequence[int]] = DEFAULT_TASKS,
-        human_epsilon: float = 0.05,
-        communication: bool = True,
         speech: str = "channel",
-        confusion: str | os.PathLike = DEFAULT_CONFUSION,
         encoder_noise: float | None = None,
         wheel_slip: float | None = None,
-        rfid_miss: float = 0.0,
         macro_timeout: float = 60.0,
-        max_episode_steps: int = 100,
         render_mode: str | None = None,
         width: int = 640,
         height: int = 480,
         render_quality: str = "fast",
         frame_rate: float = 15.0,
+        **lab,
     ) -> None:
         from embodied_adhoc.envs.toxic_waste_world import make_world
 
-        if render_mode not in (None, "rgb_array"):
-            raise ConfigError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if speech not in SPEECH_KINDS:
-            raise ConfigError(f"speech={speech!r} unknown; use one of {', '.join(SPEECH_KINDS)}")
-        if int(max_episode_steps) < 1:
-            raise ConfigError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
-        self.library = build_lab_library(
-            tasks=tasks,
-            human_epsilon=human_epsilon,
-            communication=communication,
-            confusion=confusion,
-            rfid_miss=rfid_miss,
+        self.render_mode = contract.render_mode(render_mode)
+        speech = checks.choice("speech", speech, SPEECH_KINDS)
+        config = LabConfig.from_kwargs(type(self).__name__, lab)
+        self.library = library_from_config(config)
+        self.task = None if task is None else checks.integer("task", task, 0, self.library.n_tasks - 1)
+        encoder_noise, wheel_slip = (
+            None if value is None else checks.number(name, value, 0.0)
+            for name, value in (("encoder_noise", encoder_noise), ("wheel_slip", wheel_slip))
         )
-        if task is not None and not 0 <= int(task) < self.library.n_tasks:
-            raise ConfigError(f"task={task} outside the task library 0..{self.library.n_tasks - 1}")
-        self.task, self.render_mode = task, render_mode
-        self.max_episode_steps = int(max_episode_steps)
-        self.width, self.height, self.render_quality = int(width), int(height), render_quality
+        macro_timeout = checks.number("macro_timeout", macro_timeout, 0.0, low_open=True)
+        width, height = checks.integer("width", width, 1), checks.integer("height", height, 1)
+        render_quality = checks.choice("render_quality", render_quality, ("fast", "high"))
+        frame_rate = checks.number("frame_rate", frame_rate, 0.0, low_open=True)
+        self.width, self.height, self.render_quality = width, height, render_quality
         self.world = make_world(
-            encoder_noise, wheel_slip, rfid_miss, macro_timeout, frame_rate, width, height, render_quality
+            encoder_noise, wheel_slip, config.rfid_miss, macro_timeout, frame_rate, width, height, render_quality
         )
         self.layout = self.world.layout
         if (
@@ -153,13 +153,14 @@ class ToxicWasteEnv(gymnasium.Env):
             raise ConfigError(
                 "the MuJoCo lab layout and the lab model's graph differ; they must be the same map"
             )
-        self.speech: SpeechTurn | None = make_speech(speech, confusion) if communication else None
+        self.speech: SpeechTurn | None = make_speech(speech, config.confusion) if config.communication else None
         n = self.library.graph.n_nodes
         self.action_space = spaces.Discrete(self.library.n_actions)
         self.observation_space = spaces.MultiDiscrete([n + 1, n + 1, 2])
         self._frame_sink: FrameSink | None = None
         self._task = self._steps = 0
         self._status: tuple[int, ...] = ()
+        self._episode = contract.EpisodeGate(type(self).__name__)
         self._robot_believed_node = 0
         self._step_index = 0
 
@@ -176,12 +177,14 @@ class ToxicWasteEnv(gymnasium.Env):
         super().reset(seed=seed)
         lib = self.library
         self._task, robot, human = lib.episode_start(options, self.task, self.np_random)
-        world_seed, human_seed, speech_seed = self.np_random.integers(0, 2**63 - 1, size=3)
+        world_seed, human_seed, speech_seed, sensor_seed = self.np_random.integers(0, 2**63 - 1, size=4)
         self._human_rng = np.random.default_rng(int(human_seed))
         self._speech_rng = np.random.default_rng(int(speech_seed))
+        self._sensor_rng = np.random.default_rng(int(sensor_seed))
         self._status = (GROUND,) * len(lib.tasks[self._task])
         self._steps = self._step_index = 0
         self._robot_believed_node = robot
+        self._episode.open()
         truth = self.world.reset(int(world_seed), robot, human, lib.tasks[self._task])
         observation = self._observation(
             self.world.odometry_node(), truth.robot_node, truth.human_node, None, False
@@ -189,36 +192,23 @@ class ToxicWasteEnv(gymnasium.Env):
         return observation.to_vector(), self._info(observation, truth, False, None, [], None)
 
     def step(self, action):
-        from embodied_adhoc.sim.human import HumanCommand
-
-        if (
-            not self._status
-            or self._steps >= self.max_episode_steps
-            or all(s == DISPOSED for s in self._status)
-        ):
-            raise ConfigError("step() called on a finished episode; call reset() first")
-        if not self.action_space.contains(np.int64(action)):
-            raise ConfigError(f"action {action!r} outside 0..{self.library.n_actions - 1}")
-        action, lib = int(action), self.library
+        self._episode.check()
+        action = contract.action(action, self.library.n_actions, "see the action table of the env's docstring")
+        lib = self.library
         reward = float(lib.config.reward.of(np.array(self._status)))
         before = self.world.ground_truth()
         robot_node = _area(self.layout, before.robot_pose, before.robot_node)
-        if HELD in self._status:
-            # The hand-over of domains.lab.apply_step: robot in the human's area, and it stays or asks.
-            handover = robot_node == before.human_node and action >= lib.stay_action
-            command = (
-                HumanCommand.drop_into_container(self._status.index(HELD))
-                if handover
-                else HumanCommand.stay()
-            )
-        else:
-            outcome = lib.humans[self._task].step(self._human_rng, before.human_node, self._status)
-            if outcome.picked_ball >= 0:
-                command = HumanCommand.pick(outcome.picked_ball)
-            elif outcome.next_node != before.human_node:
-                command = HumanCommand.move_to(outcome.next_node)
-            else:
-                command = HumanCommand.stay()
+        # The human's command follows the model's one transition rule (domains.lab.apply_step) from the true
+        # state at the start of the step; while it holds a ball the rule ignores its draw, so none is made.
+        outcome = (
+            HumanOutcome(1.0, before.human_node)
+            if HELD in self._status
+            else lib.humans[self._task].step(self._human_rng, before.human_node, self._status)
+        )
+        _, next_human, planned, handed_over = apply_step(
+            lib.graph, robot_node, before.human_node, self._status, action, outcome
+        )
+        command = _human_command(self._status, planned, handed_over, before.human_node, next_human)
         target = self.move_target(action)
         self._step_index += 1
         result = self.world.step_macro(target, command, self._on_frame if self._frame_sink else None)
@@ -240,10 +230,10 @@ class ToxicWasteEnv(gymnasium.Env):
         )
         self._steps += 1
         terminated = all(s == DISPOSED for s in self._status)
-        truncated = not terminated and self._steps >= self.max_episode_steps
+        self._episode.close_if(terminated)
         info = self._info(observation, truth, entered, result, utterances, speech_audio)
         info["human_command"] = f"{command.kind}" + ("" if command.target is None else f" {command.target}")
-        return observation.to_vector(), reward, terminated, truncated, info
+        return observation.to_vector(), reward, terminated, False, info
 
     def move_target(self, action: int) -> int | None:
         """The node ``action`` drives to if taken now: that neighbour of the robot's believed (odometry) node,
@@ -264,6 +254,8 @@ class ToxicWasteEnv(gymnasium.Env):
     # ----------------------------------------------------------------------------------------- internals
     def _observation(self, odometry_node, true_robot, true_human, heard, rfid, action=None) -> LabObservation:
         n = self.library.graph.n_nodes
+        if self._sensor_rng.random() >= self.library.config.robot_node_accuracy:
+            odometry_node = None  # the model's robot-node factor: the reading is lost w.p. 1 - accuracy
         if self.speech is not None:
             human = heard if action == self.library.locate_action else None
         else:
@@ -317,6 +309,20 @@ class ToxicWasteEnv(gymnasium.Env):
             "ball_positions": np.array(truth.ball_positions),
         }
         self._frame_sink(self.render_camera(), snapshot)
+
+
+def _human_command(status, planned, handed_over: bool, human_node: int, next_human: int):
+    """The motion script's command that realises the transition ``apply_step`` chose (``planned`` statuses)."""
+    from embodied_adhoc.sim.human import HumanCommand
+
+    if handed_over:
+        return HumanCommand.drop_into_container(status.index(HELD))
+    picked = [i for i, (a, b) in enumerate(zip(status, planned, strict=True)) if a == GROUND and b == HELD]
+    if picked:
+        return HumanCommand.pick(picked[0])
+    if next_human != human_node:
+        return HumanCommand.move_to(next_human)
+    return HumanCommand.stay()
 
 
 def _area(layout, pose, node: int | None) -> int:

@@ -2,16 +2,14 @@
 
 from __future__ import annotations
 
-import os
-from collections.abc import Sequence
-
 import gymnasium
 from gymnasium import spaces
 
-from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
-from embodied_adhoc.domains.lab import DEFAULT_GRAPH, DEFAULT_TASKS, LabGraph, apply_step, build_lab_library
+from embodied_adhoc import checks
+from embodied_adhoc.domains.lab import LAB_PARAMETERS, LabConfig, apply_step, library_from_config
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND
-from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.envs import contract
+from embodied_adhoc.envs.lab_picture import LabPicture
 
 __all__ = ["ToxicWasteAbstractEnv"]
 
@@ -48,12 +46,16 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
     Before each step: -1 per ball on the ground, -2 per ball held, 0 per ball disposed.
 
     ## Episode end
-    Terminated when every ball is in the container; truncated after ``max_episode_steps`` (100) steps.
+    Terminated when every ball is in the container; truncated by the registered ``TimeLimit`` (100 steps, the
+    thesis's cap; ``gymnasium.make(id, max_episode_steps=N)`` changes it). ``step`` after the end raises
+    (``envs.contract``).
 
     ## Arguments
-    ``task`` (fixed task index, default: drawn uniformly at each reset), ``tasks`` (ball placements),
-    ``human_epsilon`` (0.05), ``communication`` (True), ``confusion`` ("measured" (default), "thesis" or a JSON path),
-    ``robot_node_accuracy`` (0.99), ``rfid_miss`` (0.0), ``max_episode_steps`` (100), ``graph`` (``LabGraph``).
+    ``task`` (fixed task index, default: drawn uniformly at each reset), ``render_mode`` (None or "rgb_array":
+    a picture of the graph, robot, human and balls; "ansi": one line of text) and the lab parameters of
+    ``domains.lab.LabConfig``, which holds their defaults: ``tasks`` (ball placements), ``human_epsilon``,
+    ``communication``, ``confusion`` ("measured", "thesis" or a JSON path), ``robot_node_accuracy``,
+    ``rfid_miss``, ``graph`` (``LabGraph``), ``reward``, ``discount``.
     ``reset(options={"task": k, "robot_node": i, "human_node": j})`` fixes the episode's start (default:
     uniform nodes, all balls on the ground).
 
@@ -65,38 +67,22 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
     v0: first version.
     """
 
-    metadata = {"render_modes": ["ansi"]}
+    metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
 
-    def __init__(
-        self,
-        task: int | None = None,
-        tasks: Sequence[Sequence[int]] = DEFAULT_TASKS,
-        human_epsilon: float = 0.05,
-        communication: bool = True,
-        confusion: str | os.PathLike = DEFAULT_CONFUSION,
-        robot_node_accuracy: float = 0.99,
-        rfid_miss: float = 0.0,
-        max_episode_steps: int = 100,
-        graph: LabGraph = DEFAULT_GRAPH,
-        render_mode: str | None = None,
-    ) -> None:
-        self.library = build_lab_library(
-            graph, tasks, human_epsilon, communication, confusion, robot_node_accuracy, rfid_miss
-        )
-        if task is not None and not 0 <= int(task) < self.library.n_tasks:
-            raise ConfigError(f"task={task} outside 0..{self.library.n_tasks - 1}")
-        if max_episode_steps < 1:
-            raise ConfigError(f"max_episode_steps must be >= 1, got {max_episode_steps}")
-        if render_mode not in (None, "ansi"):
-            raise ConfigError(f"render_mode must be None or 'ansi', got {render_mode!r}")
-        self.task, self.max_episode_steps, self.render_mode = task, int(max_episode_steps), render_mode
+    @contract.keywords(*LAB_PARAMETERS)
+    def __init__(self, task: int | None = None, render_mode: str | None = None, **lab) -> None:
+        self.library = library_from_config(LabConfig.from_kwargs(type(self).__name__, lab))
+        self.task = None if task is None else checks.integer("task", task, 0, self.library.n_tasks - 1)
+        self.render_mode = contract.render_mode(render_mode, ("rgb_array", "ansi"))
         n = self.library.graph.n_nodes
         self.action_space = spaces.Discrete(self.library.n_actions)
         self.observation_space = spaces.MultiDiscrete([n + 1, n + 1, 2])
         reward = self.library.config.reward
         self._reward_table = (reward.ground, reward.held, reward.disposed)
         self._robot = self._human = self._task = self._steps = 0
-        self._status: tuple[int, ...] = ()
+        self._status: tuple[int, ...] = (GROUND,) * len(self.library.tasks[0])
+        self._episode = contract.EpisodeGate(type(self).__name__)
+        self._picture: LabPicture | None = None
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
@@ -104,14 +90,12 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         self._task, self._robot, self._human = lib.episode_start(options, self.task, self.np_random)
         self._status = (GROUND,) * len(lib.tasks[0])
         self._steps = 0
+        self._episode.open()
         return self._observe(lib.stay_action, False)
 
     def step(self, action):
-        if self._steps >= self.max_episode_steps or not self._status:
-            raise ConfigError("step() called on a finished episode; call reset() first")
-        action = int(action)
-        if not 0 <= action < self.library.n_actions:
-            raise ConfigError(f"action {action} outside 0..{self.library.n_actions - 1}")
+        self._episode.check()
+        action = contract.action(action, self.library.n_actions, "see the action table of the env's docstring")
         reward = float(sum(self._reward_table[s] for s in self._status))
         human = self.library.humans[self._task].step(self.np_random, self._human, self._status)
         self._robot, self._human, self._status, disposed = apply_step(
@@ -120,8 +104,8 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         self._steps += 1
         observation, info = self._observe(action, disposed)
         terminated = all(s == DISPOSED for s in self._status)
-        truncated = not terminated and self._steps >= self.max_episode_steps
-        return observation, reward, terminated, truncated, info
+        self._episode.close_if(terminated)
+        return observation, reward, terminated, False, info
 
     def _observe(self, action: int, disposed: bool):
         model = self.library.observation_model
@@ -137,7 +121,11 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         }
         return model.vector(index), info
 
-    def render(self) -> str | None:
+    def render(self):
+        if self.render_mode == "rgb_array":
+            if self._picture is None:
+                self._picture = LabPicture(self.library.graph)
+            return self._picture.draw(self._robot, self._human, self.library.tasks[self._task], self._status)
         if self.render_mode != "ansi":
             return None
         names = {0: "ground", 1: "held", 2: "disposed"}

@@ -10,7 +10,8 @@ Backends (same kwargs, same ``reset`` options, same observation encoding):
 * ``abstract``: ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` (the lab engineer's tabular simulator);
 * ``mujoco``: ``EmbodiedAdhoc/ToxicWaste-v0`` (the env engineer's physics env). Extension point: the runner
   needs only that this id is registered, accepts the kwargs ``tasks``, ``human_epsilon``, ``communication``,
-  ``confusion`` and ``max_episode_steps`` (its own truncation, set to the runner's ``--max-steps``), takes ``reset(seed=..., options={"task", "robot_node", "human_node"})``, and puts
+  ``confusion`` (the lab parameters of ``domains.lab.LabConfig``), is capped by gymnasium's ``TimeLimit`` (set to
+  the runner's ``--max-steps``), takes ``reset(seed=..., options={"task", "robot_node", "human_node"})``, and puts
   ``info["observation_index"]`` (flat :class:`LabObservation` index) and ``info["state"]`` (index in the library's
   shared state space) in every ``reset``/``step`` info. Nothing in this module changes when it lands.
 
@@ -81,17 +82,12 @@ class ToxicWasteSession:
         self._observation = LabObservation
 
     def make_env(self, max_steps: int):
-        import dataclasses
-
         import gymnasium
 
-        # The env's own truncation (kwarg max_episode_steps) is set to the runner's cap. It is passed through the
-        # spec because gymnasium.make() keeps a keyword of that name for its TimeLimit wrapper.
-        kwargs = {**self.env_kwargs, "max_episode_steps": int(max_steps)}
-        spec = dataclasses.replace(
-            gymnasium.spec(self.env_id), kwargs={**gymnasium.spec(self.env_id).kwargs, **kwargs}
+        # The runner's cap is the spec's TimeLimit (gymnasium.make's own keyword).
+        return gymnasium.make(
+            self.env_id, max_episode_steps=int(max_steps), disable_env_checker=True, **self.env_kwargs
         )
-        return gymnasium.make(spec, disable_env_checker=True)
 
     def reset_options(self, spec: dict) -> dict:
         return {"task": spec["task"], "robot_node": spec["robot_node"], "human_node": spec["human_node"]}

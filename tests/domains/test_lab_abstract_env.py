@@ -71,7 +71,7 @@ def test_transitions_follow_the_model():
 
 
 def test_terminates_when_all_balls_disposed_and_truncates_at_cap():
-    env = ToxicWasteAbstractEnv(human_epsilon=0.0, max_episode_steps=100)
+    env = ToxicWasteAbstractEnv(human_epsilon=0.0)
     env.reset(seed=0, options={"task": 0, "robot_node": 0, "human_node": 0})
     # Human at 0 picks ball 0; the robot stays there, receives it; then follows the human (0 -> 1 -> 2).
     rfid = []
@@ -82,9 +82,13 @@ def test_terminates_when_all_balls_disposed_and_truncates_at_cap():
             break
     assert terminated and all(s == DISPOSED for s in info["ball_status"])
     assert sum(rfid) == 3
-    env = ToxicWasteAbstractEnv(max_episode_steps=5)
+    with pytest.raises(ConfigError):
+        env.step(3)  # terminated: no further step
+    # The cap is the spec's TimeLimit (gymnasium's keyword), and stepping past it is refused.
+    env = gymnasium.make("EmbodiedAdhoc/ToxicWasteAbstract-v0", max_episode_steps=5)
     env.reset(seed=0, options={"task": 0, "robot_node": 4, "human_node": 4})
     results = [env.step(0)[3] for _ in range(5)]
     assert results == [False] * 4 + [True]
     with pytest.raises(ConfigError):
         env.step(0)
+    assert gymnasium.make("EmbodiedAdhoc/ToxicWasteAbstract-v0").spec.max_episode_steps == 100

@@ -73,9 +73,11 @@ class HotspotPlan:
 
 
 def information_reward(
-    pomdp: POMDP, rewards: np.ndarray, reward_gain: str = "thesis"
+    pomdp: POMDP, rewards: np.ndarray, reward_gain: str = HotspotConfig.reward_gain
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(r_info (S, A), ΔH (Z, A), ΔR (Z, A))`` of one model (Sec. 7.1, Melo & Ribeiro 2006), with sparse products.
+
+    ``reward_gain`` defaults to :class:`HotspotConfig`'s (its one definition; see ``REWARD_GAINS``).
 
     ``rewards`` is ``r̄_m`` (S x A). For an observation impossible from the maximum-entropy belief, ΔH = ΔR = 0
     (it has probability 0 from every state, so it never contributes to r_info).

@@ -1,0 +1,104 @@
+"""Checks of user-given values (env kwargs, reset options, config fields), shared by every layer that takes input.
+
+Each check returns the value in its canonical Python type or raises one :class:`~embodied_adhoc.errors.ConfigError`
+that names the input and says what is accepted. Nothing is coerced silently: ``2.7`` is not the integer 2,
+``"no"`` is not ``False``, ``True`` is not the integer 1. numpy only (usable below ``envs/``, e.g. in ``domains/``).
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Iterable, Mapping
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+__all__ = ["choice", "flag", "integer", "number", "refuse_unknown"]
+
+
+def _is_integer(value) -> bool:
+    if isinstance(value, (bool, np.bool_)):
+        return False
+    if isinstance(value, (int, np.integer)):
+        return True
+    return isinstance(value, np.ndarray) and value.shape == () and np.issubdtype(value.dtype, np.integer)
+
+
+def integer(name: str, value, low: int | None = None, high: int | None = None) -> int:
+    """An integer (Python ``int``, a numpy integer of any width, or a 0-d integer array) in ``low..high``.
+
+    Refused: bools, floats (even ``2.0``), strings, ``None`` and arrays with a shape (``np.array([2])``).
+    """
+    if not _is_integer(value):
+        raise ConfigError(
+            f"{name}={value!r} ({type(value).__name__}): must be an integer (a Python or numpy int, or a 0-d "
+            "integer array)" + _range_text(low, high)
+        )
+    result = int(value)
+    if (low is not None and result < low) or (high is not None and result > high):
+        raise ConfigError(f"{name}={result}: outside{_range_text(low, high)}")
+    return result
+
+
+def _range_text(low, high) -> str:
+    if low is not None and high is not None:
+        return f" {low}..{high}"
+    if low is not None:
+        return f" >= {low}"
+    if high is not None:
+        return f" <= {high}"
+    return ""
+
+
+def number(
+    name: str, value, low: float | None = None, high: float | None = None, low_open: bool = False
+) -> float:
+    """A finite real number (int or float, Python or numpy; not a bool or a string) in ``[low, high]``
+    (``(low, high]`` with ``low_open``)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"{name}={value!r} ({type(value).__name__}): must be a number")
+    result = float(value)
+    below = low is not None and (result <= low if low_open else result < low)
+    if not math.isfinite(result) or below or (high is not None and result > high):
+        bound = f"{'(' if low_open else '['}{'-inf' if low is None else low}, {'inf' if high is None else high}]"
+        raise ConfigError(f"{name}={value!r}: must be a finite number in {bound}")
+    return result
+
+
+def flag(name: str, value) -> bool:
+    """``True`` or ``False`` (a Python or numpy bool); ``"no"``, ``0`` or ``None`` are refused."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ConfigError(f"{name}={value!r} ({type(value).__name__}): must be True or False")
+    return bool(value)
+
+
+def choice(name: str, value, choices: Iterable):
+    """One of ``choices`` (compared by equality; bools and arrays never match)."""
+    options = tuple(choices)
+    if isinstance(value, (bool, np.bool_, np.ndarray)) or not any(_equal(value, o) for o in options):
+        raise ConfigError(f"{name}={value!r}: use one of {', '.join(repr(o) for o in options)}")
+    return value
+
+
+def _equal(value, option) -> bool:
+    try:
+        return bool(value == option)
+    except (TypeError, ValueError):
+        return False
+
+
+def refuse_unknown(where: str, given: Mapping | Iterable[str], accepted: Iterable[str], what: str = "keyword") -> None:
+    """Refuse names in ``given`` that are not ``accepted`` (typos get a suggestion)."""
+    accepted = tuple(accepted)
+    unknown = sorted(set(given) - set(accepted))
+    if not unknown:
+        return
+    hints = []
+    for name in unknown:
+        close = difflib.get_close_matches(str(name), accepted, n=1)
+        hints.append(f"{name!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+    raise ConfigError(
+        f"{where}: unknown {what}{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; accepted: {', '.join(accepted)}"
+    )
