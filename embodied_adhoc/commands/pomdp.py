@@ -1,4 +1,5 @@
-"""``embodied-adhoc pomdp info|solve``: inspect and solve Cassandra ``.pomdp`` files."""
+"""``embodied-adhoc pomdp info|solve|export``: inspect and solve Cassandra ``.pomdp`` files; export a chapter-5
+library (:mod:`embodied_adhoc.commands.pomdp_export`)."""
 
 from __future__ import annotations
 
@@ -56,6 +57,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     solve.add_argument("--json", action="store_true", help="stdout is one JSON object")
     solve.add_argument("--quiet", action="store_true", help="no progress on stderr")
     solve.set_defaults(func=_solve)
+
+    from embodied_adhoc.commands.pomdp_export import register_export
+
+    register_export(commands)
 
 
 def _add_file(parser: argparse.ArgumentParser) -> None:

@@ -147,7 +147,7 @@ def summary_json(summary: RunSummary, config: dict) -> dict:
             "identified_rate": _number(s.identified_rate),
             "final_entropy_mean": _number(s.final_entropy.mean),
             "final_entropy_ci95": [_number(s.final_entropy.ci_low), _number(s.final_entropy.ci_high)],
-            "return_mean": _number(s.total_reward.mean),
+            **_sample_json("return", s.total_reward),  # accumulated reward (Table 5.5)
         }
     return {
         "agents": agents,

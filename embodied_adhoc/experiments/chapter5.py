@@ -1,0 +1,310 @@
+"""Chapter-5 trial domains: ``embodied-adhoc trials DOMAIN`` for every library of :mod:`embodied_adhoc.domains.chapter5`.
+
+Episode spec (drawn once per episode, shared by every agent): ``task`` (the true model, uniform over the library,
+or fixed by ``--task``) and ``start`` (a state drawn from that model's initial belief). The world is the true
+model itself (:class:`LibraryEnv`, a generative POMDP simulator with Gymnasium's ``reset``/``step``); an episode
+ends in the absorbing state (after the +100) or at the cap, which defaults to Table 5.2's horizon ``h``, so the
+trial's total reward is Table 5.5's accumulated reward.
+
+Agents (section 5.2.4):
+
+* ``value-iteration``: sees the state and knows the model (greedy on ``Q*`` of the true model);
+* ``perseus``: knows the model, not the state (the true model's Perseus policy on its belief);
+* ``atpo``: ATPO over the library (:class:`~embodied_adhoc.decision.agents.atpo.AtpoAgent`);
+* ``random-picker``: ATPO's policies with one model picked at random per episode (its belief still tracked);
+* ``bopa``: BOPA (section 5.1), where the state is observable and shared (not the power plant);
+* ``random``: uniform actions.
+
+Perseus policies are solved once per model and settings and cached on disk
+(:mod:`embodied_adhoc.experiments.policy_cache`; ``--no-cache`` bypasses it). The session's ``timing`` (seconds
+building the library and solving or loading its policies) goes into ``--json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+__all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "LibraryEnv", "RandomPickerAgent"]
+
+CHAPTER5_AGENTS = ("value-iteration", "perseus", "atpo", "random-picker", "bopa", "random")
+TABLE_5_2_HORIZON = {
+    "gridworld": 50, "pursuit-task": 75, "pursuit-teammate": 85, "pursuit-both": 85, "power-plant": 50,
+    "ntu": 75, "isr": 75, "mit": 75, "pentagon": 75, "cit": 85, "overcooked": 50, "map": 75,
+    "panic-buttons": 2000,
+}  # fmt: skip
+SOLVER_TOLERANCE = 0.01  # Table 5.4
+DEFAULT_SOLVE_SECONDS = 30.0
+
+
+class LibraryEnv:
+    """The true model as an episode simulator (Gymnasium's ``reset``/``step`` signatures).
+
+    ``reset(seed, options={"task": k, "start": x})``; ``info`` carries ``state`` and ``observation_index``. The
+    episode terminates on entering the model's absorbing state; truncation is the runner's cap.
+    """
+
+    def __init__(self, library) -> None:
+        self.library = library
+        self.rng = np.random.default_rng(0)
+        self.model, self.state = 0, 0
+
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        options = dict(options or {})
+        self.rng = np.random.default_rng(seed)
+        self.model = int(options["task"])
+        self.pomdp = self.library.pomdps[self.model]
+        self.state = int(options["start"])
+        return self.state, {"state": self.state, "observation_index": -1}
+
+    def step(self, action: int):
+        next_state, observation, reward = self.pomdp.step(self.state, int(action), self.rng)
+        self.state = next_state
+        terminated = next_state == self.library.absorbing(self.model)
+        return observation, reward, terminated, False, {"state": next_state, "observation_index": observation}
+
+    def close(self) -> None:
+        return None
+
+
+class RandomPickerAgent:
+    """ATPO's policies, but the model is picked uniformly at random at each episode start (section 5.2.4)."""
+
+    observes_state = False
+
+    def __init__(self, kernels, policies, name: str = "random-picker") -> None:
+        from embodied_adhoc.decision.agents.atpo import AtpoAgent
+
+        self.inner = AtpoAgent(kernels, policies, name=name)
+        self.name = name
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
+        n_models = self.inner.kernels.n_models
+        prior = np.zeros(n_models)
+        prior[int(rng.integers(n_models))] = 1.0
+        self.inner.tracker.prior = prior
+        self.inner.reset(rng)
+        self.rng = rng
+
+    def act(self) -> int:
+        return self.inner.act()
+
+    def observe(self, action: int, observation: int, state: int | None = None) -> None:
+        self.inner.observe(action, observation)
+
+    @property
+    def task_posterior(self):
+        return None  # it keeps no posterior of its own: the picked model is not an inference
+
+
+class Chapter5Session:
+    """One library built and its policies solved (lazily, cached) per process; envs and agents made from it."""
+
+    def __init__(self, domain: str, options: dict) -> None:
+        from embodied_adhoc.domains.chapter5 import build_library
+
+        start = time.perf_counter()
+        self.library = build_library(domain, **options["library"])
+        self.timing = {
+            "build_seconds": time.perf_counter() - start,
+            "solve_seconds": 0.0,
+            "policies_from_cache": 0,
+        }
+        self.options = options
+        self.task_names = self.library.task_names
+        self._policies = None
+        self._kernels = None
+        self._q = None
+
+    def make_env(self, max_steps: int) -> LibraryEnv:
+        return LibraryEnv(self.library)
+
+    def reset_options(self, spec: dict) -> dict:
+        return {"task": int(spec["task"]), "start": int(spec["start"])}
+
+    def observation_index(self, observation, info: dict) -> int:
+        return int(info["observation_index"])
+
+    def policies(self) -> tuple:
+        if self._policies is None:
+            from embodied_adhoc.experiments.policy_cache import solve_cached
+
+            settings = {
+                "n_beliefs": int(self.options["beliefs"] or self.library.n_beliefs),
+                "tolerance": SOLVER_TOLERANCE,
+                "time_limit": self.options["solve_seconds"],
+                "seed": 0,
+            }
+            start = time.perf_counter()
+            solved = [solve_cached(p, settings, self.options["cache"]) for p in self.library.pomdps]
+            self.timing["solve_seconds"] += time.perf_counter() - start
+            self.timing["policies_from_cache"] = sum(hit for _, hit in solved)
+            self.timing["solver_settings"] = settings
+            self._policies = tuple(policy for policy, _ in solved)
+        return self._policies
+
+    def kernels(self):
+        if self._kernels is None:
+            from embodied_adhoc.decision.agents.task_beliefs import LibraryKernels
+
+            self._kernels = LibraryKernels.build(self.library.pomdps)
+        return self._kernels
+
+    def q_values(self) -> np.ndarray:
+        if self._q is None:
+            from embodied_adhoc.decision.value_iteration import value_iteration
+
+            start = time.perf_counter()
+            self._q = np.stack(
+                [value_iteration(p.as_mdp(), tolerance=1e-8).q_values for p in self.library.pomdps]
+            )
+            self.timing["value_iteration_seconds"] = time.perf_counter() - start
+        return self._q
+
+    def make_agent(self, name: str, spec: dict, seed: int):
+        from embodied_adhoc.decision.agents.atpo import AtpoAgent
+        from embodied_adhoc.decision.agents.baselines import OracleAgent, RandomAgent
+        from embodied_adhoc.decision.agents.bopa import BopaAgent
+
+        task = int(spec["task"])
+        if name == "value-iteration":
+            agent = OracleAgent(self.q_values()[task], name=name)
+        elif name == "perseus":
+            prior = np.eye(self.library.n_models)[task]
+            agent = AtpoAgent(self.kernels(), self.policies(), prior=prior, name=name)
+        elif name == "atpo":
+            agent = AtpoAgent(self.kernels(), self.policies(), name=name)
+        elif name == "random-picker":
+            agent = RandomPickerAgent(self.kernels(), self.policies(), name=name)
+        elif name == "bopa":
+            if not self.library.shares_states:
+                raise ConfigError(
+                    f"bopa needs one state space shared by the models; {self.library.domain} has not"
+                )
+            agent = BopaAgent(self.library.mdps, self.q_values(), name=name)
+        elif name == "random":
+            agent = RandomAgent(self.library.n_actions, name=name)
+        else:
+            raise ConfigError(f"unknown agent '{name}'; choose from {', '.join(CHAPTER5_AGENTS)}")
+        agent.rng = np.random.default_rng(seed)
+        return agent
+
+
+_SESSION_CACHE: dict[str, Chapter5Session] = {}
+
+
+class Chapter5Domain:
+    """The trial plug-in of one chapter-5 domain (see :mod:`embodied_adhoc.experiments.registry`)."""
+
+    backends = ("abstract",)
+
+    def __init__(self, name: str, description: str) -> None:
+        self.name, self.description = name, description
+        self.agent_names = (
+            CHAPTER5_AGENTS if name != "power-plant" else tuple(a for a in CHAPTER5_AGENTS if a != "bopa")
+        )
+        if name == "panic-buttons":
+            self.default_agents = ("value-iteration", "bopa", "random")
+        else:
+            self.default_agents = self.agent_names
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        from embodied_adhoc.domains.chapter5.options import add_library_arguments
+        from embodied_adhoc.experiments.policy_cache import cache_dir
+
+        add_library_arguments(parser, self.name)
+        group = parser.add_argument_group(f"{self.name} solver and episodes")
+        group.add_argument(
+            "--task", type=int, default=None, metavar="K", help="fix the true model to K (default: uniform)"
+        )
+        group.add_argument(
+            "--beliefs", type=int, default=None, help="Perseus belief-set size (default: Table 5.2's)"
+        )
+        group.add_argument(
+            "--solve-seconds",
+            type=float,
+            default=DEFAULT_SOLVE_SECONDS,
+            metavar="S",
+            help=f"Perseus time limit per model (default {DEFAULT_SOLVE_SECONDS:g} s; tolerance {SOLVER_TOLERANCE})",
+        )
+        group.add_argument(
+            "--no-cache",
+            action="store_true",
+            help=f"solve again; do not read or write the policy cache ({cache_dir()})",
+        )
+        parser.set_defaults(max_steps=TABLE_5_2_HORIZON[self.name])
+
+    def options_from_args(self, args: argparse.Namespace) -> dict:
+        from embodied_adhoc.domains.chapter5.options import library_options
+
+        if args.beliefs is not None and args.beliefs < 1:
+            raise ConfigError(f"--beliefs must be >= 1, got {args.beliefs}")
+        if args.solve_seconds is not None and args.solve_seconds <= 0:
+            raise ConfigError(f"--solve-seconds must be positive, got {args.solve_seconds}")
+        options = {
+            "library": library_options(self.name, args),
+            "task": args.task,
+            "beliefs": args.beliefs,
+            "solve_seconds": args.solve_seconds,
+            "cache": not args.no_cache,
+        }
+        n_models = self._session(options).library.n_models
+        if args.task is not None and not 0 <= args.task < n_models:
+            raise ConfigError(f"--task {args.task} is outside the library's models 0..{n_models - 1}")
+        return options
+
+    def _session(self, options: dict) -> Chapter5Session:
+        import json
+
+        key = json.dumps([self.name, options["library"]], sort_keys=True)
+        if key not in _SESSION_CACHE:
+            _SESSION_CACHE[key] = Chapter5Session(self.name, options)
+        return _SESSION_CACHE[key]
+
+    def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
+        library = self._session(options).library
+        drawn = int(rng.integers(library.n_models))
+        task = drawn if options.get("task") is None else int(options["task"])
+        start = library.pomdps[task].sample_initial_state(rng)
+        return {"task": task, "start": int(start)}
+
+    def open_session(self, backend: str, options: dict) -> Chapter5Session:
+        session = self._session(options)
+        if session.options != options:  # same library, other solver settings
+            session = Chapter5Session(self.name, options)
+        return session
+
+
+_DESCRIPTIONS = {
+    "panic-buttons": "Panic Buttons (Table 5.1): 2 agents press 2 buttons; BOPA vs greedy and random",
+    "gridworld": "gridworld 5x5 (Table 5.5): 2 agents, 2 goal cells, four noisy sensors",
+    "pursuit-task": "pursuit, 4 capture configurations, greedy teammate (Table 5.5)",
+    "pursuit-teammate": "pursuit, greedy or teammate-aware teammate (Table 5.5)",
+    "pursuit-both": "pursuit, 4 configurations x 2 teammates (Table 5.5)",
+    "power-plant": "abandoned power plant: explore or clean (Table 5.5)",
+    "ntu": "ntu map navigation (Table 5.5)",
+    "isr": "isr map navigation (Table 5.5)",
+    "mit": "mit map navigation (Table 5.5)",
+    "pentagon": "pentagon map navigation (Table 5.5)",
+    "cit": "cit map navigation (Table 5.5)",
+    "overcooked": "overcooked: helper and cook, 4 cooks (Table 5.5)",
+    "map": "navigation on any map file (--map PATH)",
+}
+
+
+def domain(name: str) -> Chapter5Domain:
+    return Chapter5Domain(name, _DESCRIPTIONS[name])
+
+
+def __getattr__(attribute: str):
+    """``embodied_adhoc.experiments.chapter5:DOMAIN_<name>`` import strings for the registry."""
+    if attribute.startswith("DOMAIN_"):
+        name = attribute[len("DOMAIN_") :].replace("_", "-")
+        if name in _DESCRIPTIONS:
+            return domain(name)
+    raise AttributeError(attribute)

@@ -1,0 +1,84 @@
+"""On-disk cache of solved policies, keyed by the model's content and the solver settings.
+
+A key is the SHA-256 of the POMDP's arrays (every transition and observation matrix, rewards, discount, initial
+belief), of the solver settings (JSON, sorted keys) and of the solver's own source files (so that a changed solver
+never serves an old answer). Policies are ``AlphaVectorPolicy`` ``.npz`` files (no pickle), written atomically, under
+``$XDG_CACHE_HOME/embodied-adhoc/policies`` (default ``~/.cache/embodied-adhoc/policies``), never inside the package.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["cache_dir", "model_digest", "solve_cached"]
+
+_SOLVER_SOURCES = (
+    "perseus.py",
+    "backup.py",
+    "beliefs.py",
+    "belief_expansion.py",
+    "upper_bound.py",
+    "policy.py",
+)
+
+
+def cache_dir() -> Path:
+    """The policy cache folder (XDG base directory specification)."""
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "embodied-adhoc" / "policies"
+
+
+def model_digest(pomdp) -> str:
+    """SHA-256 of everything that defines ``pomdp`` (names excluded: they do not change a solution)."""
+    digest = hashlib.sha256()
+    digest.update(
+        np.asarray([pomdp.n_states, pomdp.n_actions, pomdp.n_observations, pomdp.discount]).tobytes()
+    )
+    for matrices in (pomdp.transitions, pomdp.observations):
+        for matrix in matrices:
+            for array in (matrix.indptr, matrix.indices, matrix.data):
+                digest.update(np.ascontiguousarray(array).tobytes())
+    digest.update(np.ascontiguousarray(pomdp.rewards).tobytes())
+    digest.update(np.ascontiguousarray(pomdp.initial_belief).tobytes())
+    return digest.hexdigest()
+
+
+def _solver_digest() -> str:
+    import embodied_adhoc.decision as decision
+
+    digest = hashlib.sha256()
+    folder = Path(decision.__file__).parent
+    for name in _SOLVER_SOURCES:
+        path = folder / name
+        if path.is_file():
+            digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object, bool]:
+    """``(policy, from_cache)``: Perseus with ``settings`` (``PerseusConfig`` fields) on ``pomdp``, loaded from the
+    cache when a policy of the same model, settings and solver exists; solved and stored otherwise. ``use_cache``
+    False bypasses the cache entirely (neither read nor written)."""
+    from embodied_adhoc.decision.perseus import PerseusConfig, perseus
+    from embodied_adhoc.decision.policy import AlphaVectorPolicy
+
+    if not use_cache:
+        return perseus(pomdp, PerseusConfig(**settings)), False
+    key = hashlib.sha256(
+        "|".join([model_digest(pomdp), json.dumps(settings, sort_keys=True), _solver_digest()]).encode()
+    ).hexdigest()
+    path = cache_dir() / f"{key}.npz"
+    if path.is_file():
+        try:
+            return AlphaVectorPolicy.load(path), True
+        except (OSError, ValueError):
+            pass  # a damaged entry is solved again and overwritten
+    policy = perseus(pomdp, PerseusConfig(**settings))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    policy.save(path)
+    return policy, False
