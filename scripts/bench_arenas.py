@@ -2,8 +2,10 @@
 
 1. env steps/s of lbforaging 2.0.0's env (5x5, 4 players, 1 food, sight 2, vector observation; random joint
    actions), the reference; against it: our grid twin with random joint actions (PettingZoo env: rules +
-   four egocentric observations), the single-agent grid env (scripted teammates plan every step), and the
-   MuJoCo arena (single-agent env, robots driven cell to cell physically);
+   four egocentric observations), the single-agent grid env (scripted teammates plan every step), the
+   training vector env (``learning/vector_grid.py``: ``num_envs`` single-agent envs stepped at once, scripted
+   teams included; env steps/s counts every sub-env's step) and the MuJoCo arena (single-agent env, robots
+   driven cell to cell physically);
 2. physics overhead of one MuJoCo macro step (one grid step executed physically, controllers included) as a
    ratio to one raw ``mj_step`` of the same model, and the number of ``mj_step`` calls it makes.
 
@@ -30,6 +32,8 @@ class Args:
     domain: str = "foraging"
     """foraging or pursuit (lbforaging is compared in either case: it is the only external grid reference)"""
     seed: int = 0
+    num_envs: int = 64
+    """sub-envs of the vector env row"""
 
 
 def rate(step, reset, budget: float, minimum: int = 20) -> float:
@@ -98,6 +102,20 @@ def main(args: Args) -> None:
     ids = {"foraging": ("EmbodiedAdhoc/ForagingGrid-v0", "EmbodiedAdhoc/Foraging-v0"),
            "pursuit": ("EmbodiedAdhoc/PursuitGrid-v0", "EmbodiedAdhoc/Pursuit-v0")}[args.domain]
     results.append((f"{ids[0]}, random ad hoc + scripted team", single_rate(ids[0], args.seconds)))
+
+    from embodied_adhoc.learning.vector_grid import GridVectorEnv
+
+    vector = GridVectorEnv(args.domain, args.num_envs)
+    vector.reset(seed=args.seed)
+    vector_actions = rng.integers(0, 5, size=(64, args.num_envs))
+    calls = iter(range(10**12))
+
+    def vector_step():
+        vector.step(vector_actions[next(calls) % 64])
+        return False  # sub-envs reset themselves (NEXT_STEP autoreset)
+
+    vector_rate = rate(vector_step, lambda: None, args.seconds) * args.num_envs
+    results.append((f"GridVectorEnv x{args.num_envs} ({args.domain}), random ad hoc + scripted team", vector_rate))
 
     arena_env = gymnasium.make(ids[1]).unwrapped
     backend = arena_env.core.backend

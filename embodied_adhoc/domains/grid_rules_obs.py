@@ -26,25 +26,30 @@ def observation_high(rules: GridRules) -> float:
     return float(max(1, cfg.n_agents * cfg.max_agent_level)) if cfg.domain == "foraging" else 1.0
 
 
-def _padded_layers(rules: GridRules, batch: GridBatch, half: int) -> np.ndarray:
-    """(B, N + M + 2, R + 2 half, C + 2 half) world-frame layers (N agents, M targets, boundary, levels), padded
-    by ``half`` cells on every side: with the boundary marked beyond walls, or wrapped around on a torus."""
+def _layers(rules: GridRules, batch: GridBatch) -> np.ndarray:
+    """(B, N + M + 2, R + 1, C + 1) world-frame layers (N agents, M targets, boundary, levels) with one extra
+    row and column, the *outside*: all zero but in the boundary layer, where it is 1. Window cells beyond the
+    walls index it (see :func:`_window_index`)."""
     cfg = rules.config
     b = len(batch.agents)
     env = np.arange(b)[:, None]
-    layers = np.zeros((b, cfg.n_agents + cfg.n_targets + 2, cfg.rows, cfg.cols), dtype=np.float32)
+    layers = np.zeros((b, cfg.n_agents + cfg.n_targets + 2, cfg.rows + 1, cfg.cols + 1), dtype=np.float32)
+    layers[:, -2, -1, :] = 1.0
+    layers[:, -2, :, -1] = 1.0
     layers[env, np.arange(cfg.n_agents), batch.agents[..., 0], batch.agents[..., 1]] = 1.0
     rows, live = np.nonzero(batch.alive)
     cells = batch.targets[rows, live]
     layers[rows, cfg.n_agents + live, cells[:, 0], cells[:, 1]] = 1.0
     layers[env, -1, batch.agents[..., 0], batch.agents[..., 1]] = batch.agent_levels
     layers[rows, -1, cells[:, 0], cells[:, 1]] = batch.target_levels[rows, live]
-    if cfg.toroidal:
-        return np.pad(layers, ((0, 0), (0, 0), (half, half), (half, half)), mode="wrap")
-    padded = np.pad(layers, ((0, 0), (0, 0), (half, half), (half, half)))
-    padded[:, -2] = 1.0
-    padded[:, -2, half:half + cfg.rows, half:half + cfg.cols] = 0.0
-    return padded
+    return layers
+
+
+def _window_index(size: int, view: int, toroidal: bool) -> np.ndarray:
+    """(size, view): the layer row (or column) each window row (column) of an observer in row (column) ``i``
+    reads: wrapped on a torus, else ``size`` (the outside) beyond the walls."""
+    cells = np.arange(size)[:, None] + np.arange(view)[None, :] - view // 2
+    return cells % size if toroidal else np.where((cells >= 0) & (cells < size), cells, size)
 
 
 def observation_layers(rules: GridRules) -> np.ndarray:
@@ -61,14 +66,14 @@ def egocentric_batch(rules: GridRules, batch: GridBatch, observers: np.ndarray, 
     (one padded world per state, K windows gathered at once)."""
     if view < 1 or view % 2 == 0:
         raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
-    padded = _padded_layers(rules, batch, view // 2)
+    cfg = rules.config
+    layers = _layers(rules, batch)
     env = np.arange(len(observers))[:, None]
-    cells = batch.agents[env, observers]  # (B, K, 2): the window's top-left in the padded frame
-    span = np.arange(view)
-    rows = (cells[..., 0, None] + span)[:, :, None, :, None]
-    cols = (cells[..., 1, None] + span)[:, :, None, None, :]
+    cells = batch.agents[env, observers]  # (B, K, 2)
+    rows = _window_index(cfg.rows, view, cfg.toroidal)[cells[..., 0]][:, :, None, :, None]
+    cols = _window_index(cfg.cols, view, cfg.toroidal)[cells[..., 1]][:, :, None, None, :]
     channels = observation_layers(rules)[observers][..., None, None]
-    return padded[env[..., None, None, None], channels, rows, cols]
+    return layers[env[..., None, None, None], channels, rows, cols]
 
 
 def egocentric_observations(rules: GridRules, state: GridState, view: int = 5) -> np.ndarray:

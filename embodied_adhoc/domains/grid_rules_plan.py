@@ -30,10 +30,16 @@ class CellBits:
         self.full = self.mask(np.ones(self.cells, dtype=bool))
         self.first_row, self.last_row = self.mask(row == 0), self.mask(row == cfg.rows - 1)
         self.first_col, self.last_col = self.mask(col == 0), self.mask(col == cfg.cols - 1)
+        self.not_first_col, self.not_last_col = self.full ^ self.first_col, self.full ^ self.last_col
         self.toroidal = cfg.toroidal
         self.wrap_rows, self.wrap_cols = self.as_int(cfg.cols * (cfg.rows - 1)), self.as_int(cfg.cols - 1)
         self.one, self.width, self.zero = self.as_int(1), self.as_int(cfg.cols), self.as_int(0)
         self.neighbours = rules.neighbours  # (cells, 4) flat neighbour per move, -1 at a wall
+        xy = np.stack([row, col], axis=-1)
+        self.distance = rules.distance(xy[:, None], xy[None, :])  # (cells, cells) Manhattan (wrapping)
+        gap = np.abs(rules.delta(xy[:, None], xy[None, :]))
+        # the greedy walker's axis from cell to goal: 0 rows (larger row gap), 1 columns, 2 a tie
+        self.axis_preference = np.where(gap[..., 0] > gap[..., 1], 0, np.where(gap[..., 0] < gap[..., 1], 1, 2))
 
     def as_int(self, value: int):
         return np.uint64(value) if self.dtype is np.uint64 else value
@@ -46,9 +52,10 @@ class CellBits:
         return self.bit[np.where(flat < 0, self.cells, flat)]
 
     def expand(self, bits: np.ndarray) -> np.ndarray:
-        """Cells one move away from any cell of ``bits`` (through the wrap on a torus)."""
-        out = ((bits & (self.full ^ self.first_row)) >> self.width) | ((bits & (self.full ^ self.last_row)) << self.width)
-        out |= ((bits & (self.full ^ self.first_col)) >> self.one) | ((bits & (self.full ^ self.last_col)) << self.one)
+        """Cells one move away from any cell of ``bits`` (through the wrap on a torus); may carry bits beyond
+        the grid's last cell, which callers mask off with a subset of :attr:`full`."""
+        out = (bits >> self.width) | (bits << self.width) | ((bits >> self.one) & self.not_last_col)
+        out |= (bits << self.one) & self.not_first_col
         if self.toroidal:
             out |= ((bits & self.first_row) << self.wrap_rows) | ((bits & self.last_row) >> self.wrap_rows)
             out |= ((bits & self.first_col) << self.wrap_cols) | ((bits & self.last_col) >> self.wrap_cols)
@@ -68,66 +75,74 @@ def _or_reduce(bits: np.ndarray, axis: int) -> np.ndarray:
     return out
 
 
-def best_moves(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, blocked: np.ndarray) -> np.ndarray:
-    """(..., 4) bool: the moves from flat ``start`` to a neighbour at least step count from flat ``goal``
-    through cells not ``blocked`` (bitsets), by breadth-first search from the goal (which counts as reachable
-    even if blocked); all False where no neighbour reaches the goal."""
-    neighbour_bits = cellbits.of(cellbits.neighbours[start])  # (..., 4)
-    reach = cellbits.of(goal)
+MOVE_WEIGHTS = np.array([1, 2, 4, 8], dtype=np.int64)  # a set of the 4 moves as a 4-bit code
+
+
+def _move_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lookups over 4-bit move sets: size, the k-th move (INTERACT past the end) and the greedy walker's
+    preferred move for each axis preference (0 rows first, 1 columns first, 2 none: the lowest move)."""
+    size = np.array([bin(code).count("1") for code in range(16)], dtype=np.int64)
+    nth = np.full((16, 4), INTERACT, dtype=np.int64)
+    by_axis = np.full((16, 3), INTERACT, dtype=np.int64)
+    for code in range(16):
+        moves = [a for a in range(4) if code >> a & 1]
+        nth[code, :len(moves)] = moves
+        for preference, order in enumerate(((0, 1, 2, 3), (2, 3, 0, 1), (0, 1, 2, 3))):
+            by_axis[code, preference] = next((a for a in order if a in moves), INTERACT)
+    return size, nth, by_axis
+
+
+MOVE_COUNT, NTH_MOVE, AXIS_MOVE = _move_tables()
+
+
+def best_moves(cellbits: CellBits, neighbour_bits: np.ndarray, goal_bits: np.ndarray,
+               blocked: np.ndarray) -> np.ndarray:
+    """4-bit codes of the moves from a start (its neighbours' bits, (..., 4)) to a neighbour at least step
+    count from the goal (bits) through cells not ``blocked`` (bitsets), by breadth-first search from the goal
+    (which counts as reachable even if blocked); 0 where no neighbour reaches the goal. The searches grow layer
+    by layer until each touches its start's neighbourhood or stops growing; the first layer that touches a
+    neighbour gives the best moves."""
     open_cells = cellbits.full ^ blocked
-    moves = np.zeros(neighbour_bits.shape, dtype=bool)
-    done = np.zeros(reach.shape, dtype=bool)
+    around = neighbour_bits[..., 0] | neighbour_bits[..., 1] | neighbour_bits[..., 2] | neighbour_bits[..., 3]
+    reach = np.broadcast_to(goal_bits, open_cells.shape)
+    layers = [reach]
     for _ in range(cellbits.cells):
-        hit = cellbits.has(reach[..., None], neighbour_bits)
-        newly = hit.any(axis=-1) & ~done
-        moves |= hit & newly[..., None]
-        done |= newly
         grown = reach | (cellbits.expand(reach) & open_cells)
-        done |= grown == reach  # nothing new: the goal is walled off from the remaining searches
-        if done.all():
-            break
+        if (((reach & around) != cellbits.zero) | (grown == reach)).all():
+            break  # every search touches its start's neighbourhood or cannot grow any more
+        layers.append(grown)
         reach = grown
-    return moves
+    touched = cellbits.has(np.stack(layers)[..., None], neighbour_bits)  # (layers, ..., 4)
+    codes = touched.astype(np.int64) @ MOVE_WEIGHTS
+    first = np.argmax(codes > 0, axis=0)  # the first layer touching a neighbour (0 if none does)
+    return np.take_along_axis(codes, first[None], axis=0)[0]
 
 
-def pick_nth(mask: np.ndarray, uniforms: np.ndarray) -> np.ndarray:
-    """Index of the ``floor(u * count)``-th True entry of each row of ``mask`` (-1 for an empty row)."""
-    count = mask.sum(axis=-1)
-    nth = np.minimum((uniforms * count).astype(np.int64), np.maximum(count - 1, 0))
-    chosen = mask & (np.cumsum(mask, axis=-1) == (nth + 1)[..., None])
-    return np.where(count > 0, np.argmax(chosen, axis=-1), -1)
-
-
-def navigate(rules: GridRules, cellbits: CellBits, agents: np.ndarray, goals: np.ndarray, static: np.ndarray,
-             obstacles: np.ndarray, free: np.ndarray, greedy_axis: np.ndarray, uniforms: np.ndarray,
-             unstick: float = 0.25) -> np.ndarray:
-    """(B, N) first move of a shortest path from each member's cell ``agents`` to its ``goals`` (INTERACT once
-    there) around the live targets (bitsets ``static``, (B,)) and the teammates in ``obstacles`` (bitsets,
-    (B, N)). If those wall the goal off, the path around targets only. A member waits while its next cell is
-    taken (``free``: (B,) bitsets of empty cells), except that with probability ``unstick`` it steps to a
-    random free cell instead. Ties between equally short moves go uniformly at random, or, where
+def navigate(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, static: np.ndarray, obstacles: np.ndarray,
+             free: np.ndarray, greedy_axis: np.ndarray, uniforms: np.ndarray, unstick: float = 0.25) -> np.ndarray:
+    """(B, N) first move of a shortest path from each member's flat cell ``start`` to its flat ``goal``
+    (INTERACT once there) around the live targets (bitsets ``static``, (B,)) and the teammates in ``obstacles``
+    (bitsets, (B, N)). If those wall the goal off, the path around targets only. A member waits while its next
+    cell is taken (``free``: (B,) bitsets of empty cells), except that with probability ``unstick`` it steps to
+    a random free cell instead. Ties between equally short moves go uniformly at random, or, where
     ``greedy_axis`` (B,), 4 times in 5 to the axis with the larger gap to the goal, rows first: the greedy
     walker's habit (always doing so lets two greedy members mirror each other forever). ``uniforms`` (B, N, 3)
     in [0, 1): axis habit, choice among moves, unstick."""
-    start, goal = rules.flat(agents), rules.flat(goals)
     goal_bits = cellbits.of(goal)
-    static = np.broadcast_to(static[:, None], start.shape)
+    neighbour_bits = cellbits.of(cellbits.neighbours[start])  # (B, N, 4), empty at walls
+    static = static[:, None]
     # a teammate standing on the goal may still leave it; a live target on it may not
     blocked = (static | obstacles) & (cellbits.full ^ goal_bits) | (static & goal_bits)
-    fields = best_moves(cellbits, np.stack([start, start]), np.stack([goal, goal]), np.stack([blocked, static]))
-    moves = np.where(fields[0].any(axis=-1)[..., None], fields[0], fields[1])
-    neighbour_bits = cellbits.of(cellbits.neighbours[start])
-    open_step = cellbits.has(free[:, None, None], neighbour_bits) & (cellbits.neighbours[start] >= 0)
-    moves &= open_step
-    count = moves.sum(axis=-1)
-    gap = np.abs(rules.delta(agents, goals))  # (B, N, 2)
-    axis_score = np.where(moves, gap[..., [0, 0, 1, 1]] * 8 - np.arange(4), -100)
-    by_axis = np.argmax(axis_score, axis=-1)
-    random_move = pick_nth(moves, uniforms[..., 1])
-    escape = pick_nth(open_step, uniforms[..., 1])
-    action = np.where(uniforms[..., 2] < unstick, np.where(escape >= 0, escape, INTERACT), INTERACT)
-    action = np.where(count > 0, random_move, action)
-    action = np.where((count > 1) & greedy_axis[:, None] & (uniforms[..., 0] < 0.8), by_axis, action)
+    fields = best_moves(cellbits, neighbour_bits, goal_bits, np.stack([blocked, np.broadcast_to(static, blocked.shape)]))
+    open_step = cellbits.has(free[:, None, None], neighbour_bits).astype(np.int64) @ MOVE_WEIGHTS
+    moves = np.where(fields[0] > 0, fields[0], fields[1]) & open_step
+    count = MOVE_COUNT[moves]
+    pick = uniforms[..., 1]
+    action = NTH_MOVE[open_step, np.minimum((pick * MOVE_COUNT[open_step]).astype(np.int64), 3)]
+    action = np.where(uniforms[..., 2] < unstick, action, INTERACT)
+    action = np.where(count > 0, NTH_MOVE[moves, np.minimum((pick * count).astype(np.int64), 3)], action)
+    habit = (count > 1) & greedy_axis[:, None] & (uniforms[..., 0] < 0.8)
+    action = np.where(habit, AXIS_MOVE[moves, cellbits.axis_preference[start, goal]], action)
     return np.where(start == goal, INTERACT, action)
 
 
@@ -136,11 +151,11 @@ def permutations_table(n: int) -> np.ndarray:
     return np.array(list(itertools.permutations(range(n))), dtype=np.int64)
 
 
-def assign_slots(rules: GridRules, agents: np.ndarray, slots: np.ndarray, orders: np.ndarray) -> np.ndarray:
+def assign_slots(cost: np.ndarray, orders: np.ndarray) -> np.ndarray:
     """Slot index per agent minimising the team's summed distance, ties to the lexicographically first
-    assignment: ``agents`` (B, N, 2), ``slots`` (B, N, K, 2) (each member's own target's slots), result (B, N)."""
-    cost = rules.distance(agents[:, None, :, None, :], slots[:, :, None, :, :])  # (B, member, agent, slot)
-    n = agents.shape[1]
+    assignment: ``cost`` (B, member, agent, slot) the distances from each agent to the slots of each member's
+    own target, ``orders`` the permutations (:func:`permutations_table`); result (B, N)."""
+    n = cost.shape[2]
     totals = cost[:, :, np.arange(n)[None, :], orders].sum(axis=-1)  # (B, member, n!)
     best = np.argmin(totals, axis=-1)
     return orders[best, np.arange(n)[None, :]]

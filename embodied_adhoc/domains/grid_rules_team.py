@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from embodied_adhoc.domains.grid_rules import INTERACT, MOVES, GridBatch, GridRules, GridState, Task
+from embodied_adhoc.domains.grid_rules import INTERACT, GridBatch, GridRules, GridState, Task
 from embodied_adhoc.domains.grid_rules_plan import (
     CellBits,
     assign_slots,
@@ -79,6 +79,10 @@ class TeamPlanner:
     def __init__(self, rules: GridRules) -> None:
         self.rules, self.cellbits = rules, CellBits(rules)
         self.orders = permutations_table(rules.config.n_agents)
+        # step_to[cell, action]: the cell an action aims at (its own cell for INTERACT and into walls)
+        cells = np.arange(len(rules.neighbours))
+        self.step_to = np.concatenate([np.where(rules.neighbours >= 0, rules.neighbours, cells[:, None]),
+                                       cells[:, None]], axis=1)
 
     def goals(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable) -> np.ndarray:
         """(B, N, 2) the cell each member heads for now: its task slot around its target, or its point on the
@@ -86,7 +90,8 @@ class TeamPlanner:
         rules, agents = self.rules, batch.agents
         n = agents.shape[1]
         env = np.arange(len(agents))[:, None]
-        distance = rules.distance(agents[:, :, None, :], batch.targets[:, None, :, :])  # (B, member, target)
+        start = rules.flat(agents)
+        distance = self.cellbits.distance[start[:, :, None], rules.flat(batch.targets)[:, None, :]]  # (B, m, t)
         cost = np.where(teams.target[:, None, None] == 0, distance, -batch.target_levels[:, None, :])
         cost = np.where(teams.target[:, None, None] == 2, distance.sum(axis=1, keepdims=True), cost)
         target = np.argmin(np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1)  # (B, N)
@@ -94,10 +99,12 @@ class TeamPlanner:
         slots, _ = rules.normalise(target_cells[:, :, None, :] + offsets[:, None, :, :])  # (B, member, slot, 2)
         if interchangeable:
             # greedy: the closest slot, skipping slots another agent already stands on
-            on_slot = np.all(agents[:, None, :, None, :] == slots[:, :, None, :, :], axis=-1)  # (B, m, agent, s)
+            slot_flat = rules.flat(slots)  # (B, member, slot)
+            on_slot = start[:, None, :, None] == slot_flat[:, :, None, :]  # (B, member, agent, slot)
             taken = np.any(on_slot & ~np.eye(n, dtype=bool)[None, :, :, None], axis=2)
-            closest = np.argmin(rules.distance(agents[:, :, None, :], slots) + 1000 * taken, axis=-1)
-            slot = np.where(teams.slot_closest[:, None], closest, assign_slots(rules, agents, slots, self.orders))
+            closest = np.argmin(self.cellbits.distance[start[:, :, None], slot_flat] + 1000 * taken, axis=-1)
+            cost = self.cellbits.distance[start[:, None, :, None], slot_flat[:, :, None, :]]
+            slot = np.where(teams.slot_closest[:, None], closest, assign_slots(cost, self.orders))
         else:
             slot = np.broadcast_to(np.arange(n), target.shape)
         goal = slots[env, np.arange(n)[None, :], slot]
@@ -115,21 +122,21 @@ class TeamPlanner:
         equally short moves and let a blocked member sidestep at random (see :func:`navigate`).
         """
         rules, bits = self.rules, self.cellbits
-        agents = batch.agents
-        n = agents.shape[1]
-        goals = self.goals(batch, offsets, interchangeable, teams)
-        settled = np.all(goals == agents, axis=-1)  # (B, N)
+        n = batch.agents.shape[1]
+        start = rules.flat(batch.agents)
+        goal = rules.flat(self.goals(batch, offsets, interchangeable, teams))
+        settled = goal == start  # (B, N)
         lower = np.tril(np.ones((n, n), dtype=bool), -1)  # lower[i, j]: j < i
         obstacle = (settled[:, None, :] | (lower[None] & ~teams.greedy[:, None, None])) & ~np.eye(n, dtype=bool)
-        agent_bits = bits.of(rules.flat(agents))  # (B, N)
+        agent_bits = bits.of(start)  # (B, N)
         obstacles = bits.union(np.where(obstacle, agent_bits[:, None, :], bits.zero), axis=2)
         static = bits.union(np.where(batch.alive, bits.of(rules.flat(batch.targets)), bits.zero), axis=1)
         free = bits.full ^ (static | bits.union(agent_bits, axis=1))
-        intended = navigate(rules, bits, agents, goals, static, obstacles, free, teams.greedy, uniforms)
+        intended = navigate(bits, start, goal, static, obstacles, free, teams.greedy, uniforms)
         intended = np.where(batch.alive.any(axis=1)[:, None], intended, INTERACT)
-        wanted, _ = rules.normalise(agents + MOVES[intended])
-        flat, moving = rules.flat(wanted), intended != INTERACT
-        clash = np.any(lower[None] & moving[:, None, :] & (flat[:, None, :] == flat[:, :, None]), axis=-1)
+        wanted = self.step_to[start, intended]
+        moving = intended != INTERACT
+        clash = (lower[None] & moving[:, None, :] & (wanted[:, None, :] == wanted[:, :, None])).any(axis=-1)
         return np.where(moving & clash, INTERACT, intended)
 
 
