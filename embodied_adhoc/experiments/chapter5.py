@@ -48,8 +48,9 @@ class LibraryEnv:
     episode terminates on entering the model's absorbing state; truncation is the runner's cap.
     """
 
-    def __init__(self, library) -> None:
+    def __init__(self, library, pomdps=None) -> None:
         self.library = library
+        self.pomdps = library.pomdps if pomdps is None else pomdps  # the world's models (a user's teammate)
         self.rng = np.random.default_rng(0)
         self.model, self.state = 0, 0
 
@@ -57,7 +58,7 @@ class LibraryEnv:
         options = dict(options or {})
         self.rng = np.random.default_rng(seed)
         self.model = int(options["task"])
-        self.pomdp = self.library.pomdps[self.model]
+        self.pomdp = self.pomdps[self.model]
         self.state = int(options["start"])
         return self.state, {"state": self.state, "observation_index": -1}
 
@@ -122,7 +123,10 @@ class Chapter5Session:
         self._q = None
 
     def make_env(self, max_steps: int) -> LibraryEnv:
-        return LibraryEnv(self.library)
+        world = None
+        if self.options.get("teammate"):
+            world = world_with_teammate(self.library, self.options["teammate"])
+        return LibraryEnv(self.library, world)
 
     def reset_options(self, spec: dict) -> dict:
         return {"task": int(spec["task"]), "start": int(spec["start"])}
@@ -253,7 +257,14 @@ class Chapter5Domain:
             "solve_seconds": args.solve_seconds,
             "cache": not args.no_cache,
         }
-        n_models = self._session(options).library.n_models
+        if self.name not in ("panic-buttons", "power-plant"):
+            options["teammate"] = args.teammate
+        session = self._session(options)
+        n_models = session.library.n_models
+        if options.get("teammate"):
+            world_with_teammate(
+                session.library, options["teammate"]
+            )  # refuse a bad teammate before any trial
         if args.task is not None and not 0 <= args.task < n_models:
             raise ConfigError(f"--task {args.task} is outside the library's models 0..{n_models - 1}")
         return options
@@ -308,3 +319,51 @@ def __getattr__(attribute: str):
         if name in _DESCRIPTIONS:
             return domain(name)
     raise AttributeError(attribute)
+
+
+def world_with_teammate(library, reference: str) -> tuple:
+    """The library's models with the teammate replaced by ``reference`` (``module:callable``): for each model
+    ``m``, ``CALLABLE(library, m)`` gives ``pi(b | x)`` (S x B), which Fig. 5.2's reduction turns into the world's
+    transitions (same rewards, observations and start)."""
+    import importlib
+
+    from embodied_adhoc.decision.models import POMDP
+    from embodied_adhoc.domains.chapter5.library import reduce_joint
+
+    module_name, _, attribute = reference.partition(":")
+    if not module_name or not attribute:
+        raise ConfigError(f"--teammate {reference!r}: expected MODULE:CALLABLE, e.g. my_teammates:cautious")
+    try:
+        factory = getattr(importlib.import_module(module_name), attribute)
+    except (ImportError, AttributeError) as error:
+        raise ConfigError(f"--teammate {reference!r}: cannot import it ({error})") from None
+    world = []
+    for m, pomdp in enumerate(library.pomdps):
+        mmdp = library.mmdps[m]
+        n_teammate = mmdp.n_actions // pomdp.n_actions
+        policy = np.asarray(factory(library, m), dtype=np.float64)
+        if policy.shape != (pomdp.n_states, n_teammate):
+            raise ConfigError(
+                f"--teammate {reference}: returned shape {policy.shape} for model {m}; expected "
+                f"({pomdp.n_states}, {n_teammate}) = (states, teammate actions)"
+            )
+        if policy.min() < 0.0 or not np.allclose(policy.sum(axis=1), 1.0, atol=1e-9):
+            raise ConfigError(
+                f"--teammate {reference}: model {m}: every row must be a probability distribution"
+            )
+        joint = [
+            [mmdp.transitions[a * n_teammate + b] for b in range(n_teammate)] for a in range(pomdp.n_actions)
+        ]
+        world.append(
+            POMDP(
+                reduce_joint(joint, policy),
+                pomdp.rewards,
+                pomdp.discount,
+                pomdp.state_names,
+                pomdp.action_names,
+                pomdp.observations,
+                pomdp.initial_belief,
+                pomdp.observation_names,
+            )  # fmt: skip
+        )
+    return tuple(world)

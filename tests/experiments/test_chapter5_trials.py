@@ -110,3 +110,33 @@ def test_cli_refuses_a_bad_map_with_its_place(tmp_path):
     result = _cli("map", "--map", str(bad), "--episodes", "1")
     assert result.returncode == 2
     assert f"{bad}:2:3: bad character '%'" in result.stderr
+
+
+def test_a_users_teammate_replaces_the_worlds(tmp_path, monkeypatch):
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.chapter5 import world_with_teammate
+
+    (tmp_path / "my_teammates.py").write_text(
+        "import numpy as np\n"
+        "def frozen(library, model):\n"
+        "    policy = np.zeros((library.n_states, 5))\n"
+        "    policy[:, 4] = 1.0  # always stays\n"
+        "    return policy\n"
+        "def broken(library, model):\n"
+        "    return np.ones((3, 5))\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    library = build_library("ntu")
+    world = world_with_teammate(library, "my_teammates:frozen")
+    names = library.state_names
+    x = names.index("ar1c2-tr4c4")
+    for action in range(5):
+        row = world[0].transitions[action][x]
+        assert all(names[y].endswith("-tr4c4") for y in row.indices)  # the teammate never moves
+    with pytest.raises(ConfigError, match=r"my_teammates:broken: returned shape \(3, 5\)"):
+        world_with_teammate(library, "my_teammates:broken")
+    with pytest.raises(ConfigError, match="expected MODULE:CALLABLE"):
+        world_with_teammate(library, "frozen")
+    options = {**_options(), "teammate": "my_teammates:frozen"}
+    config = SweepConfig("ntu", "abstract", options, ("value-iteration",), episodes=2, seed=1, max_steps=20)
+    assert len(run_sweep(config).records) == 2
