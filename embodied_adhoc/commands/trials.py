@@ -47,7 +47,6 @@ def register(subparsers) -> None:
 
 def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
     from embodied_adhoc.experiments.executors import EXECUTORS
-    from embodied_adhoc.experiments.runner import DEFAULT_MAX_STEPS
 
     parser.add_argument(
         "--backend",
@@ -68,8 +67,10 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
     parser.add_argument(
         "--max-steps",
         type=int,
-        default=DEFAULT_MAX_STEPS,
-        help=f"step cap per episode (default {DEFAULT_MAX_STEPS}, as the thesis)",
+        default=None,
+        help="step cap per episode (default: the registered cap of the env that runs the episodes, the same "
+        "TimeLimit gymnasium.make applies: 100 for toxic-waste, the thesis's cap for its simulations; 150 for "
+        "pursuit --pairs, as Fig. 7.12; 200 for foraging and pursuit, whose cap the thesis does not state)",
     )
     parser.add_argument(
         "--workers",
@@ -110,13 +111,22 @@ def handle(args: argparse.Namespace) -> int:
     results = {}
     for backend in backends:
         config = SweepConfig(
-            domain.name, backend, options, parse_agents(args.agents), args.episodes, args.seed, args.max_steps
+            domain.name, backend, options, parse_agents(args.agents), args.episodes, args.seed,
+            _default_cap(domain.name, backend, options) if args.max_steps is None else args.max_steps,
         )
         out = None if args.out is None else Path(args.out) / (backend if len(backends) > 1 else "")
         results[backend] = _run_one(args, config, out)
     if len(backends) > 1:
         _compare_backends(args, results)
     return 0
+
+
+def _default_cap(domain_name: str, backend: str, options: dict) -> int:
+    """The registered step cap (``envs/registry.py``, the one definition) of the env id the sweep runs."""
+    from embodied_adhoc.envs.registry import registered_cap
+    from embodied_adhoc.experiments.executors import open_session
+
+    return registered_cap(open_session(domain_name, backend, options).env_id)
 
 
 def _run_one(args: argparse.Namespace, config, out):

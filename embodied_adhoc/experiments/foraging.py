@@ -23,6 +23,7 @@ from embodied_adhoc.errors import ConfigError
 ENV_IDS = {
     "foraging": {"abstract": "EmbodiedAdhoc/ForagingGrid-v0", "mujoco": "EmbodiedAdhoc/Foraging-v0"},
     "pursuit": {"abstract": "EmbodiedAdhoc/PursuitGrid-v0", "mujoco": "EmbodiedAdhoc/Pursuit-v0"},
+    "pursuit-pairs": {"abstract": "EmbodiedAdhoc/PursuitPairGrid-v0", "mujoco": "EmbodiedAdhoc/PursuitPair-v0"},
 }
 
 
@@ -70,7 +71,7 @@ class GridTrialSession:
 
         import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 
-        self.env_id = ENV_IDS[domain][backend]
+        self.env_id = ENV_IDS["pursuit-pairs" if options.get("pairs") else domain][backend]
         self.env_kwargs = env_kwargs(options)
         probe = gymnasium.make(self.env_id, **self.env_kwargs).unwrapped
         self.rules, self.tasks, self.teams = probe.core.rules, probe.core.tasks, probe.core.teams
