@@ -8,36 +8,108 @@ statements overriding earlier ones; numbers spanning any number of lines; ``#`` 
 ``R(a, s, s', z)`` depending on the end state and observation, collapsed to the immediate expected reward
 ``R(s, a) = sum_{s', z} T(s, a, s') O(a, s', z) R(a, s, s', z)``.
 
+How it reads (fast and sparse): the text is split into tokens once (the line of every token comes from one
+vectorised pass over the bytes); the statements of the common one-entry forms (``T: a : s : s' p``,
+``O: a : s' : z p``, ``R: a : s : s' : z r``, which are 95 % of the corpus) are decoded together with numpy, every
+other statement by a recursive-descent parser. Nothing is dense: every statement becomes (action, row, column,
+value, statement number) entries plus "clear this row/column" marks (``identity``, a whole row, a ``0``
+wildcard), and the model is resolved at the end, the last statement writing an entry winning. A statement that
+would write more than :data:`MAX_ENTRIES` entries (a dense ``|S| x |S|`` block such as ``T: * uniform`` with
+100,000 states) is refused with a size error naming its line; ``identity`` and per-entry files of any size stay
+sparse.
+
 Errors are :class:`PomdpFormatError` with ``file:line``, what was found and what was expected. Probability rows
 that do not sum to 1 (beyond :data:`~embodied_adhoc.decision.models.PROBABILITY_ATOL`) are errors naming the row
-and the line that last wrote it; nothing is renormalised.
+and the line that last wrote it; a negative probability names its entry and line; a number that overflows to
+infinity names its line; nothing is renormalised.
 """
 
 from __future__ import annotations
 
 import re
+from collections import Counter
+from collections.abc import Callable
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.models import POMDP, PROBABILITY_ATOL
 from embodied_adhoc.errors import ModelError, PomdpFormatError
 
-_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*([eE][+-]?\d+)?|\.\d+([eE][+-]?\d+)?)$")
+_NUMBER_TEXT = r"[+-]?(?:\d+\.?\d*(?:[eE][+-]?\d+)?|\.\d+(?:[eE][+-]?\d+)?)"
+_NUMBER = re.compile(rf"^{_NUMBER_TEXT}$")
+_NOT_IN_NUMBERS = re.compile(r"[^0-9eE+\-. ]")  # no nan/inf/1_0: float() then accepts exactly _NUMBER
 _INTEGER = re.compile(r"^\d+$")
+_COMMENT = re.compile(r"#[^\n]*")
 _KEYWORDS = {"discount", "values", "states", "actions", "observations", "start", "T", "O", "R"}
 _MATRIX_WORDS = {"uniform", "identity", "reset"}
-_REWARD_BLOCK_ELEMENTS = 4_000_000
+_ASCII_SPACE = np.array([chr(code).isspace() for code in range(128)])  # str.split()'s whitespace
+_WILD = -1  # a '*' selector in index arrays
+MAX_ENTRIES = 20_000_000
+"""Most (action, row, column) entries the reader holds for T and O together (about 0.5 GB while parsing)."""
 MISSING_ROWS = ("error", "absorbing", "reset")
 """What to do with a transition row ``T(. | s, a)`` that the file never writes (e.g. mini-hall2's goal state):
-an error (default), a self-loop, or the start belief. Rows written but not summing to 1 are always errors."""  # max floats painted at once when collapsing R(a, s, s', z)
+an error (default), a self-loop, or the start belief. Rows written but not summing to 1 are always errors."""
 
 
-class _Token(NamedTuple):  # a NamedTuple: ~4x cheaper to create than a frozen dataclass (files of 1M tokens)
-    text: str
-    line: int
+_LONG = 1 << 21  # added to the code of a token's first character when the token is longer than one character
+
+
+def _tokenize(text: str) -> tuple[list[str], np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+    """Tokens (``:`` always a token of its own, ``#`` to the end of the line a comment), a code per token (its
+    character if it has one, else the code of its first character plus ``_LONG``) and a function giving the
+    1-based lines (as ``str.splitlines`` counts them) of an array of token indices."""
+    text = "\n".join(text.splitlines())
+    if "#" in text:
+        text = _COMMENT.sub("", text)
+    text = text.replace(":", " : ")
+    tokens = text.split()
+    if text.isascii():  # one vectorised pass over the bytes finds where each token starts
+        data = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
+        space = _ASCII_SPACE[data]
+        after_space = np.empty(len(data), dtype=bool)
+        after_space[:1] = True
+        after_space[1:] = space[:-1]
+        offsets = np.flatnonzero(~space & after_space)
+        if len(offsets) == len(tokens):
+            longer = np.zeros(len(offsets), dtype=bool)  # the character after the first is not a space
+            inside = offsets + 1 < len(data)
+            longer[inside] = ~space[offsets[inside] + 1]
+            newlines = np.flatnonzero(data == 10)
+            return (
+                tokens,
+                data[offsets].astype(np.int64) + _LONG * longer,
+                (lambda indices: np.searchsorted(newlines, offsets[indices]) + 1),
+            )
+    counts = [len(line.split()) for line in text.split("\n")]
+    lines = np.repeat(np.arange(1, len(counts) + 1), counts)
+    codes = [ord(token[0]) + (_LONG if len(token) > 1 else 0) for token in tokens]
+    return tokens, np.array(codes, dtype=np.int64), lines.__getitem__
+
+
+def _gather(texts: list[str], positions: np.ndarray, stride: int) -> list[str]:
+    """``[texts[p] for p in positions]``, by slices over runs of positions ``stride`` apart (consecutive
+    statements of the same length), which is several times faster."""
+    breaks = np.flatnonzero(np.diff(positions) != stride) + 1
+    gathered: list[str] = []
+    for first, last in zip(
+        np.append(0, breaks).tolist(), np.append(breaks, len(positions)).tolist(), strict=True
+    ):
+        if last > first:
+            gathered.extend(texts[positions[first] : positions[last - 1] + 1 : stride])
+    return gathered
+
+
+def _floats(texts: list[str]) -> np.ndarray | None:
+    """The numbers, or None if one of ``texts`` is not a number of the format (``_NUMBER``)."""
+    if _NOT_IN_NUMBERS.search(" ".join(texts)):
+        return None
+    try:
+        return np.array(texts, dtype=np.float64)
+    except ValueError:
+        return None
 
 
 class _Tokens:
@@ -45,59 +117,170 @@ class _Tokens:
 
     def __init__(self, text: str, filename: str) -> None:
         self.filename = filename
-        self.items: list[_Token] = [
-            _Token(piece, number)
-            for number, raw in enumerate(text.splitlines(), start=1)
-            for piece in raw.split("#", 1)[0].replace(":", " : ").split()
-        ]
+        self.texts, self.codes, self.lines = _tokenize(text)
+        self.count = len(self.texts)
         self.position = 0
 
-    def peek(self, offset: int = 0) -> _Token | None:
-        try:
-            return self.items[self.position + offset]
-        except IndexError:
-            return None
+    def peek(self, offset: int = 0) -> str | None:
+        index = self.position + offset
+        return self.texts[index] if index < self.count else None
 
-    def next(self, expected: str) -> _Token:
-        try:
-            token = self.items[self.position]
-        except IndexError:
-            last = self.items[-1].line if self.items else 1
-            raise PomdpFormatError(
-                f"{self.filename}:{last}: found end of file, expected {expected}"
-            ) from None
+    def line(self, index: int) -> int:
+        """The line of token ``index``; the last line for the end of the file."""
+        if index < self.count:
+            return int(self.lines(index))
+        return int(self.lines(self.count - 1)) if self.count else 1
+
+    def next(self, expected: str) -> str:
+        if self.position >= self.count:
+            raise self.error(self.position, expected)
         self.position += 1
-        return token
+        return self.texts[self.position - 1]
 
-    def error(self, token: _Token | None, expected: str) -> PomdpFormatError:
-        if token is None:
+    def error(self, index: int, expected: str) -> PomdpFormatError:
+        """An error at token ``index`` (at or past the end: the end of the file)."""
+        if index >= self.count:
             return PomdpFormatError(
-                f"{self.filename}:{self.items[-1].line if self.items else 1}: found end of file, expected {expected}"
+                f"{self.filename}:{self.line(index)}: found end of file, expected {expected}"
             )
-        return PomdpFormatError(f"{self.filename}:{token.line}: found '{token.text}', expected {expected}")
+        return PomdpFormatError(
+            f"{self.filename}:{self.line(index)}: found '{self.texts[index]}', expected {expected}"
+        )
 
-    def expect(self, text: str, context: str) -> _Token:
-        token = self.next(f"'{text}' {context}")
-        if token.text != text:
-            raise self.error(token, f"'{text}' {context}")
-        return token
+    def expect(self, text: str, context: str) -> None:
+        if self.next(f"'{text}' {context}") != text:
+            raise self.error(self.position - 1, f"'{text}' {context}")
 
     def at_number(self) -> bool:
         token = self.peek()
-        return token is not None and bool(_NUMBER.match(token.text))
+        return token is not None and bool(_NUMBER.match(token))
 
     def numbers(self, count: int, what: str) -> np.ndarray:
-        chunk = self.items[self.position : self.position + count]
-        match = _NUMBER.match
-        for index, token in enumerate(chunk):
-            if not match(token.text):
-                raise self.error(token, f"{count} numbers for {what} (got {index})")
+        first = self.position
+        chunk = self.texts[first : first + count]
+        values = _floats(chunk)
+        if values is None:
+            match = _NUMBER.match
+            bad = next(index for index, token in enumerate(chunk) if not match(token))
+            raise self.error(first + bad, f"{count} numbers for {what} (got {bad})")
         if len(chunk) < count:
-            raise self.error(None, f"{count} numbers for {what} (got {len(chunk)})")
+            raise self.error(first + len(chunk), f"{count} numbers for {what} (got {len(chunk)})")
         self.position += count
         if self.at_number():
-            raise self.error(self.peek(), f"the end of {what} after {count} numbers (too many numbers)")
-        return np.array([float(token.text) for token in chunk])
+            raise self.error(self.position, f"the end of {what} after {count} numbers (too many numbers)")
+        return values
+
+
+def _statement_starts(tokens: _Tokens, first: int) -> np.ndarray:
+    """Indices (>= first) of the tokens 'T', 'O' or 'R' followed by ':' (statement keywords)."""
+    codes = tokens.codes[first:]
+    if len(codes) < 2:
+        return np.zeros(0, dtype=np.int64)
+    keyword = (codes[:-1] == ord("T")) | (codes[:-1] == ord("O")) | (codes[:-1] == ord("R"))
+    return first + np.flatnonzero(keyword & (codes[1:] == ord(":")))
+
+
+class _Writes:
+    """Writes into a sparse ``(|A|, rows, columns)`` probability array, in file order, resolved at the end.
+
+    Entries are kept as (action, row, column, value, statement) arrays; a statement that writes a whole row
+    (or, with a ``0`` wildcard, a whole column) also records that it clears it. An entry survives if it is the
+    last write of its cell and no later statement cleared its row or column.
+    """
+
+    def __init__(self, shape: tuple[int, int, int], budget: list[int], parser: _Parser) -> None:
+        n_actions, n_rows, n_columns = shape
+        self.shape = shape
+        self.parts: list[tuple[np.ndarray, ...]] = []
+        self.budget = budget  # shared by T and O: [entries left]
+        self.parser = parser
+        self.row_clear = np.full((n_actions, n_rows), -1, dtype=np.int64)
+        self.column_clear = np.full((n_actions, n_columns), -1, dtype=np.int64)
+        self.row_written = np.full((n_actions, n_rows), -1, dtype=np.int64)
+
+    def _reserve(self, count: int, seq: int, what: str) -> None:
+        if count > self.budget[0]:
+            raise PomdpFormatError(
+                f"{self.parser.filename}:{self.parser.statement_line(seq)}: {what} writes {count:,} entries, more "
+                f"than this reader holds ({MAX_ENTRIES:,} for T and O together): the model would be dense; "
+                "write it sparsely (per entry or per row, e.g. 'T: a : s : s' p'), or use fewer states"
+            )
+        self.budget[0] -= count
+
+    def entries(self, actions, rows, columns, values, seqs) -> None:
+        """Explicit entries (equal-length arrays; ``actions`` may hold ``_WILD``)."""
+        wild = actions == _WILD
+        if wild.any():
+            repeats = np.where(wild, self.shape[0], 1)
+            index = np.repeat(np.arange(len(actions)), repeats)
+            within = np.arange(len(index)) - np.repeat(np.cumsum(repeats) - repeats, repeats)
+            actions = np.where(wild[index], within, actions[index])
+            rows, columns, values, seqs = rows[index], columns[index], values[index], seqs[index]
+        if len(actions):  # past the budget: name the statement where it ran out
+            self._reserve(len(actions), int(seqs[min(len(seqs) - 1, self.budget[0])]), "the file's entries")
+        self.parts.append((actions, rows, columns, values, seqs))
+        np.maximum.at(self.row_written, (actions, rows), seqs)
+
+    def product(self, actions, rows, columns, values, seq: int, what: str, clear_rows: bool = False) -> None:
+        """Every (action, row) pair gets the same ``columns``/``values``; ``clear_rows``: the rest of each row
+        becomes 0 (the statement writes whole rows)."""
+        n_pairs = len(actions) * len(rows)
+        self._reserve(n_pairs * len(columns), seq, what)
+        cell = np.ix_(actions, rows)
+        self.row_written[cell] = np.maximum(self.row_written[cell], seq)
+        if clear_rows:
+            self.row_clear[cell] = np.maximum(self.row_clear[cell], seq)
+        if len(columns) == 0 or n_pairs == 0:
+            return
+        self.parts.append(
+            (
+                np.repeat(actions, len(rows) * len(columns)),
+                np.tile(np.repeat(rows, len(columns)), len(actions)),
+                np.tile(columns, n_pairs),
+                np.tile(values, n_pairs),
+                np.full(n_pairs * len(columns), seq, dtype=np.int64),
+            )
+        )
+
+    def matrix(self, actions, rows, columns, values, seq: int, what: str) -> None:
+        """Whole matrices: the entries (rows, columns, values) for every action, every other entry 0."""
+        self._reserve(len(actions) * len(rows), seq, what)
+        self.row_written[actions] = np.maximum(self.row_written[actions], seq)
+        self.row_clear[actions] = np.maximum(self.row_clear[actions], seq)
+        count = len(rows)
+        self.parts.append(
+            (
+                np.repeat(actions, count),
+                np.tile(rows, len(actions)),
+                np.tile(columns, len(actions)),
+                np.tile(values, len(actions)),
+                np.full(count * len(actions), seq, dtype=np.int64),
+            )
+        )
+
+    def clear_columns(self, actions, column: int, seq: int) -> None:
+        """``X: a : * : c 0``: column ``c`` of every row becomes 0 (every row counts as written)."""
+        self.column_clear[actions, column] = np.maximum(self.column_clear[actions, column], seq)
+        self.row_written[actions] = np.maximum(self.row_written[actions], seq)
+
+    def resolve(self) -> tuple[np.ndarray, ...]:
+        """The surviving nonzero-or-zero entries, sorted by (action, row, column): (a, row, col, value, seq)."""
+        n_actions, n_rows, n_columns = self.shape
+        if not self.parts:
+            empty = np.zeros(0, dtype=np.int64)
+            return empty, empty, empty, np.zeros(0), empty
+        actions, rows, columns, values, seqs = (
+            np.concatenate(arrays) for arrays in zip(*self.parts, strict=True)
+        )
+        keys = (actions.astype(np.int64) * n_rows + rows) * n_columns + columns
+        order = np.lexsort((seqs, keys))
+        keys = keys[order]
+        last = np.ones(len(keys), dtype=bool)
+        last[:-1] = keys[1:] != keys[:-1]
+        order = order[last]
+        actions, rows, columns, values, seqs = (x[order] for x in (actions, rows, columns, values, seqs))
+        alive = (seqs >= self.row_clear[actions, rows]) & (seqs >= self.column_clear[actions, columns])
+        return tuple(x[alive] for x in (actions, rows, columns, values, seqs))
 
 
 class _Parser:
@@ -111,90 +294,192 @@ class _Parser:
         self.cost = False
         self.names: dict[str, list[str] | None] = {}
         self.counts: dict[str, int] = {}
+        self.lookups: dict[str, dict[str, int]] = {}
         self.start: np.ndarray | None = None
         self.start_line = 0
-        self.transitions: np.ndarray | None = None  # (A, S, S) dense while parsing
-        self.transition_lines: np.ndarray | None = None  # (A, S) line that last wrote each row
-        self.observations: np.ndarray | None = None  # (A, S, Z)
-        self.observation_lines: np.ndarray | None = None
-        self.reward_statements: list[tuple[int, object, object, object, object, np.ndarray]] = []
+        self.statement_lines = np.zeros(0, dtype=np.int64)  # line of body statement k (its 'seq')
+        self.transitions: _Writes | None = None
+        self.observations: _Writes | None = None
+        self.reward_parts: list[tuple[np.ndarray, ...]] = []  # (seq, action, start, end, observation, value)
+
+    def statement_line(self, seq: int) -> int:
+        return (
+            int(self.statement_lines[seq])
+            if seq < len(self.statement_lines)
+            else self.tokens.line(self.tokens.count)
+        )
 
     # ------------------------------------------------------------------------------------ preamble
     def parse_statements(self) -> None:
         tokens = self.tokens
-        while (token := tokens.peek()) is not None and token.text not in ("T", "O", "R"):
+        while (token := tokens.peek()) is not None and token not in ("T", "O", "R"):
             self._preamble_statement()
-        here = token.line if token is not None else (tokens.items[-1].line if tokens.items else 1)
-        found = f"'{token.text}'" if token is not None else "end of file"
+        found = f"'{token}'" if token is not None else "end of file"
         for kind in ("discount", "states", "actions", "observations"):
             if (kind == "discount" and self.discount is None) or (
                 kind != "discount" and kind not in self.counts
             ):
                 raise PomdpFormatError(
-                    f"{self.filename}:{here}: found {found} before any '{kind}:' line, "
+                    f"{self.filename}:{tokens.line(tokens.position)}: found {found} before any '{kind}:' line, "
                     f"expected '{kind}:' in the preamble"
                 )
-        n_states, n_actions, n_obs = (
-            self.counts["states"],
-            self.counts["actions"],
-            self.counts["observations"],
-        )
+        n_states, n_actions, n_obs = self.sizes()
         if self.start is None:
             self.start = np.full(n_states, 1.0 / n_states)  # the spec's default: uniform
-        self.transitions = np.zeros((n_actions, n_states, n_states))
-        self.transition_lines = np.zeros((n_actions, n_states), dtype=np.int64)
-        self.observations = np.zeros((n_actions, n_states, n_obs))
-        self.observation_lines = np.zeros((n_actions, n_states), dtype=np.int64)
-        while (token := tokens.peek()) is not None:
-            if token.text not in ("T", "O", "R"):
-                raise tokens.error(token, "a 'T:', 'O:' or 'R:' statement (preamble lines must come first)")
-            tokens.next("T, O or R")
-            tokens.expect(":", f"after '{token.text}'")
-            {"T": self._transition, "O": self._observation, "R": self._reward}[token.text](token.line)
+        for kind in ("states", "actions", "observations"):
+            lookup = {str(index): index for index in range(self.counts[kind])}
+            lookup.update((name, index) for index, name in enumerate(self.names[kind] or ()))
+            lookup["*"] = _WILD
+            self.lookups[kind] = lookup
+        budget = [MAX_ENTRIES]
+        self.transitions = _Writes((n_actions, n_states, n_states), budget, self)
+        self.observations = _Writes((n_actions, n_states, n_obs), budget, self)
+        self._body(tokens.position)
+
+    def _body(self, first: int) -> None:
+        tokens = self.tokens
+        if first >= tokens.count:
+            return
+        starts = _statement_starts(tokens, first)
+        if any(name in ("T", "O", "R") for names in self.names.values() for name in names or ()):
+            starts = np.zeros(0, dtype=np.int64)  # a name 'T' could be a statement keyword: parse one by one
+        if len(starts) == 0 or starts[0] != first:
+            self.statement_lines = tokens.lines(np.array([first]))
+            tokens.position = first
+            self._statement(0)  # raises (not a statement), or this file needs the one-by-one parse
+            return self._sequential_body()
+        self.statement_lines = tokens.lines(starts)
+        ends = np.append(starts[1:], tokens.count)
+        lengths = ends - starts
+        letters = tokens.codes[starts]
+        one_entry = {  # 'T: a : s : s' p' / 'O: a : s' : z p' (8 tokens), 'R: a : s : s' : z r' (10 tokens)
+            "T": (np.flatnonzero((letters == ord("T")) & (lengths == 8)), ("actions", "states", "states")),
+            "O": (
+                np.flatnonzero((letters == ord("O")) & (lengths == 8)),
+                ("actions", "states", "observations"),
+            ),
+            "R": (
+                np.flatnonzero((letters == ord("R")) & (lengths == 10)),
+                ("actions", "states", "states", "observations"),
+            ),
+        }
+        decoded = {letter: self._decode(starts, *found) for letter, found in one_entry.items()}
+        general = np.ones(len(starts), dtype=bool)
+        for seqs, _, _ in decoded.values():
+            general[seqs] = False
+        for seq in np.flatnonzero(general).tolist():  # every other statement, in file order (errors in order)
+            tokens.position = int(starts[seq])
+            self._statement(seq)
+            while tokens.position < ends[seq]:
+                self._statement(seq)  # leftover tokens: raises the error the one-by-one parse would
+        for letter, writes in (("T", self.transitions), ("O", self.observations)):
+            seqs, (actions, rows, columns), values = decoded[letter]
+            if len(seqs):
+                writes.entries(actions, rows, columns, values, seqs)
+        seqs, selectors, values = decoded["R"]
+        if len(seqs):
+            self.reward_parts.append((seqs, *selectors, values))
+
+    def _decode(self, starts: np.ndarray, seqs: np.ndarray, kinds: tuple[str, ...]):
+        """Decode one-entry statements (``seqs``, all of the same letter and length) together.
+
+        Returns the statements decoded, their selector indices (one array per selector, ``_WILD`` for '*') and
+        their values. T and O entries with '*' for a row or column, unknown names and malformed numbers are left
+        to the statement parser (which expands wildcards, or raises the precise error).
+        """
+        tokens, texts = self.tokens, self.tokens.texts
+        positions = starts[seqs]
+        ok = np.ones(len(seqs), dtype=bool)
+        for slot in range(len(kinds)):  # ':' after the keyword and after each selector but the last
+            ok &= tokens.codes[positions + 1 + 2 * slot] == ord(":")
+        seqs, positions = seqs[ok], positions[ok]
+        ok = np.ones(len(seqs), dtype=bool)
+        selectors = []
+        length = 2 * len(kinds) + 2
+        for slot, kind in enumerate(kinds):
+            get = self.lookups[kind].get
+            found = np.array(
+                [get(t, -2) for t in _gather(texts, positions + 2 + 2 * slot, length)], dtype=np.int64
+            )
+            ok &= (found != -2) & ((found != _WILD) | (slot == 0) | (len(kinds) == 4))
+            selectors.append(found)
+        value_texts = _gather(texts, positions + length - 1, length)
+        values = _floats(value_texts)
+        if values is None:
+            good = np.array([bool(_NUMBER.match(t)) for t in value_texts], dtype=bool)
+            ok &= good
+            values = _floats([t if g else "0" for t, g in zip(value_texts, good.tolist(), strict=True)])
+        return seqs[ok], tuple(x[ok] for x in selectors), values[ok]
+
+    def _sequential_body(self) -> None:
+        tokens = self.tokens
+        lines: list[int] = [int(self.statement_lines[0])]
+        seq = 1
+        while tokens.peek() is not None:
+            lines.append(tokens.line(tokens.position))
+            self.statement_lines = np.array(lines, dtype=np.int64)
+            self._statement(seq)
+            seq += 1
+
+    def _statement(self, seq: int) -> None:
+        tokens = self.tokens
+        token = tokens.peek()
+        if token not in ("T", "O", "R"):
+            raise tokens.error(
+                tokens.position, "a 'T:', 'O:' or 'R:' statement (preamble lines must come first)"
+            )
+        tokens.next("T, O or R")
+        tokens.expect(":", f"after '{token}'")
+        {"T": self._transition, "O": self._observation, "R": self._reward}[token](seq)
 
     def _preamble_statement(self) -> None:
         tokens = self.tokens
         token = tokens.next("a preamble statement")
-        if token.text not in _KEYWORDS:
+        if token not in _KEYWORDS:
             raise tokens.error(
-                token, "one of discount:, values:, states:, actions:, observations:, start:, T:, O:, R:"
+                tokens.position - 1,
+                "one of discount:, values:, states:, actions:, observations:, start:, T:, O:, R:",
             )
-        if token.text == "start":
-            return self._start(token)
-        tokens.expect(":", f"after '{token.text}'")
-        if token.text == "discount":
+        if token == "start":
+            return self._start()
+        tokens.expect(":", f"after '{token}'")
+        if token == "discount":
             value = tokens.next("a discount in [0, 1]")
-            if not _NUMBER.match(value.text) or not 0.0 <= float(value.text) <= 1.0:
-                raise tokens.error(value, "a discount in [0, 1]")
-            self.discount = float(value.text)
-        elif token.text == "values":
+            if not _NUMBER.match(value) or not 0.0 <= float(value) <= 1.0:
+                raise tokens.error(tokens.position - 1, "a discount in [0, 1]")
+            self.discount = float(value)
+        elif token == "values":
             value = tokens.next("'reward' or 'cost'")
-            if value.text not in ("reward", "cost", "rewards", "costs"):  # plural seen in the wild (ejs4-7)
-                raise tokens.error(value, "'reward' or 'cost'")
-            self.cost = value.text.startswith("cost")
+            if value not in ("reward", "cost", "rewards", "costs"):  # plural seen in the wild (ejs4-7)
+                raise tokens.error(tokens.position - 1, "'reward' or 'cost'")
+            self.cost = value.startswith("cost")
         else:
-            self._declaration(token.text)
+            self._declaration(token)
 
     def _declaration(self, kind: str) -> None:
         tokens = self.tokens
+        first_index = tokens.position
         first = tokens.next(f"a count or a list of {kind}")
-        if _INTEGER.match(first.text):
-            count = int(first.text)
+        if _INTEGER.match(first):
+            count = int(first)
             if count < 1:
-                raise tokens.error(first, f"a positive number of {kind}")
+                raise tokens.error(first_index, f"a positive number of {kind}")
             self.counts[kind], self.names[kind] = count, None
             return
-        if first.text in _KEYWORDS or first.text == ":" or _NUMBER.match(first.text):
-            raise tokens.error(first, f"a count or a list of {kind} names")
-        names = [first.text]
+        if first in _KEYWORDS or first == ":" or _NUMBER.match(first):
+            raise tokens.error(first_index, f"a count or a list of {kind} names")
+        names = [first]
         while (token := tokens.peek()) is not None and not self._starts_statement():
-            if token.text == "*" or _NUMBER.match(token.text):
-                raise tokens.error(token, f"a name of one of the {kind} (names start with a letter)")
-            names.append(tokens.next("a name").text)
+            if token == "*" or _NUMBER.match(token):
+                raise tokens.error(
+                    tokens.position, f"a name of one of the {kind} (names start with a letter)"
+                )
+            names.append(tokens.next("a name"))
         if len(set(names)) != len(names):
-            duplicate = next(n for n in names if names.count(n) > 1)
+            times = Counter(names)
+            duplicate = next(n for n in names if times[n] > 1)
             raise PomdpFormatError(
-                f"{self.filename}:{first.line}: {kind} name '{duplicate}' is declared twice"
+                f"{self.filename}:{tokens.line(first_index)}: {kind} name '{duplicate}' is declared twice"
             )
         self.counts[kind], self.names[kind] = len(names), names
 
@@ -202,178 +487,230 @@ class _Parser:
         token, after = self.tokens.peek(), self.tokens.peek(1)
         if token is None:
             return True
-        if token.text in ("T", "O", "R", "discount", "values", "states", "actions", "observations"):
-            return after is not None and after.text == ":"
-        return token.text == "start" and after is not None and after.text in (":", "include", "exclude")
+        if token in ("T", "O", "R", "discount", "values", "states", "actions", "observations"):
+            return after == ":"
+        return token == "start" and after in (":", "include", "exclude")
 
-    def _start(self, keyword: _Token) -> None:
+    def _start(self) -> None:
         tokens = self.tokens
+        keyword_index = tokens.position - 1
         if "states" not in self.counts:
-            raise tokens.error(keyword, "'states:' before 'start:'")
+            raise tokens.error(keyword_index, "'states:' before 'start:'")
         n_states = self.counts["states"]
         mode = tokens.next("':', 'include' or 'exclude' after 'start'")
-        self.start_line = keyword.line
-        if mode.text in ("include", "exclude"):
-            tokens.expect(":", f"after 'start {mode.text}'")
+        self.start_line = tokens.line(keyword_index)
+        if mode in ("include", "exclude"):
+            tokens.expect(":", f"after 'start {mode}'")
             chosen = np.zeros(n_states, dtype=bool)
             listed = 0
             while tokens.peek() is not None and not self._starts_statement():
-                chosen[self._index("states", tokens.next("a state"), wildcard=False)] = True
+                chosen[self._index("states", "a state", wildcard=False)] = True
                 listed += 1
             if listed == 0:
-                raise tokens.error(tokens.peek(), f"a list of states after 'start {mode.text}:'")
-            if mode.text == "exclude":
+                raise tokens.error(tokens.position, f"a list of states after 'start {mode}:'")
+            if mode == "exclude":
                 chosen = ~chosen
             if not chosen.any():
                 raise PomdpFormatError(
-                    f"{self.filename}:{keyword.line}: 'start exclude:' excludes every state"
+                    f"{self.filename}:{self.start_line}: 'start exclude:' excludes every state"
                 )
             self.start = chosen / chosen.sum()
             return
-        if mode.text != ":":
-            raise tokens.error(mode, "':', 'include' or 'exclude' after 'start'")
+        if mode != ":":
+            raise tokens.error(tokens.position - 1, "':', 'include' or 'exclude' after 'start'")
         token = tokens.peek()
-        if token is not None and token.text == "uniform":
+        if token == "uniform":
             tokens.next("uniform")
             self.start = np.full(n_states, 1.0 / n_states)
-        elif token is not None and not _NUMBER.match(token.text):
+        elif token is not None and not _NUMBER.match(token):
             # One state name; several names (as in pomdp-ex.pomdp) read like 'start include:'.
             chosen = np.zeros(n_states, dtype=bool)
-            chosen[self._index("states", tokens.next("a state"), wildcard=False)] = True
-            while tokens.peek() is not None and not self._starts_statement() and not self.tokens.at_number():
-                chosen[self._index("states", tokens.next("a state"), wildcard=False)] = True
+            chosen[self._index("states", "a state", wildcard=False)] = True
+            while tokens.peek() is not None and not self._starts_statement() and not tokens.at_number():
+                chosen[self._index("states", "a state", wildcard=False)] = True
             self.start = chosen / chosen.sum()
-        elif token is not None and _INTEGER.match(token.text) and n_states > 1 and not self._number_follows():
+        elif token is not None and _INTEGER.match(token) and n_states > 1 and not self._number_follows():
             self.start = np.zeros(n_states)  # 'start: 3' names state 3 (a vector would need |S| numbers)
-            self.start[self._index("states", tokens.next("a state"), wildcard=False)] = 1.0
+            self.start[self._index("states", "a state", wildcard=False)] = 1.0
         else:
             self.start = tokens.numbers(n_states, "the start belief")
-            self._check_distribution(self.start, "the start belief", keyword.line)
+            self._check_distribution(self.start, "the start belief", self.start_line)
 
     def _number_follows(self) -> bool:
         after = self.tokens.peek(1)
-        return after is not None and bool(_NUMBER.match(after.text))
+        return after is not None and bool(_NUMBER.match(after))
 
     def _check_distribution(self, values: np.ndarray, what: str, line: int) -> None:
-        if values.min() < 0 or abs(values.sum() - 1.0) > PROBABILITY_ATOL:
+        if not np.all(np.isfinite(values)):
+            raise PomdpFormatError(f"{self.filename}:{line}: {what} has a number too large for a float (inf)")
+        if values.min() < 0:
+            state = int(np.argmin(values))
             raise PomdpFormatError(
-                f"{self.filename}:{line}: {what} sums to {values.sum():.8g} (min {values.min():g}), "
-                "expected a probability vector summing to 1"
+                f"{self.filename}:{line}: {what} gives state {self._label('states', state)} the negative "
+                f"probability {values[state]:g}; expected probabilities >= 0 summing to 1"
+            )
+        if abs(values.sum() - 1.0) > PROBABILITY_ATOL:
+            raise PomdpFormatError(
+                f"{self.filename}:{line}: {what} sums to {values.sum():.8g}, expected a probability vector summing to 1"
             )
 
     # ------------------------------------------------------------------------------ identifiers
-    def _index(self, kind: str, token: _Token, wildcard: bool = True) -> int | slice:
-        if token.text == "*" and wildcard:
-            return slice(None)
+    def _index(self, kind: str, expected: str = "a state", wildcard: bool = True) -> int:
+        """The next token as an index of ``kind`` (``_WILD`` for '*' where allowed)."""
+        tokens = self.tokens
+        token = tokens.next(expected)
+        index = self.lookups[kind].get(token) if kind in self.lookups else None
+        if index is None:
+            names = self.names[kind]
+            if names is not None and token in names:
+                index = names.index(token)
+            elif token == "*":
+                index = _WILD
+            elif _INTEGER.match(token) and int(token) < self.counts[kind]:
+                index = int(token)
+        if index is not None and (index != _WILD or wildcard):
+            return index
         names = self.names[kind]
-        if names is not None and token.text in names:
-            return names.index(token.text)
-        if _INTEGER.match(token.text) and int(token.text) < self.counts[kind]:
-            return int(token.text)
-        singular = kind[:-1] if kind != "states" else "state"
+        singular = kind[:-1]
         choices = f"a name of {names[:6]}{'...' if len(names) > 6 else ''}" if names else "no names"
-        raise self.tokens.error(
-            token,
+        raise tokens.error(
+            tokens.position - 1,
             f"a {singular}{' or *' if wildcard else ''}: an index 0..{self.counts[kind] - 1} or {choices}",
         )
 
-    def _selector(self, kind: str, what: str) -> int | slice:
-        return self._index(kind, self.tokens.next(f"{what}"))
-
     def _colon_follows(self) -> bool:
-        token = self.tokens.peek()
-        return token is not None and token.text == ":"
+        return self.tokens.peek() == ":"
+
+    def _all(self, kind: str, index: int) -> np.ndarray:
+        return np.arange(self.counts[kind]) if index == _WILD else np.array([index])
 
     # ------------------------------------------------------------------------------- T, O, R
-    def _transition(self, line: int) -> None:
-        n_states = self.counts["states"]
-        action = self._selector("actions", "an action or * after 'T:'")
-        if not self._colon_follows():
-            matrix = self._square_matrix(n_states, "the transition matrix", allow_reset=True)
-            self.transitions[action] = matrix
-            self.transition_lines[action] = line
-            return
-        self.tokens.next(":")
-        start = self._selector("states", "a start state or * in 'T: a : s'")
-        if not self._colon_follows():
-            self.transitions[action, start] = self._row(n_states, "the transition row", allow_reset=True)
-            self.transition_lines[action, start] = line
-            return
-        self.tokens.next(":")
-        end = self._selector("states", "an end state or * in 'T: a : s : s''")
-        self.transitions[action, start, end] = self.tokens.numbers(1, "T(s' | s, a)")[0]
-        self.transition_lines[action, start] = line
+    def _transition(self, seq: int) -> None:
+        self._probabilities(
+            seq, "T", self.transitions, "states", "T(s' | s, a)", "transition", allow_reset=True
+        )
 
-    def _observation(self, line: int) -> None:
-        n_states, n_obs = self.counts["states"], self.counts["observations"]
-        action = self._selector("actions", "an action or * after 'O:'")
-        if not self._colon_follows():
-            token = self.tokens.peek()
-            if token is not None and token.text == "uniform":
-                self.tokens.next("uniform")
-                self.observations[action] = 1.0 / n_obs
+    def _observation(self, seq: int) -> None:
+        self._probabilities(
+            seq, "O", self.observations, "observations", "O(z | s', a)", "observation", allow_reset=False
+        )
+
+    def _probabilities(
+        self,
+        seq: int,
+        letter: str,
+        writes: _Writes,
+        column_kind: str,
+        entry: str,
+        noun: str,
+        allow_reset: bool,
+    ) -> None:
+        tokens = self.tokens
+        n_states, n_columns = self.counts["states"], self.counts[column_kind]
+        row_word, column_word, row_symbol, column_symbol = (
+            ("a start state", "an end state", "s", "s'")
+            if letter == "T"
+            else ("an end state", "an observation", "s'", "z")
+        )
+        action = self._index("actions", f"an action or * after '{letter}:'")
+        actions = self._all("actions", action)
+        if not self._colon_follows():  # a whole matrix
+            token = tokens.peek()
+            what = f"'{letter}: {'*' if action == _WILD else action}' {token}"
+            if token == "identity" and letter == "T":
+                tokens.next("identity")
+                everything = np.arange(n_states)
+                writes.matrix(actions, everything, everything, np.ones(n_states), seq, what)
+            elif token == "uniform":
+                tokens.next("uniform")
+                writes.product(
+                    actions,
+                    np.arange(n_states),
+                    np.arange(n_columns),
+                    np.full(n_columns, 1.0 / n_columns),
+                    seq,
+                    what,
+                )
+            elif token == "reset" and allow_reset:
+                tokens.next("reset")
+                support = np.flatnonzero(self.start)
+                writes.product(
+                    actions, np.arange(n_states), support, self.start[support], seq, what, clear_rows=True
+                )
             else:
-                self.observations[action] = self.tokens.numbers(
-                    n_states * n_obs, "the observation matrix"
-                ).reshape(n_states, n_obs)
-            self.observation_lines[action] = line
+                shape = "|S| x |S|, or identity/uniform/reset" if letter == "T" else "|S| x |Z|, or uniform"
+                matrix = tokens.numbers(n_states * n_columns, f"the {noun} matrix ({shape})")
+                nonzero = np.flatnonzero(matrix)
+                writes.matrix(actions, nonzero // n_columns, nonzero % n_columns, matrix[nonzero], seq, what)
             return
-        self.tokens.next(":")
-        end = self._selector("states", "an end state or * in 'O: a : s''")
-        if not self._colon_follows():
-            self.observations[action, end] = self._row(n_obs, "the observation row", allow_reset=False)
-            self.observation_lines[action, end] = line
+        tokens.next(":")
+        row = self._index("states", f"{row_word} or * in '{letter}: a : {row_symbol}'")
+        rows = self._all("states", row)
+        if not self._colon_follows():  # one row (or every row, for '*')
+            token = tokens.peek()
+            what = f"this '{letter}:' row statement"
+            if token == "uniform":
+                tokens.next("uniform")
+                writes.product(
+                    actions, rows, np.arange(n_columns), np.full(n_columns, 1.0 / n_columns), seq, what
+                )
+            elif token == "reset" and allow_reset:
+                tokens.next("reset")
+                support = np.flatnonzero(self.start)
+                writes.product(actions, rows, support, self.start[support], seq, what, clear_rows=True)
+            else:
+                values = tokens.numbers(n_columns, f"the {noun} row")
+                nonzero = np.flatnonzero(values)
+                writes.product(actions, rows, nonzero, values[nonzero], seq, what, clear_rows=True)
             return
-        self.tokens.next(":")
-        observation = self._selector("observations", "an observation or * in 'O: a : s' : z'")
-        self.observations[action, end, observation] = self.tokens.numbers(1, "O(z | s', a)")[0]
-        self.observation_lines[action, end] = line
-
-    def _reward(self, line: int) -> None:
-        n_states, n_obs = self.counts["states"], self.counts["observations"]
-        action = self._selector("actions", "an action or * after 'R:'")
-        self.tokens.expect(":", "and a start state after 'R: a' (R needs at least 'R: a : s')")
-        start = self._selector("states", "a start state or * in 'R: a : s'")
-        if not self._colon_follows():
-            matrix = self.tokens.numbers(n_states * n_obs, "the reward matrix (|S'| x |Z|)").reshape(
-                n_states, n_obs
+        tokens.next(":")
+        column = self._index(
+            column_kind, f"{column_word} or * in '{letter}: a : {row_symbol} : {column_symbol}'"
+        )
+        value = float(tokens.numbers(1, entry)[0])
+        if row != _WILD and column != _WILD:
+            writes.entries(
+                actions,
+                np.full(len(actions), row),
+                np.full(len(actions), column),
+                np.full(len(actions), value),
+                np.full(len(actions), seq, dtype=np.int64),
             )
-            self.reward_statements.append((line, action, start, slice(None), slice(None), matrix))
-            return
-        self.tokens.next(":")
-        end = self._selector("states", "an end state or * in 'R: a : s : s''")
+        elif value == 0.0 and column == _WILD:
+            writes.product(actions, rows, np.zeros(0, dtype=np.int64), np.zeros(0), seq, "", clear_rows=True)
+        elif value == 0.0:
+            writes.clear_columns(actions, column, seq)
+        else:
+            columns = self._all(column_kind, column)
+            what = f"'{letter}: ...' with a '*' and the value {value:g}"
+            writes.product(actions, rows, columns, np.full(len(columns), value), seq, what)
+
+    def _reward(self, seq: int) -> None:
+        n_states, n_obs = self.counts["states"], self.counts["observations"]
+        tokens = self.tokens
+        action = self._index("actions", "an action or * after 'R:'")
+        tokens.expect(":", "and a start state after 'R: a' (R needs at least 'R: a : s')")
+        start = self._index("states", "a start state or * in 'R: a : s'")
         if not self._colon_follows():
-            row = self.tokens.numbers(n_obs, "the reward row (|Z| values)")
-            self.reward_statements.append((line, action, start, end, slice(None), row))
+            matrix = tokens.numbers(n_states * n_obs, "the reward matrix (|S'| x |Z|)")
+            ends, observations = np.divmod(np.arange(n_states * n_obs), n_obs)
+            self._add_rewards(seq, action, start, ends, observations, matrix)
             return
-        self.tokens.next(":")
-        observation = self._selector("observations", "an observation or * in 'R: a : s : s' : z'")
-        value = self.tokens.numbers(1, "the reward R(a, s, s', z)")
-        self.reward_statements.append((line, action, start, end, observation, value[0]))
+        tokens.next(":")
+        end = self._index("states", "an end state or * in 'R: a : s : s''")
+        if not self._colon_follows():
+            row = tokens.numbers(n_obs, "the reward row (|Z| values)")
+            self._add_rewards(seq, action, start, np.full(n_obs, end), np.arange(n_obs), row)
+            return
+        tokens.next(":")
+        observation = self._index("observations", "an observation or * in 'R: a : s : s' : z'")
+        value = tokens.numbers(1, "the reward R(a, s, s', z)")
+        self._add_rewards(seq, action, start, np.array([end]), np.array([observation]), value)
 
-    def _row(self, length: int, what: str, allow_reset: bool) -> np.ndarray:
-        token = self.tokens.peek()
-        if token is not None and token.text == "uniform":
-            self.tokens.next("uniform")
-            return np.full(length, 1.0 / length)
-        if token is not None and token.text == "reset" and allow_reset:
-            self.tokens.next("reset")
-            return self.start.copy()
-        return self.tokens.numbers(length, what)
-
-    def _square_matrix(self, size: int, what: str, allow_reset: bool) -> np.ndarray:
-        token = self.tokens.peek()
-        if token is not None and token.text == "identity":
-            self.tokens.next("identity")
-            return np.eye(size)
-        if token is not None and token.text == "uniform":
-            self.tokens.next("uniform")
-            return np.full((size, size), 1.0 / size)
-        if token is not None and token.text == "reset" and allow_reset:
-            self.tokens.next("reset")
-            return np.tile(self.start, (size, 1))
-        return self.tokens.numbers(size * size, f"{what} (|S| x |S|, or identity/uniform/reset)").reshape(
-            size, size
+    def _add_rewards(self, seq, action, start, ends, observations, values) -> None:
+        count = len(values)
+        self.reward_parts.append(
+            (np.full(count, seq), np.full(count, action), np.full(count, start), ends, observations, values)
         )
 
     # ---------------------------------------------------------------------------------- build
@@ -381,97 +718,186 @@ class _Parser:
         return self.counts["states"], self.counts["actions"], self.counts["observations"]
 
     def build(self) -> POMDP:
+        n_states = self.counts["states"]
         if self.missing_rows != "error":
-            actions, rows = np.nonzero(self.transition_lines == 0)
+            actions, rows = np.nonzero(self.transitions.row_written < 0)
+            after = np.full(len(rows), len(self.statement_lines), dtype=np.int64)
             if self.missing_rows == "absorbing":
-                self.transitions[actions, rows, rows] = 1.0
+                self.transitions.parts.append((actions, rows, rows, np.ones(len(rows)), after))
             else:
-                self.transitions[actions, rows] = self.start
-        self._check_rows(self.transitions, self.transition_lines, "T", "start state")
-        self._check_rows(self.observations, self.observation_lines, "O", "end state")
-        rewards = self._collapse_rewards()
+                support = np.flatnonzero(self.start)
+                self.transitions.parts.append(
+                    (
+                        np.repeat(actions, len(support)),
+                        np.repeat(rows, len(support)),
+                        np.tile(support, len(rows)),
+                        np.tile(self.start[support], len(rows)),
+                        np.repeat(after, len(support)),
+                    )
+                )
+        transitions = self._matrices(self.transitions, "T", "start state", "end state", "states", n_states)
+        observations = self._matrices(
+            self.observations, "O", "end state", "observation", "observations", self.counts["observations"]
+        )
+        rewards = self._collapse_rewards(transitions, observations)
         if self.cost:
             rewards = -rewards
         names = self.names
         try:
             return POMDP(
-                transitions=list(self.transitions),
+                transitions=transitions,
                 rewards=rewards,
                 discount=self.discount,
                 state_names=names["states"],
                 action_names=names["actions"],
-                observations=list(self.observations),
+                observations=observations,
                 initial_belief=self.start,
                 observation_names=names["observations"],
             )
         except ModelError as error:
             raise PomdpFormatError(f"{self.filename}: {error}") from error
 
-    def _check_rows(self, arrays: np.ndarray, lines: np.ndarray, letter: str, row_kind: str) -> None:
-        sums = arrays.sum(axis=2)
-        bad = np.argwhere((np.abs(sums - 1.0) > PROBABILITY_ATOL) | (arrays.min(axis=2) < 0))
-        if bad.size == 0:
-            return
-        action, row = (int(v) for v in bad[0])
-        line = int(lines[action, row])
-        where = f"{self.filename}:{line}" if line else f"{self.filename}:{self.tokens.items[-1].line}"
-        written = (
-            "last written here"
-            if line
-            else "never written; to read it anyway choose missing_rows='absorbing' or 'reset' (--missing-rows)"
-        )
-        raise PomdpFormatError(
-            f"{where}: {letter} row for action {self._label('actions', action)}, {row_kind} "
-            f"{self._label('states', row)} sums to {sums[action, row]:.8g} (min {arrays[action, row].min():g}); "
-            f"expected probabilities summing to 1 ({written}; {len(bad)} bad row(s) in all; rows are never "
-            "renormalised)"
-        )
+    def _matrices(
+        self, writes: _Writes, letter: str, row_kind: str, column_noun: str, column_kind: str, n_columns: int
+    ) -> list[sp.csr_matrix]:
+        """CSR matrices per action from the resolved writes; negative entries, overflows and rows not summing
+        to 1 are errors naming the line."""
+        n_actions, n_rows, _ = writes.shape
+        actions, rows, columns, values, seqs = writes.resolve()
+        bad = np.flatnonzero(~np.isfinite(values) | (values < 0))
+        if bad.size:
+            k = int(bad[0])
+            what = (
+                "is too large for a float (inf)"
+                if not np.isfinite(values[k])
+                else f"is negative ({values[k]:g})"
+            )
+            raise PomdpFormatError(
+                f"{self.filename}:{self.statement_line(int(seqs[k]))}: {letter} entry for action "
+                f"{self._label('actions', int(actions[k]))}, {row_kind} {self._label('states', int(rows[k]))}, "
+                f"{column_noun} {self._label(column_kind, int(columns[k]))} {what}; expected a probability in [0, 1]"
+            )
+        nonzero = values != 0.0
+        actions, rows, columns, values = actions[nonzero], rows[nonzero], columns[nonzero], values[nonzero]
+        flat_rows = actions * n_rows + rows
+        sums = np.bincount(flat_rows, weights=values, minlength=n_actions * n_rows).reshape(n_actions, n_rows)
+        wrong = np.argwhere(np.abs(sums - 1.0) > PROBABILITY_ATOL)
+        if wrong.size:
+            action, row = (int(v) for v in wrong[0])
+            seq = int(writes.row_written[action, row])
+            where = f"{self.filename}:{self.statement_line(seq) if seq >= 0 else self.tokens.line(self.tokens.count)}"
+            written = (
+                "last written here"
+                if seq >= 0
+                else "never written; to read it anyway choose missing_rows='absorbing' or 'reset' (--missing-rows)"
+            )
+            raise PomdpFormatError(
+                f"{where}: {letter} row for action {self._label('actions', action)}, {row_kind} "
+                f"{self._label('states', row)} sums to {sums[action, row]:.8g}; expected probabilities summing "
+                f"to 1 ({written}; {len(wrong)} bad row(s) in all; rows are never renormalised)"
+            )
+        bounds = np.searchsorted(flat_rows, np.arange(n_actions + 1) * n_rows)
+        matrices = []
+        for action in range(n_actions):
+            lo, hi = bounds[action], bounds[action + 1]
+            indptr = np.searchsorted(flat_rows[lo:hi], action * n_rows + np.arange(n_rows + 1))
+            matrices.append(sp.csr_matrix((values[lo:hi], columns[lo:hi], indptr), shape=(n_rows, n_columns)))
+        return matrices
 
     def _label(self, kind: str, index: int) -> str:
         names = self.names[kind]
         return f"{index} ('{names[index]}')" if names else str(index)
 
-    def _collapse_rewards(self) -> np.ndarray:
-        """``R(s, a) = sum_{s', z} T(s,a,s') O(a,s',z) R(a,s,s',z)``, painting statements in file order."""
-        n_actions, n_states, n_obs = (
-            self.counts["actions"],
-            self.counts["states"],
-            self.counts["observations"],
-        )
+    def _collapse_rewards(
+        self, transitions: list[sp.csr_matrix], observations: list[sp.csr_matrix]
+    ) -> np.ndarray:
+        """``R(s, a) = sum_{s', z} T(s,a,s') O(a,s',z) R(a,s,s',z)``, the last statement covering an entry winning.
+
+        Only the (s, s', z) with ``T O > 0`` are evaluated (sparse); rewards that depend on (s, a) only are
+        copied exactly.
+        """
+        n_states, n_actions, n_obs = self.sizes()
         rewards = np.zeros((n_states, n_actions))
-        block = max(1, _REWARD_BLOCK_ELEMENTS // (n_states * n_obs))
+        if not self.reward_parts:
+            return rewards
+        seqs, actions, starts, ends, observations_, values = (
+            np.concatenate([np.asarray(part[i]) for part in self.reward_parts]) for i in range(6)
+        )
+        order = np.argsort(seqs, kind="stable")
+        seqs, actions, starts, ends, observations_, values = (
+            x[order] for x in (seqs, actions, starts, ends, observations_, values)
+        )
+        infinite = np.flatnonzero(~np.isfinite(values))
+        if infinite.size:
+            raise PomdpFormatError(
+                f"{self.filename}:{self.statement_line(int(seqs[infinite[0]]))}: a reward is too large for a float "
+                f"({values[infinite[0]]:g}); expected a finite number"
+            )
         for action in range(n_actions):
-            statements = [s for s in self.reward_statements if _hits(s[1], action)]
-            if not statements:
+            mine = (actions == action) | (actions == _WILD)
+            if not mine.any():
                 continue
-            if all(s[3] == slice(None) and s[4] == slice(None) and np.ndim(s[5]) == 0 for s in statements):
-                column = np.zeros(n_states)  # rewards that depend on (s, a) only: no 4-D painting needed
-                for _, _, start, _, _, value in statements:
-                    column[start] = value
-                rewards[:, action] = column
-                continue
-            for first in range(0, n_states, block):
-                last = min(n_states, first + block)
-                weights = (
-                    self.transitions[action][first:last, :, None] * self.observations[action][None, :, :]
+            statements = (seqs[mine], starts[mine], ends[mine], observations_[mine], values[mine])
+            if np.all(statements[2] == _WILD) and np.all(statements[3] == _WILD):
+                cells = (
+                    np.arange(n_states),
+                    np.zeros(n_states, dtype=np.int64),
+                    np.zeros(n_states, dtype=np.int64),
                 )
-                painted = np.zeros((last - first, n_states, n_obs))
-                for _, _, start, end, observation, value in statements:
-                    rows = _clip(start, first, last)
-                    if rows is not None:
-                        painted[rows, end, observation] = value
-                rewards[first:last, action] = np.einsum("ijk,ijk->i", weights, painted)
+                rewards[:, action] = _last_writes(cells, statements, n_states, n_obs)
+                continue
+            transition, observation = transitions[action], observations[action]
+            row_of_entry = np.repeat(np.arange(n_states), np.diff(transition.indptr))
+            per_end = np.diff(observation.indptr)[transition.indices]
+            cell_start = np.repeat(row_of_entry, per_end)
+            cell_end = np.repeat(transition.indices, per_end)
+            offsets = np.arange(len(cell_start)) - np.repeat(np.cumsum(per_end) - per_end, per_end)
+            positions = observation.indptr[cell_end] + offsets
+            weights = np.repeat(transition.data, per_end) * observation.data[positions]
+            cells = (cell_start, cell_end, observation.indices[positions].astype(np.int64))
+            painted = _last_writes(cells, statements, n_states, n_obs)
+            rewards[:, action] = np.bincount(cell_start, weights=weights * painted, minlength=n_states)
         return rewards
 
 
-def _hits(selector: int | slice, index: int) -> bool:
-    return isinstance(selector, slice) or selector == index
+def _last_writes(cells, statements, n_states: int, n_obs: int) -> np.ndarray:
+    """The value of the last statement covering each cell (0 where none does).
+
+    ``cells``: (start, end, observation) arrays; ``statements``: (seq, start, end, observation, value) arrays in
+    file order, with ``_WILD`` for '*'. Statements are grouped by which selectors are wildcards; within a group
+    the last statement per key wins, and across groups the latest statement.
+    """
+    seqs, starts, ends, observations, values = statements
+    best_seq = np.full(len(cells[0]), -1, dtype=np.int64)
+    best_value = np.zeros(len(cells[0]))
+    specific = (starts != _WILD, ends != _WILD, observations != _WILD)
+    pattern = specific[0] * 4 + specific[1] * 2 + specific[2]
+    for group in np.unique(pattern).tolist():
+        members = np.flatnonzero(pattern == group)
+        use = (bool(group & 4), bool(group & 2), bool(group & 1))
+        keys = _cell_keys([x[members] for x in (starts, ends, observations)], use, n_states, n_obs)
+        order = np.argsort(keys, kind="stable")  # stable: file order within a key
+        keys, chosen = keys[order], members[order]
+        last = np.ones(len(keys), dtype=bool)
+        last[:-1] = keys[1:] != keys[:-1]
+        keys, chosen = keys[last], chosen[last]
+        cell_keys = _cell_keys(cells, use, n_states, n_obs)
+        where = np.minimum(np.searchsorted(keys, cell_keys), len(keys) - 1)
+        hit = keys[where] == cell_keys
+        candidate = np.where(hit, seqs[chosen[where]], -1)
+        better = candidate > best_seq
+        best_seq = np.where(better, candidate, best_seq)
+        best_value = np.where(better, values[chosen[where]], best_value)
+    return best_value
 
 
-def _clip(selector: int | slice, first: int, last: int) -> int | slice | None:
-    if isinstance(selector, slice):
-        return slice(None)
-    return selector - first if first <= selector < last else None
+def _cell_keys(coordinates, use: tuple[bool, bool, bool], n_states: int, n_obs: int) -> np.ndarray:
+    """One integer per (start, end, observation), counting only the coordinates in ``use``."""
+    keys = np.zeros(len(coordinates[0]), dtype=np.int64)
+    for values, used, scale in zip(coordinates, use, (n_states * n_obs, n_obs, 1), strict=True):
+        if used:
+            keys += np.asarray(values, dtype=np.int64) * scale
+    return keys
 
 
 def parse_pomdp(text: str, filename: str = "<string>", missing_rows: str = "error") -> POMDP:
@@ -517,17 +943,24 @@ def format_pomdp(pomdp: POMDP) -> str:
         " ".join(repr(float(p)) for p in pomdp.initial_belief),
         "",
     ]
-    for action in range(pomdp.n_actions):
+    for action in range(pomdp.n_actions):  # Python ints and floats (tolist): repr is exact and fast
         for letter, matrix in (("T", pomdp.transitions[action]), ("O", pomdp.observations[action])):
             coo = matrix.tocoo()
             lines.extend(
-                f"{letter}: {action} : {row} : {column} {float(value)!r}"
-                for row, column, value in zip(coo.row, coo.col, coo.data, strict=True)
+                map(
+                    f"{letter}: {action} : {{}} : {{}} {{!r}}".format,
+                    coo.row.tolist(),
+                    coo.col.tolist(),
+                    coo.data.tolist(),
+                )
             )
+        states = np.flatnonzero(pomdp.rewards[:, action])
         lines.extend(
-            f"R: {action} : {state} : * : * {float(value)!r}"
-            for state, value in enumerate(pomdp.rewards[:, action])
-            if value != 0.0
+            map(
+                f"R: {action} : {{}} : * : * {{!r}}".format,
+                states.tolist(),
+                pomdp.rewards[states, action].tolist(),
+            )
         )
     return "\n".join(lines) + "\n"
 

@@ -11,6 +11,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from embodied_adhoc.decision import pomdp_io
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.pomdp_io import parse_pomdp, read_pomdp, read_pomdp_sizes, write_pomdp
 from embodied_adhoc.errors import PomdpFormatError
@@ -258,3 +259,241 @@ def test_round_trip_of_a_corpus_file(tmp_path):
     again = read_pomdp(write_pomdp(pomdp, tmp_path / "hallway.pomdp"))
     np.testing.assert_array_equal(again.rewards, pomdp.rewards)
     assert all(sp.linalg.norm(x - y) == 0 for x, y in zip(again.transitions, pomdp.transitions, strict=True))
+
+
+# ------------------------------------------------------------------------ the sparse vectorised reader
+FIXTURE = Path(__file__).resolve().parent / "data" / "old_reader_models.npz"
+
+
+def test_reader_matches_the_previous_reader_on_a_few_files():
+    """The models the dense one-statement-at-a-time reader (commit af92ccb) gave for a few corpus files
+    (scripts/compare_pomdp_parsers.py compares the whole corpus and wrote this fixture)."""
+    if not CORPUS.is_dir():
+        pytest.skip("no corpus")
+    with np.load(FIXTURE, allow_pickle=False) as data:
+        names = sorted({key.split("/")[0] for key in data.files})
+        assert len(names) == 7
+        for name in names:
+            model = read_pomdp(
+                CORPUS / name, missing_rows="absorbing" if name == "mini-hall2.pomdp" else "error"
+            )
+            assert model.discount == float(data[f"{name}/discount"])
+            np.testing.assert_array_equal(model.initial_belief, data[f"{name}/start"])
+            np.testing.assert_allclose(model.rewards, data[f"{name}/rewards"], rtol=1e-12, atol=1e-12)
+            for letter, matrices in (("T", model.transitions), ("O", model.observations)):
+                for action, matrix in enumerate(matrices):
+                    rows, columns = data[f"{name}/{letter}/{action}"]
+                    expected = sp.csr_matrix(
+                        (data[f"{name}/{letter}/{action}/values"], (rows, columns)), shape=matrix.shape
+                    )
+                    assert (matrix != expected).nnz == 0, (name, letter, action)
+
+
+def _dense(writes) -> np.ndarray:
+    actions, rows, columns, values, _ = writes.resolve()
+    array = np.zeros(writes.shape)
+    array[actions, rows, columns] = values
+    return array
+
+
+@st.composite
+def statement_sequences(draw):
+    """Random T/O/R statements of every form over a tiny model, and the arrays a naive dense painter gives."""
+    n_states, n_actions, n_obs = draw(st.integers(1, 4)), draw(st.integers(1, 3)), draw(st.integers(1, 3))
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    start = rng.dirichlet(np.ones(n_states)) * (rng.random(n_states) < 0.7)
+    start = start / start.sum() if start.sum() > 0 else np.full(n_states, 1 / n_states)
+    arrays = {
+        "T": np.zeros((n_actions, n_states, n_states)),
+        "O": np.zeros((n_actions, n_states, n_obs)),
+        "R": np.zeros((n_actions, n_states, n_states, n_obs)),
+    }
+    sizes = {"a": n_actions, "s": n_states, "z": n_obs}
+    lines = []
+
+    def pick(kind):  # (text, index or slice)
+        if draw(st.booleans()) and draw(st.booleans()):
+            return "*", slice(None)
+        index = draw(st.integers(0, sizes[kind] - 1))
+        return str(index), index
+
+    def number():
+        return float(rng.choice([0.0, 0.125, 0.25, 0.5, 1.0, -2.5, 3.0]))
+
+    def numbers(count):
+        values = np.array([number() for _ in range(count)])
+        return values, " ".join(repr(v) for v in values.tolist())
+
+    for _ in range(draw(st.integers(1, 30))):
+        letter = draw(st.sampled_from("TTOOR"))
+        last = "s" if letter == "T" else "z"
+        form = draw(st.sampled_from(["entry", "entry", "entry", "row", "matrix"]))
+        array = arrays[letter]
+        a_text, a = pick("a")
+        if letter == "R":
+            s_text, s = pick("s")
+            if form == "entry":
+                (e_text, e), (z_text, z), value = pick("s"), pick("z"), number()
+                array[a, s, e, z] = value
+                lines.append(f"R: {a_text} : {s_text} : {e_text} : {z_text} {value!r}")
+            elif form == "row":
+                (e_text, e), (values, text) = pick("s"), numbers(n_obs)
+                array[a, s, e, :] = values
+                lines.append(f"R: {a_text} : {s_text} : {e_text}\n{text}")
+            else:
+                values, text = numbers(n_states * n_obs)
+                array[a, s] = values.reshape(n_states, n_obs)
+                lines.append(f"R: {a_text} : {s_text}\n{text}")
+            continue
+        width = n_states if letter == "T" else n_obs
+        words = ["uniform", "reset", "identity"] if letter == "T" else ["uniform"]
+        if form == "entry":
+            (s_text, s), (x_text, x), value = pick("s"), pick(last), number()
+            array[a, s, x] = value
+            lines.append(f"{letter}: {a_text} : {s_text} : {x_text} {value!r}")
+        elif form == "row":
+            s_text, s = pick("s")
+            word = draw(st.sampled_from([None, *words[:2]]))
+            if word == "uniform":
+                array[a, s, :] = 1.0 / width
+            elif word == "reset":
+                array[a, s, :] = start
+            else:
+                values, word = numbers(width)
+                array[a, s, :] = values
+            lines.append(f"{letter}: {a_text} : {s_text} {word}")
+        else:
+            word = draw(st.sampled_from([None, *words]))
+            if word == "uniform":
+                array[a] = 1.0 / width
+            elif word == "reset":
+                array[a] = start
+            elif word == "identity":
+                array[a] = np.eye(n_states)
+            else:
+                values, word = numbers(n_states * width)
+                array[a] = values.reshape(n_states, width)
+            lines.append(f"{letter}: {a_text}\n{word}")
+    header = (
+        f"discount: 0.9\nstates: {n_states}\nactions: {n_actions}\nobservations: {n_obs}\n"
+        f"start: {' '.join(repr(p) for p in start.tolist())}\n"
+    )
+    return header + "\n".join(lines) + "\n", arrays
+
+
+@settings(max_examples=150, deadline=None)
+@given(case=statement_sequences())
+def test_any_statement_sequence_gives_what_a_dense_painter_gives(case):
+    """Overrides, wildcards, rows, matrices, identity/uniform/reset and R on (s, s', z), in any order: the sparse
+    reader (one-entry statements decoded together, the rest one by one) equals painting dense arrays in order."""
+    text, expected = case
+    parser = pomdp_io._Parser(text, "<generated>")
+    parser.parse_statements()
+    transitions, observations = _dense(parser.transitions), _dense(parser.observations)
+    np.testing.assert_array_equal(transitions, expected["T"])
+    np.testing.assert_array_equal(observations, expected["O"])
+    # R is collapsed with stochastic T and O (the reader copies R(s, a) exactly when no statement of an action
+    # names an end state or observation, which equals the sum only for rows summing to 1)
+    rng = np.random.default_rng(len(text))
+    weights = [rng.random(shape) * (rng.random(shape) < 0.6) + 1e-3 * (rng.random(shape) < 0.2) for shape in (
+        transitions.shape, observations.shape)]  # fmt: skip
+    stochastic = [w / np.maximum(w.sum(axis=2, keepdims=True), 1e-300) for w in weights]
+    rewards = parser._collapse_rewards(*([sp.csr_matrix(m) for m in array] for array in stochastic))
+    collapsed = np.einsum("ase,aez,asez->sa", *stochastic, expected["R"])
+    np.testing.assert_allclose(rewards, collapsed, rtol=1e-12, atol=1e-12)
+
+
+VALID = (
+    "discount: 0.9\nstates: 3\nactions: a b\nobservations: 2\nstart: uniform\nT: * identity\nO: * uniform\n"
+)
+
+
+@pytest.mark.parametrize(
+    ("extra", "line", "fragments"),
+    [
+        (
+            "T: b : 1 : 0 -0.5\nT: b : 1 : 1 1.5\n",
+            8,
+            ["T entry for action 1 ('b'), start state 1, end state 0 is negative (-0.5)"],
+        ),
+        ("O: a : 2\n1.5 -0.5\n", 8, ["O entry for action 0 ('a'), end state 2, observation 1 is negative"]),
+        ("T: a : 0 : 0 1e999\n", 8, ["T entry for action 0 ('a')", "too large for a float"]),
+        ("R: a : 0 : * : * 1\nR: b : 2 : * : * 1e400\n", 9, ["reward is too large for a float"]),
+    ],
+)
+def test_negative_and_overflowing_numbers_name_the_line_and_the_entry(extra, line, fragments):
+    with pytest.raises(PomdpFormatError) as error:
+        parse_pomdp(VALID + extra, "m.pomdp")
+    message = str(error.value)
+    assert message.startswith(f"m.pomdp:{line}: "), message
+    assert all(fragment in message for fragment in fragments), message
+    assert "\n" not in message
+
+
+def test_negative_start_probability_names_the_state():
+    text = VALID.replace("start: uniform", "start: 0.5 -0.5 1.0")
+    with pytest.raises(PomdpFormatError, match=r"m.pomdp:5: the start belief gives state 1 the negative"):
+        parse_pomdp(text, "m.pomdp")
+
+
+def test_a_huge_identity_model_stays_sparse_and_a_dense_one_is_refused():
+    big = (
+        "discount: 0.95\nstates: 200000\nactions: 2\nobservations: 1\nstart: 0\nT: * identity\nO: * uniform\n"
+    )
+    pomdp = parse_pomdp(big + "R: * : 7 : * : * 1\n")
+    assert pomdp.n_states == 200_000 and pomdp.transitions[1].nnz == 200_000
+    assert pomdp.rewards[7, 1] == 1.0 and pomdp.rewards.sum() == 2.0
+    with pytest.raises(PomdpFormatError) as error:
+        parse_pomdp(big + "T: 1 uniform\n", "big.pomdp")
+    message = str(error.value)
+    assert message.startswith("big.pomdp:8: 'T: 1' uniform writes 40,000,000,000 entries"), message
+    assert "dense" in message
+
+
+def test_line_numbers_with_crlf_non_ascii_and_names_like_keywords():
+    text = VALID.replace("\n", "\r\n") + "# caf\u00e9\r\nT: a : 0\r\n0.5 0.4 0.0\r\n"
+    for variant in (
+        text,
+        text.replace("# caf\u00e9", "# cafe"),
+    ):  # the per-line and the vectorised token lines
+        with pytest.raises(
+            PomdpFormatError, match=r"^m.pomdp:9: T row for action 0 \('a'\), start state 0 sums"
+        ):
+            parse_pomdp(variant, "m.pomdp")
+    keywords = (
+        "discount: 0.9\nstates: x T O\nactions: go R\nobservations: z O\nT: R identity\nT: go : T : O 0.5\n"
+    )
+    keywords += "T: go : T : x 0.5\nT: go : x : x 1\nT: go : O : O 1\nO: * uniform\nR: R : T : * : * 2\n"
+    pomdp = parse_pomdp(keywords)  # a state named 'T' makes the reader parse statement by statement
+    np.testing.assert_array_equal(pomdp.transitions[0].toarray(), [[1, 0, 0], [0.5, 0, 0.5], [0, 0, 1]])
+    np.testing.assert_array_equal(pomdp.rewards[:, 1], [0, 2, 0])
+
+
+def _sparse_stochastic(rng: np.random.Generator, rows: int, columns: int, per_row: int) -> sp.csr_matrix:
+    spread = columns // per_row  # one column in each of per_row bands: distinct and sorted
+    picked = np.arange(per_row) * spread + rng.integers(0, spread, size=(rows, per_row))
+    values = rng.random((rows, per_row)) + 0.05
+    values /= values.sum(axis=1, keepdims=True)
+    indptr = np.arange(0, rows * per_row + 1, per_row)
+    return sp.csr_matrix((values.ravel(), picked.ravel(), indptr), shape=(rows, columns))
+
+
+def test_chapter5_size_model_round_trips_exactly(tmp_path):
+    """~5,000 states x 5 actions x 81 observations (the largest chapter-5 model size), sparse."""
+    rng = np.random.default_rng(5)
+    n_states, n_actions, n_obs = 4831, 5, 81
+    pomdp = POMDP(
+        transitions=[_sparse_stochastic(rng, n_states, n_states, 5) for _ in range(n_actions)],
+        rewards=rng.normal(size=(n_states, n_actions)) * (rng.random((n_states, n_actions)) < 0.5),
+        discount=0.95,
+        observations=[_sparse_stochastic(rng, n_states, n_obs, 3) for _ in range(n_actions)],
+        initial_belief=rng.dirichlet(np.ones(n_states)),
+        action_names=["stay", "north", "south", "east", "west"],
+    )
+    again = read_pomdp(write_pomdp(pomdp, tmp_path / "big.pomdp"))
+    assert again.action_names == pomdp.action_names and again.discount == pomdp.discount
+    np.testing.assert_array_equal(again.rewards, pomdp.rewards)
+    np.testing.assert_array_equal(again.initial_belief, pomdp.initial_belief)
+    for a in range(n_actions):
+        assert (again.transitions[a] != pomdp.transitions[a]).nnz == 0
+        assert (again.observations[a] != pomdp.observations[a]).nnz == 0
