@@ -7,18 +7,22 @@ Prints, all measured in this run on this machine:
   2. the same model stepped raw (mj_step, constant controls) and the controller/bookkeeping overhead as a ratio;
   3. offscreen rendering frames per second per camera;
   4. dead-reckoning drift after each full tour (every edge both ways) and the node-estimate accuracy at every
-     arrival (thesis Metric 7), at the default encoder noise and wheel slip.
+     arrival (thesis Metric 7), at the default encoder noise and wheel slip;
+  5. a scripted 10-macro-step episode bare and recorded as ``run --record`` records it (overhead video at the rate
+     the video keeps, heads-up text, encoded on the writer thread; rerun poses and camera), and their ratio.
 
 Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render-frames 30] [--width 640 --height 512]
-       [--episode-only]
+       [--video-fps 15 --video-speed 4] [--episode-only]
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
+import tempfile
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -27,6 +31,8 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 import mujoco  # noqa: E402
 
 from embodied_adhoc.experiments.script_args import parse_dataclass_args  # noqa: E402
+from embodied_adhoc.record.rerun_recorder import RerunRecorder  # noqa: E402
+from embodied_adhoc.record.video import VideoWriter  # noqa: E402
 from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig  # noqa: E402
 from embodied_adhoc.sim.odometry import OdometryConfig  # noqa: E402
 
@@ -43,6 +49,11 @@ class Args:
     """frames per camera for the render rate"""
     width: int = 640
     height: int = 512
+    video_fps: float = 15.0
+    """frames per second of the recorded episode's video (as ``run --video-fps``)"""
+    video_speed: float = 4.0
+    """simulated seconds per video second (as ``run --video-speed``): frames rendered per simulated second are
+    video_fps / video_speed"""
     noise_free: bool = False
     """tours with encoder noise and wheel slip set to 0 (the drift left is the physics' own)"""
     episode_only: bool = False
@@ -122,35 +133,88 @@ EPISODE = (
 )
 
 
-def run_episode(
-    world: LabWorld, width: int, height: int, video: bool
-) -> tuple[float, float, float, int, tuple]:
-    """Wall seconds, CPU seconds (all threads of this process, so software rendering counts), simulated seconds,
-    frames and final ball states of the scripted episode, with or without overhead video."""
+def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float, float, float, int, tuple]:
+    """Wall seconds, CPU seconds (all threads of this process and the ffmpeg child, so software rendering and
+    encoding count),
+    simulated seconds, frames and final ball states of the scripted episode. With ``folder`` it is recorded as
+    ``run --record`` records: the overhead camera rendered at the rate the video keeps, each frame with a heads-up
+    text into the mp4 writer (encoded on its thread), poses into the rerun recording (camera image at 2 Hz of
+    simulated time), the final state held for 1 s."""
     frames: list[int] = []
+    video = rerun = None
+    next_camera = [0.0]
 
-    def grab(lab: LabWorld) -> None:
-        lab.render("overhead", width, height)
+    def record(lab: LabWorld) -> None:
+        truth = lab.ground_truth()
+        frame = lab.render("overhead", args.width, args.height)
+        video.write(frame, [f"step {len(frames)}", f"t = {truth.time:.1f} s"])
+        rerun.set_time(1, truth.time)
+        rerun.log_poses(
+            truth.robot_pose, lab.odometry_pose(), truth.human_pose[:2], np.array(truth.ball_positions)
+        )
+        if truth.time >= next_camera[0]:
+            rerun.log_camera("overhead", frame)
+            next_camera[0] = truth.time + 0.5
         frames.append(1)
 
     world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
-    start, cpu_start, sim = time.perf_counter(), time.process_time(), 0.0
-    for target, command in EPISODE:
-        sim += world.step_macro(target, command, grab if video else None).sim_seconds
-    wall, cpu = time.perf_counter() - start, time.process_time() - cpu_start
+    start, cpu_start, sim = time.perf_counter(), cpu_seconds(), 0.0
+    if folder is not None:
+        video = VideoWriter(folder / "episode.mp4", args.width, args.height, fps=args.video_fps)
+        rerun = RerunRecorder(folder / "episode.rrd")
+    try:
+        for target, command in EPISODE:
+            sim += world.step_macro(target, command, record if folder is not None else None).sim_seconds
+        if video is not None:
+            video.write(
+                world.render("overhead", args.width, args.height), ["done"], repeat=round(args.video_fps)
+            )
+    finally:
+        if video is not None:
+            video.close()
+            rerun.close()
+    wall, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
     return wall, cpu, sim, len(frames), world.ground_truth().ball_states
+
+
+def cpu_seconds() -> float:
+    """CPU seconds of this process (all threads) and of its finished children (the ffmpeg encoder)."""
+    times = os.times()
+    return times.user + times.system + times.children_user + times.children_system
+
+
+def episode_pair(args: Args, base: LabWorldConfig) -> tuple[tuple, tuple]:
+    """The scripted episode bare and recorded (frames at video_fps / video_speed per simulated second)."""
+    config = dataclasses.replace(base, video_fps=args.video_fps / args.video_speed)
+    with LabWorld(config) as world, tempfile.TemporaryDirectory() as folder:
+        bare = run_episode(world, args, None)
+        recorded = run_episode(world, args, Path(folder))
+    return bare, recorded
+
+
+def print_episodes(args: Args, bare: tuple, recorded: tuple) -> None:
+    wall, cpu, sim, _, states = bare
+    print(
+        f"| scripted episode, {len(EPISODE)} macro steps, {sim:.0f} sim s, no video: wall s / CPU s | "
+        f"{wall:.2f} / {cpu:.2f} |"
+    )
+    rec_wall, rec_cpu, _, count, rec_states = recorded
+    print(
+        f"| same, recorded as `run --record` (video {args.width}x{args.height} at {args.video_fps:g} fps, "
+        f"{args.video_speed:g}x time-lapse: {count} frames + 1 s hold; rerun): wall s / CPU s | "
+        f"{rec_wall:.2f} / {rec_cpu:.2f} |"
+    )
+    print(f"| recorded / bare episode, wall (CPU) | {rec_wall / wall:.1f}x ({rec_cpu / cpu:.1f}x) |")
+    print(
+        f"| ball states at the end of the episode (bare, recorded) | {', '.join(states)}; {', '.join(rec_states)} |"
+    )
 
 
 def main() -> None:
     args = parse_args()
     if args.episode_only:
-        with LabWorld(LabWorldConfig()) as world:
-            for video in (False, True):
-                wall, cpu, sim, count, states = run_episode(world, args.width, args.height, video)
-                print(
-                    f"episode ({len(EPISODE)} macro steps, {sim:.0f} sim s), {count} frames "
-                    f"{args.width}x{args.height}: {wall:.1f} wall s, {cpu:.1f} CPU s; balls: {', '.join(states)}"
-                )
+        print("| measure | value |\n|---|---|")
+        print_episodes(args, *episode_pair(args, LabWorldConfig()))
         return
     odometry = OdometryConfig(encoder_noise=0.0, wheel_slip=0.0) if args.noise_free else OdometryConfig()
     with LabWorld(LabWorldConfig(odometry=odometry)) as world:
@@ -165,11 +229,8 @@ def main() -> None:
                 fps[f"{cam}, {quality}"] = render_rate(
                     world, cam, args.render_frames, args.width, args.height
                 )
-        # The episodes below render at the default quality, as `run --record` does (an earlier version left "high"
-        # set here, so its video episode looked far more expensive per frame than the main job's recordings).
         world.config = default_config
-        episode_plain = run_episode(world, args.width, args.height, video=False)
-        episode_video = run_episode(world, args.width, args.height, video=True)
+    episodes = episode_pair(args, default_config)
     world_rtf = sim_total / cpu_total
     print(
         f"physics timestep {world.config.timestep * 1e3:.1f} ms, control period {world.config.control_period * 1e3:.0f} ms"
@@ -197,17 +258,7 @@ def main() -> None:
     print(f"| LabWorld real-time factor (sim s / CPU s, headless) | {world_rtf:.1f} |")
     print(f"| raw mj_step real-time factor (sim s / CPU s), same model | {raw_rtf:.1f} |")
     print(f"| LabWorld cost per sim s / raw mj_step cost per sim s | {raw_rtf / world_rtf:.2f}x |")
-    wall, cpu, sim, _, states = episode_plain
-    print(
-        f"| scripted episode, {len(EPISODE)} macro steps, {sim:.0f} sim s, no video: wall s / CPU s | {wall:.1f} / {cpu:.1f} |"
-    )
-    wall, cpu, sim, count, states = episode_video
-    print(
-        f"| same with overhead video {args.width}x{args.height} ({world.config.render_quality} quality), {count} frames "
-        f"at {world.config.video_fps:g} fps: "
-        f"wall s / CPU s | {wall:.1f} / {cpu:.1f} |"
-    )
-    print(f"| ball states at the end of the episode | {', '.join(states)} |")
+    print_episodes(args, *episodes)
     for cam, rate in fps.items():
         print(f"| offscreen render {cam} quality {args.width}x{args.height} (frames/wall s) | {rate:.1f} |")
 

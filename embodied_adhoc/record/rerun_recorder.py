@@ -36,13 +36,14 @@ Timelines: ``step`` (macro step, sequence) and ``sim_time`` (simulated seconds, 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
+from datetime import timedelta
 from pathlib import Path
 
 import numpy as np
 
 from embodied_adhoc.atomic import publish, temporary_sibling
+from embodied_adhoc.record.worker import BackgroundWorker
 
 ENTITY_PATHS: tuple[str, ...] = (
     "world/lab/outline",
@@ -67,6 +68,10 @@ ENTITY_PATHS: tuple[str, ...] = (
     "camera",
 )
 TEXT_CHANNELS = ("observations", "actions", "utterances", "events")
+FRAME_BATCH = 1024
+"""Per-frame poses are buffered and sent as columns at least this often (bounds the buffer)."""
+BATCH_BYTES = 32 * 1024 * 1024
+"""The SDK's batcher flushes row-logged data past this many bytes (bounds its memory)."""
 BALL_COLOURS = ((220, 50, 47), (235, 200, 40), (40, 110, 220), (133, 153, 0), (108, 113, 196))
 """Marker colours of balls 0, 1, 2 (red, yellow, blue as in ``scenes/lab.xml``), then extras."""
 
@@ -118,20 +123,32 @@ class RerunRecorder:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.jpeg_quality = int(jpeg_quality)
         self._temporary = temporary_sibling(self.path)
-        self._stream = rr.RecordingStream("embodied-adhoc", make_default=False, make_thread_default=False)
+        # Row-logged data (text, beliefs, images) is compacted by the SDK's batcher: no time-based flush, only past
+        # BATCH_BYTES, so an episode's .rrd holds a few chunks per entity instead of one per 200 ms of wall time.
+        batching = rr.ChunkBatcherConfig(flush_tick=timedelta(days=1), flush_num_bytes=BATCH_BYTES)
+        self._stream = rr.RecordingStream(
+            "embodied-adhoc", make_default=False, make_thread_default=False, batcher_config=batching
+        )
         self._stream.set_log_tick_enabled(False)
         self._stream.set_log_time_enabled(False)
         self._stream.save(self._temporary, default_blueprint=_default_blueprint())
         self._stream.send_recording_name(recording_name)
         self._ground_truth_track: list[np.ndarray] = []
         self._odometry_track: list[np.ndarray] = []
+        self._frames: list[tuple] = []
+        self._ball_style: int | None = None
+        self._step, self._sim_time = 0, 0.0
+        self._images = BackgroundWorker(self._encode_image, f"rerun images {self.path.name}", max_queued=8)
         self._closed = False
 
     # -- time ---------------------------------------------------------------------------------------------
     def set_time(self, step: int, sim_time: float) -> None:
         """Position subsequent logs on the ``step`` (macro step) and ``sim_time`` (seconds) timelines."""
-        self._stream.set_time("step", sequence=int(step))
-        self._stream.set_time("sim_time", duration=float(sim_time))
+        if int(step) != self._step:
+            self._log_tracks()  # the tracks of the macro step just finished, at its last time
+        self._step, self._sim_time = int(step), float(sim_time)
+        self._stream.set_time("step", sequence=self._step)
+        self._stream.set_time("sim_time", duration=self._sim_time)
 
     # -- static map -----------------------------------------------------------------------------------------
     def log_lab(
@@ -178,7 +195,7 @@ class RerunRecorder:
             static=True,
         )
 
-    # -- per step -----------------------------------------------------------------------------------------
+    # -- per frame (batched) ------------------------------------------------------------------------------
     def log_poses(
         self,
         robot_pose: Sequence[float],
@@ -187,39 +204,100 @@ class RerunRecorder:
         ball_positions: np.ndarray,
         ball_labels: Sequence[str] | None = None,
     ) -> None:
-        """Log ground-truth robot pose (x, y, yaw), odometry pose (x, y, yaw), human (x, y[, z]) and balls (n, 3)."""
-        rr = self._rr
-        x, y, yaw = (float(v) for v in robot_pose[:3])
-        ox, oy = float(odometry_pose[0]), float(odometry_pose[1])
-        self._stream.log(
-            "world/robot",
-            rr.Transform3D(
-                translation=(x, y, 0.0), rotation=rr.RotationAxisAngle(axis=(0, 0, 1), radians=yaw)
-            ),
-        )
-        self._stream.log("world/odometry", rr.Points3D([(ox, oy, 0.05)], colors=[(255, 140, 0)], radii=0.07))
+        """Log ground-truth robot pose (x, y, yaw), odometry pose (x, y, yaw), human (x, y[, z]) and balls (n, 3)
+        at the current time. Buffered and sent as one column per entity (``send_columns``) every ``FRAME_BATCH``
+        frames and on :meth:`close`; the tracks so far are logged when the macro step changes and on close."""
+        if self._ball_style is None:
+            self._log_styles(len(np.asarray(ball_positions).reshape(-1, 3)), ball_labels)
         human = np.zeros(3)
         human[: len(human_position)] = human_position
         human[2] = 0.9 if len(human_position) < 3 else human[2]
-        self._stream.log(
-            "world/human", rr.Points3D([human], colors=[(230, 180, 150)], radii=0.25, labels=["human"])
-        )
         balls = np.asarray(ball_positions, dtype=np.float64).reshape(-1, 3)
-        colours = [BALL_COLOURS[i % len(BALL_COLOURS)] for i in range(len(balls))]
-        labels = list(ball_labels) if ball_labels is not None else [f"ball {i}" for i in range(len(balls))]
-        self._stream.log("world/balls", rr.Points3D(balls, colors=colours, radii=0.06, labels=labels))
-        self._ground_truth_track.append(np.array([x, y, 0.03]))
-        self._odometry_track.append(np.array([ox, oy, 0.04]))
+        if len(balls) != self._ball_style:
+            raise ValueError(
+                f"log_poses: {len(balls)} ball positions, the recording started with {self._ball_style}"
+            )
+        self._frames.append(
+            (
+                self._step,
+                self._sim_time,
+                tuple(float(v) for v in robot_pose[:3]),
+                (float(odometry_pose[0]), float(odometry_pose[1])),
+                human,
+                balls,
+            )
+        )
+        self._ground_truth_track.append(np.array([robot_pose[0], robot_pose[1], 0.03], dtype=np.float64))
+        self._odometry_track.append(np.array([odometry_pose[0], odometry_pose[1], 0.04], dtype=np.float64))
+        if len(self._frames) >= FRAME_BATCH:
+            self._send_frames()
+
+    def _log_styles(self, n_balls: int, ball_labels: Sequence[str] | None) -> None:
+        """Colours, sizes and labels once (static); the per-frame columns carry only positions and poses."""
+        rr, log = self._rr, self._stream.log
+        self._ball_style = n_balls
+        labels = list(ball_labels) if ball_labels is not None else [f"ball {i}" for i in range(n_balls)]
+        colours = [BALL_COLOURS[i % len(BALL_COLOURS)] for i in range(n_balls)]
+        log("world/balls", rr.Points3D.from_fields(colors=colours, radii=0.06, labels=labels), static=True)
+        log("world/odometry", rr.Points3D.from_fields(colors=[(255, 140, 0)], radii=0.07), static=True)
+        log(
+            "world/human",
+            rr.Points3D.from_fields(colors=[(230, 180, 150)], radii=0.25, labels=["human"]),
+            static=True,
+        )
+        for track, colour in (("ground_truth", (0, 170, 0)), ("odometry", (255, 140, 0))):
+            log(
+                f"world/tracks/{track}", rr.LineStrips3D.from_fields(colors=[colour], radii=0.02), static=True
+            )
+
+    def _send_frames(self) -> None:
+        """Send the buffered frames as one column per entity."""
+        if not self._frames:
+            return
+        rr, send = self._rr, self._stream.send_columns
+        steps, times, robot, odometry, human, balls = zip(*self._frames, strict=True)
+        self._frames = []
+        robot, odometry = np.array(robot), np.array(odometry)
+        indexes = [
+            rr.TimeColumn("step", sequence=np.array(steps)),
+            rr.TimeColumn("sim_time", duration=np.array(times)),
+        ]
+        half_yaw = 0.5 * robot[:, 2]
+        zeros = np.zeros(len(robot))
+        send(
+            "world/robot",
+            indexes=indexes,
+            columns=rr.Transform3D.columns(
+                translation=np.column_stack([robot[:, :2], zeros]),
+                quaternion=np.column_stack([zeros, zeros, np.sin(half_yaw), np.cos(half_yaw)]),
+            ),
+        )
+        send(
+            "world/odometry",
+            indexes=indexes,
+            columns=rr.Points3D.columns(positions=np.column_stack([odometry, np.full(len(odometry), 0.05)])),
+        )
+        send("world/human", indexes=indexes, columns=rr.Points3D.columns(positions=np.array(human)))
+        send(
+            "world/balls",
+            indexes=indexes,
+            columns=rr.Points3D.columns(positions=np.concatenate(balls)).partition(
+                [self._ball_style] * len(balls)
+            ),
+        )
+        error = np.hypot(robot[:, 0] - odometry[:, 0], robot[:, 1] - odometry[:, 1])
+        send("metrics/odometry_error", indexes=indexes, columns=rr.Scalars.columns(scalars=error))
+
+    def _log_tracks(self) -> None:
+        """The ground-truth and odometry tracks so far, one row each at the current time."""
         if len(self._ground_truth_track) >= 2:
-            self._stream.log(
-                "world/tracks/ground_truth",
-                rr.LineStrips3D([np.array(self._ground_truth_track)], colors=[(0, 170, 0)], radii=0.02),
-            )
-            self._stream.log(
-                "world/tracks/odometry",
-                rr.LineStrips3D([np.array(self._odometry_track)], colors=[(255, 140, 0)], radii=0.02),
-            )
-        self._stream.log("metrics/odometry_error", rr.Scalars(math.hypot(x - ox, y - oy)))
+            for name, track in (
+                ("ground_truth", self._ground_truth_track),
+                ("odometry", self._odometry_track),
+            ):
+                self._stream.log(
+                    f"world/tracks/{name}", self._rr.LineStrips3D.from_fields(strips=[np.array(track)])
+                )
 
     def log_belief(self, probabilities: np.ndarray, entropy: float) -> None:
         """Log the task posterior as bars and its (normalised) entropy as a scalar."""
@@ -233,8 +311,16 @@ class RerunRecorder:
         self._stream.log(f"log/{channel}", self._rr.TextLog(text, level=level))
 
     def log_camera(self, name: str, frame: np.ndarray) -> None:
-        """Log an RGB frame as a JPEG-encoded image on ``camera/<name>`` (keeps the .rrd small)."""
+        """Log an RGB frame as a JPEG-encoded image on ``camera/<name>`` (keeps the .rrd small), at the current
+        time. The JPEG is encoded on a worker thread: do not modify ``frame`` afterwards."""
+        self._images.submit((name, self._step, self._sim_time, frame))
+
+    def _encode_image(self, item: tuple) -> None:
+        """Worker thread: JPEG-encode and log at the time the frame was taken (rerun's time is per thread)."""
+        name, step, sim_time, frame = item
         image = self._rr.Image(np.ascontiguousarray(frame)).compress(jpeg_quality=self.jpeg_quality)
+        self._stream.set_time("step", sequence=step)
+        self._stream.set_time("sim_time", duration=sim_time)
         self._stream.log(f"camera/{name}", image)
 
     def log_audio(self, wav_bytes: bytes) -> None:
@@ -246,9 +332,14 @@ class RerunRecorder:
         """Flush and publish the ``.rrd`` under its final name (idempotent; call it in ``finally``)."""
         if not self._closed:
             self._closed = True
-            self._stream.flush()
-            self._stream.disconnect()
-            publish(self._temporary, self.path)
+            try:
+                self._images.close()
+            finally:
+                self._send_frames()
+                self._log_tracks()
+                self._stream.flush()
+                self._stream.disconnect()
+                publish(self._temporary, self.path)
         return self.path
 
     def __enter__(self) -> RerunRecorder:

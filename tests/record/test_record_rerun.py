@@ -3,6 +3,7 @@
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -68,3 +69,36 @@ def test_recording_verifies_and_reads_back(tmp_path):
 def test_unknown_text_channel_is_an_error(tmp_path):
     with RerunRecorder(tmp_path / "x.rrd") as recorder, pytest.raises(ValueError, match="observations"):
         recorder.log_text("chat", "hello")
+
+
+def test_frames_are_batched_and_images_keep_their_own_time(tmp_path):
+    """Per-frame poses go out as columns and row data is compacted: a few chunks per entity, not one per 200 ms
+    of wall time; camera images JPEG-encoded on the worker thread carry the time they were logged at."""
+    from rerun.chunk import RrdReader
+
+    path = tmp_path / "long.rrd"
+    with RerunRecorder(path) as recorder:
+        for frame in range(300):
+            step = frame // 20 + 1
+            recorder.set_time(step, 0.25 * frame)
+            recorder.log_poses(
+                (0.01 * frame, 0.0, 0.1), (0.01 * frame, 0.02, 0.1), (1.0, 1.0), np.zeros((3, 3))
+            )
+            if frame % 20 == 0:
+                recorder.log_camera("overhead", np.full((24, 32, 3), frame % 250, np.uint8))
+                recorder.log_text("actions", f"step {step}")
+            time.sleep(0.003)  # about 1 s of wall time: the SDK's default 200 ms flush tick would cut ~5 chunks
+    chunks: dict[str, list] = {}
+    for chunk in RrdReader(path).store().stream().to_chunks():
+        chunks.setdefault(chunk.entity_path.lstrip("/"), []).append(chunk.to_record_batch())
+    for entity in ("world/robot", "world/balls", "metrics/odometry_error", "camera/overhead", "log/actions"):
+        assert len(chunks[entity]) <= 2, (entity, len(chunks[entity]))
+    robot_rows = sum(batch.num_rows for batch in chunks["world/robot"])
+    assert robot_rows == 300
+    image_steps = sorted(
+        int(value)
+        for batch in chunks["camera/overhead"]
+        if "step" in batch.schema.names
+        for value in batch.column("step").to_pylist()
+    )
+    assert image_steps == list(range(1, 16))

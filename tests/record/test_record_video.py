@@ -37,3 +37,27 @@ def test_odd_size_and_wrong_frame_are_rejected(tmp_path):
         writer.write(np.zeros((48, 64, 3), np.float32))
     assert writer.close() is None  # nothing written: no empty mp4 is published
     assert not (tmp_path / "clip.mp4").exists()
+
+
+def test_repeat_holds_a_frame_and_overlay_is_drawn_on_the_writer_thread(tmp_path):
+    path = tmp_path / "held.mp4"
+    with VideoWriter(path, 320, 240, fps=10) as writer:
+        writer.write(np.zeros((240, 320, 3), np.uint8))
+        writer.write(np.full((240, 320, 3), 200, np.uint8), overlay=["final state"], repeat=10)
+        assert writer.frame_count == 11
+    reader = imageio.get_reader(path)
+    try:
+        frames = [frame for frame in reader]
+    finally:
+        reader.close()
+    assert len(frames) == 11
+    assert all(np.abs(frame.astype(int) - frames[-1]).mean() < 2 for frame in frames[1:])
+    assert frames[-1][30:, 200:].mean() > 180 and frames[-1][4:20, 4:60].mean() < 150  # dark box top-left
+
+
+def test_an_encoding_error_is_raised_and_nothing_is_published(tmp_path):
+    writer = VideoWriter(tmp_path / "broken.mp4", 320, 240)
+    writer.write(np.zeros((240, 320, 3), np.uint8), overlay=[object()])  # fails on the writer thread
+    with pytest.raises(RuntimeError, match="video broken.mp4 failed"):
+        writer.close()
+    assert not (tmp_path / "broken.mp4").exists() and not list(tmp_path.glob(".*partial*"))
