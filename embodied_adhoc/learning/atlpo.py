@@ -1,0 +1,237 @@
+"""ATLPO-MF (thesis sections 6.1-6.2): a library of PPO policies, one per environment (task x team), the recurrent
+Bayesian classifier over them (Eq. 6.2) and the ad hoc agent that acts with the posterior-weighted library.
+
+Environment sets (section 6.2, the chapter-6 table): ``task`` (K=4: tasks 1-4, team tau1 fixed), ``team`` (K=3:
+teams tau0-tau2, task 1 fixed) and ``task+team`` (their union, K=6: the thesis reports K=7 without listing the
+environments, and its two sets share one; which seventh it added is not recoverable from the text).
+
+On disk a library is a folder: ``library.json`` (domain, env settings, the members in order, the classifier) and
+one safetensors file per member and for the classifier (:mod:`embodied_adhoc.learning.weights`). Training is
+resumable per member: a member whose weights exist is loaded, not retrained.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from embodied_adhoc.atomic import atomic_write_text
+from embodied_adhoc.decision.agents.selection import draw_action
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.classifier import ClassifierConfig, RecurrentBayesianClassifier, Trajectories
+from embodied_adhoc.learning.networks import ActorCritic, NetworkConfig
+from embodied_adhoc.learning.ppo import PpoConfig, train_ppo, training_metadata
+from embodied_adhoc.learning.vector_grid import GridVectorEnv
+from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights, save_weights
+
+SETS = ("task", "team", "task+team")
+
+
+@dataclass(frozen=True)
+class LibraryEnvironment:
+    task: int  # 1-based, as the envs' ``task`` option
+    team: str
+
+    @property
+    def name(self) -> str:
+        return f"task{self.task}-{self.team}"
+
+
+def library_set(name: str) -> tuple[LibraryEnvironment, ...]:
+    """The environments of one chapter-6 set (see the module docstring)."""
+    tasks = tuple(LibraryEnvironment(k, "tau1") for k in range(1, 5))
+    teams = tuple(LibraryEnvironment(1, team) for team in ("tau0", "tau1", "tau2"))
+    if name == "task":
+        return tasks
+    if name == "team":
+        return teams
+    if name == "task+team":
+        return tasks + tuple(e for e in teams if e not in tasks)
+    raise ConfigError(f"set={name!r}: use one of {SETS}")
+
+
+@dataclass
+class PolicyLibrary:
+    domain: str
+    environments: tuple[LibraryEnvironment, ...]
+    policies: list[ActorCritic]
+    env_kwargs: dict
+
+    def env_for(self, k: int, **kwargs) -> dict:
+        environment = self.environments[k]
+        return {**self.env_kwargs, "tasks": (environment.task,), "teams": (environment.team,), **kwargs}
+
+
+def _member_path(folder: Path, domain: str, environment: LibraryEnvironment) -> Path:
+    return folder / f"{domain}-{environment.name}.safetensors"
+
+
+def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | Path, env_kwargs: dict | None = None,
+                  progress: Callable[[str, int, dict], None] | None = None) -> PolicyLibrary:
+    """Train (or, where its weights exist, load) one PPO policy per environment of ``set_name``; each member gets
+    the seed ``config.seed + k``."""
+    folder, env_kwargs = Path(folder), dict(env_kwargs or {})
+    environments = library_set(set_name)
+    policies = []
+    for k, environment in enumerate(environments):
+        path = _member_path(folder, domain, environment)
+        kwargs = {**env_kwargs, "tasks": (environment.task,), "teams": (environment.team,)}
+        if path.exists():
+            policies.append(load_policy(path))
+            continue
+        member_config = replace(config, seed=config.seed + k)
+        report = None if progress is None else (lambda steps, row, name=environment.name: progress(name, steps, row))
+        result = train_ppo(domain, kwargs, member_config, report)
+        save_weights(path, result.model, training_metadata(domain, kwargs, member_config, result))
+        policies.append(result.model)
+    library = PolicyLibrary(domain, environments, policies, env_kwargs)
+    write_manifest(folder, library, classifier=None)
+    return library
+
+
+def load_policy(path: str | Path) -> ActorCritic:
+    _, metadata = load_weights(path)
+    if metadata.get("kind") != "atlpo-mf-policy":
+        raise WeightsError(f"{path}: not an ATLPO-MF policy (kind={metadata.get('kind')!r})")
+    model = ActorCritic(NetworkConfig(**metadata["network"]))
+    load_into(model, path)
+    return model.eval()
+
+
+def write_manifest(folder: Path, library: PolicyLibrary, classifier: RecurrentBayesianClassifier | None) -> None:
+    manifest = {"domain": library.domain, "env_kwargs": library.env_kwargs,
+                "members": [{"task": e.task, "team": e.team, "weights": _member_path(folder, library.domain, e).name}
+                            for e in library.environments]}
+    previous = folder / "library.json"
+    if classifier is None and previous.exists():  # keep a classifier trained on the same members
+        try:
+            earlier = json.loads(previous.read_text())
+        except ValueError:
+            earlier = {}
+        if earlier.get("members") == manifest["members"] and earlier.get("classifier"):
+            manifest["classifier"] = earlier["classifier"]
+    if classifier is not None:
+        path = save_weights(folder / f"{library.domain}-classifier.safetensors", classifier,
+                            {"kind": "atlpo-classifier", "config": classifier.config.as_dict()})
+        manifest["classifier"] = path.name
+    atomic_write_text(folder / "library.json", json.dumps(manifest, indent=1, sort_keys=True) + "\n")
+
+
+def load_library(folder: str | Path) -> tuple[PolicyLibrary, RecurrentBayesianClassifier | None]:
+    """A library folder written by :func:`train_library` / :func:`write_manifest`."""
+    folder = Path(folder)
+    try:
+        manifest = json.loads((folder / "library.json").read_text())
+        members = manifest["members"]
+        environments = tuple(LibraryEnvironment(int(m["task"]), str(m["team"])) for m in members)
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ConfigError(f"{folder / 'library.json'}: not an ATLPO library manifest ({error!r}); "
+                          "train one with train_library") from None
+    policies = [load_policy(folder / m["weights"]) for m in members]
+    library = PolicyLibrary(manifest["domain"], environments, policies, dict(manifest.get("env_kwargs", {})))
+    classifier = None
+    if manifest.get("classifier"):
+        _, metadata = load_weights(folder / manifest["classifier"])
+        classifier = RecurrentBayesianClassifier(ClassifierConfig(**metadata["config"]))
+        load_into(classifier, folder / manifest["classifier"])
+        classifier.eval()
+    return library, classifier
+
+
+@torch.no_grad()
+def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, seed: int) -> Trajectories:
+    """``episodes`` episodes of each library environment ``k`` played by its own policy (sampled actions), cut at
+    ``max_steps``: the classifier's training data, labelled ``k``."""
+    observations, previous, labels, lengths = [], [], [], []
+    for k, policy in enumerate(library.policies):
+        env = GridVectorEnv(library.domain, episodes, **library.env_for(k, max_episode_steps=max_steps))
+        torch.manual_seed(seed + k)
+        observation, _ = env.reset(seed=seed + 1000 * k)
+        none = env.single_action_space.n
+        obs = np.zeros((episodes, max_steps, *observation.shape[1:]), np.float32)
+        acts = np.full((episodes, max_steps), none, np.int64)
+        length = np.zeros(episodes, np.int64)
+        live = np.ones(episodes, bool)
+        for t in range(max_steps):
+            obs[live, t] = observation[live]
+            length[live] += 1
+            logits, _ = policy(torch.as_tensor(observation))
+            action = torch.distributions.Categorical(logits=logits).sample().numpy()
+            if t + 1 < max_steps:
+                acts[live, t + 1] = action[live]
+            observation, _, terminated, truncated, _ = env.step(action)
+            live &= ~(terminated | truncated)
+            if not live.any():
+                break
+        env.close()
+        observations.append(obs)
+        previous.append(acts)
+        labels.append(np.full(episodes, k))
+        lengths.append(length)
+    return Trajectories(np.concatenate(observations), np.concatenate(previous), np.concatenate(labels),
+                        np.concatenate(lengths))
+
+
+class AtlpoAgent:
+    """The ATLPO ad hoc agent: posterior ``p_t`` over the library from the classifier (Eq. 6.2) and the action
+    distribution ``pi_t(a | h_t) = sum_k p_t(m_k) [a = argmax pi_k(. | z_t)]`` drawn (or its argmax with
+    ``greedy``) by the decision layer's :func:`draw_action`, as ATPO does with its library.
+
+    It follows the project's ``Agent`` protocol, but needs raw egocentric observations (arrays) where the tabular
+    agents take observation indices: :meth:`start` gives it the first observation of an episode (after
+    :meth:`reset`), and :meth:`observe` each following one.
+    """
+
+    observes_state = False
+
+    def __init__(self, library: PolicyLibrary, classifier: RecurrentBayesianClassifier, greedy: bool = False,
+                 name: str = "atlpo-mf") -> None:
+        if classifier.config.environments != len(library.policies):
+            raise ConfigError(f"classifier over {classifier.config.environments} environments for a library of "
+                              f"{len(library.policies)}: train the classifier on this library")
+        self.library, self.classifier, self.greedy, self.name = library, classifier, greedy, name
+        self.rng = np.random.default_rng(0)
+        self._posterior = np.full(len(library.policies), 1.0 / len(library.policies))
+        self._history = None
+        self._observation: np.ndarray | None = None
+
+    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
+        self.rng, self._history, self._observation = rng, None, None
+        self._posterior = np.full(len(self.library.policies), 1.0 / len(self.library.policies))
+
+    def start(self, observation: np.ndarray) -> None:
+        """The episode's first observation ``z_0`` (Eq. 6.2 with no previous action)."""
+        self._observation = self._checked(observation)
+        self._posterior, self._history = self.classifier.posterior_step(self._observation, None, None)
+
+    def _checked(self, observation) -> np.ndarray:
+        if np.ndim(observation) != 3:
+            raise ConfigError(f"ATLPO observation of shape {np.shape(observation)}: it needs the egocentric "
+                              "(channels, view, view) array of the grid envs, not an observation index")
+        return np.asarray(observation, dtype=np.float32)
+
+    @torch.no_grad()
+    def action_distribution(self) -> np.ndarray:
+        if self._observation is None:
+            raise ConfigError("ATLPO: call start(observation) after reset() before acting")
+        observation = torch.as_tensor(self._observation)[None]
+        distribution = np.zeros(self.library.policies[0].config.actions)
+        for k, policy in enumerate(self.library.policies):
+            distribution[int(policy(observation)[0].argmax())] += self._posterior[k]
+        return distribution
+
+    def act(self) -> int:
+        return draw_action(self.action_distribution(), self.rng, self.greedy)
+
+    def observe(self, action: int, observation, state: int | None = None) -> None:
+        self._observation = self._checked(observation)
+        self._posterior, self._history = self.classifier.posterior_step(self._observation, action, self._history)
+
+    @property
+    def task_posterior(self) -> np.ndarray:
+        return self._posterior.copy()

@@ -1,0 +1,68 @@
+"""ATLPO-MF end to end on a tiny library: per-environment PPO members, trajectories, the classifier and the
+agent acting in the single env (thesis chapter 6)."""
+
+import gymnasium
+import numpy as np
+import pytest
+import torch
+
+from embodied_adhoc.decision.agents.base import Agent
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.atlpo import (
+    AtlpoAgent,
+    collect_trajectories,
+    library_set,
+    load_library,
+    train_library,
+    write_manifest,
+)
+from embodied_adhoc.learning.classifier import (
+    ClassifierConfig,
+    ClassifierTraining,
+    RecurrentBayesianClassifier,
+    train_classifier,
+)
+from embodied_adhoc.learning.ppo import PpoConfig
+
+torch.set_num_threads(1)
+
+
+def test_library_sets():
+    assert [e.name for e in library_set("team")] == ["task1-tau0", "task1-tau1", "task1-tau2"]
+    assert len(library_set("task")) == 4 and len(library_set("task+team")) == 6
+    with pytest.raises(ConfigError, match="set="):
+        library_set("teams")
+
+
+def test_tiny_library_classifier_and_agent(tmp_path):
+    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    library = train_library("foraging", "team", config, tmp_path)
+    assert len(library.policies) == 3 and len(list(tmp_path.glob("*.safetensors"))) == 3
+    data = collect_trajectories(library, episodes=4, max_steps=12, seed=0)
+    assert data.observations.shape[:2] == (12, 12) and set(data.labels.tolist()) == {0, 1, 2}
+    assert np.all(data.previous_actions[:, 0] == 5)
+    classifier = RecurrentBayesianClassifier(ClassifierConfig(channels=data.observations.shape[2], environments=3,
+                                                              features=16, hidden=16, hidden_channels=4))
+    train_classifier(classifier, data, ClassifierTraining(iterations=5, batch_size=8))
+    write_manifest(tmp_path, library, classifier)
+    library, classifier = load_library(tmp_path)  # the agent runs on what was written
+    agent = AtlpoAgent(library, classifier)
+    assert isinstance(agent, Agent)
+    env = gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0", tasks=(1,), teams=("tau2",))
+    observation, _ = env.reset(seed=3)
+    agent.reset(np.random.default_rng(0))
+    agent.start(observation)
+    for _ in range(10):
+        action = agent.act()
+        assert 0 <= action < 5
+        observation, _, terminated, truncated, _ = env.step(action)
+        agent.observe(action, observation)
+        assert np.isclose(agent.task_posterior.sum(), 1.0) and agent.task_posterior.min() >= 0
+        if terminated or truncated:
+            break
+    with pytest.raises(ConfigError, match="egocentric"):
+        agent.observe(0, 17)
+    again = train_library("foraging", "team", config, tmp_path)  # resumes: members are loaded, not retrained
+    assert load_library(tmp_path)[1] is not None  # and the classifier stays in the manifest
+    for a, b in zip(again.policies, library.policies, strict=True):
+        assert all(torch.equal(x, y) for x, y in zip(a.state_dict().values(), b.state_dict().values(), strict=True))
