@@ -112,3 +112,9 @@ def test_panic_buttons_suboptimal_teammate_stays_three_times_in_ten():
     assert optimal_row[x] == 0.0
     assert suboptimal_row[x] == pytest.approx(0.3)
     np.testing.assert_allclose(suboptimal_row, 0.7 * optimal_row + 0.3 * np.eye(len(names))[x])
+
+
+def test_gridworld_libraries_are_nested():
+    small = build_library("gridworld", n_models=2).task_names
+    large = build_library("gridworld", n_models=32).task_names
+    assert large[:2] == small and len(set(large)) == 32

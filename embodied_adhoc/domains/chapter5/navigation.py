@@ -283,8 +283,10 @@ def build_gridworld(
         raise ConfigError(
             f"gridworld: {n_models} models asked; a {size}x{size} grid has 1..{len(all_pairs)} goal pairs"
         )
-    chosen = np.random.default_rng(task_seed).choice(len(all_pairs), size=n_models, replace=False)
-    pairs = [all_pairs[int(k)] for k in chosen]
+    # A seeded order of every goal pair, of which the library takes the first n_models: the libraries of Fig. 5.9
+    # are nested (each size contains the smaller ones), so their solved policies are shared through the cache.
+    order = np.random.default_rng(task_seed).permutation(len(all_pairs))
+    pairs = [all_pairs[int(k)] for k in order[:n_models]]
     settings = {"n_models": n_models, "size": size, "noise": noise, "task_seed": task_seed}
     return _library(
         "gridworld",
