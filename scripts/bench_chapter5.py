@@ -1,0 +1,76 @@
+"""Build (and optionally solve) every chapter-5 library and print the thesis's Table 5.3 times beside ours.
+
+Building is timed per library (all its models, teammate policies by value iteration on the MMDPs included); the
+thesis's setup time is per POMDP, so its column is multiplied by the library size for the ratio. With
+``--solve-seconds S`` each model is also solved by Perseus (Table 5.2's belief-set size, tolerance 0.01, at most S
+seconds, no cache) and its time is printed beside the thesis's mean solve time per POMDP::
+
+    .venv/bin/python scripts/bench_chapter5.py [--solve-seconds 20] [--repeats 3]
+
+Times are wall-clock on the machine at hand (say how loaded it was when you quote them).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from embodied_adhoc.domains.chapter5 import build_library
+from embodied_adhoc.experiments.script_args import parse_dataclass_args
+from embodied_adhoc.experiments.tables import format_table
+
+# Table 5.3: mean seconds per POMDP (setup, solve)
+THESIS = {
+    "gridworld": (27.4, 2463), "pursuit-task": (218, 9055), "pursuit-teammate": (201, 9084),
+    "pursuit-both": (211, 10983), "power-plant": (1.41, 43.3), "ntu": (14.0, 605), "overcooked": (241, 323),
+    "isr": (503, 21779), "mit": (701, 20599), "pentagon": (975, 17750), "cit": (3105, 42810),
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Args:
+    solve_seconds: float = 0.0
+    """Perseus time limit per model (0: build only)"""
+    repeats: int = 3
+    """builds per library (the fastest is reported)"""
+    markdown: bool = False
+    """print a Markdown table"""
+
+
+def main() -> None:
+    from embodied_adhoc.decision.perseus import PerseusConfig, perseus
+
+    args = parse_dataclass_args(Args, __doc__)
+    rows = []
+    total_build = total_solve = 0.0
+    for domain, (thesis_setup, thesis_solve) in THESIS.items():
+        times = []
+        for _ in range(args.repeats):
+            start = time.perf_counter()
+            library = build_library(domain)
+            times.append(time.perf_counter() - start)
+        build = min(times)
+        total_build += build
+        row = [domain, str(library.n_models), f"{build:.3f}", f"{thesis_setup * library.n_models:.0f}",
+               f"{thesis_setup * library.n_models / build:.0f}x"]  # fmt: skip
+        if args.solve_seconds > 0:
+            config = PerseusConfig(n_beliefs=library.n_beliefs, tolerance=0.01, time_limit=args.solve_seconds)
+            start = time.perf_counter()
+            for pomdp in library.pomdps:
+                perseus(pomdp, config)
+            solve = (time.perf_counter() - start) / library.n_models
+            total_solve += solve * library.n_models
+            row += [f"{solve:.1f}", f"{thesis_solve:.0f}"]
+        rows.append(row)
+    headers = ["domain", "models", "build s (ours)", "setup s (thesis, x models)", "thesis / ours"]
+    if args.solve_seconds > 0:
+        headers += ["solve s per model (ours)", "solve s per model (thesis)"]
+    print(format_table(headers, rows, args.markdown))
+    print(
+        f"\nall libraries built in {total_build:.2f} s"
+        + (f", solved in {total_solve:.0f} s" if total_solve else "")
+    )
+
+
+if __name__ == "__main__":
+    main()
