@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc.atomic import atomic_path
+from embodied_adhoc.atomic import atomic_open
 from embodied_adhoc.errors import ModelError
 
 _FORMAT_VERSION = 1
@@ -102,11 +102,11 @@ class AlphaVectorPolicy:
 
     # ------------------------------------------------------------------------------------------ files
     def save(self, path: str | Path) -> Path:
-        """Write the policy to ``path`` (.npz) atomically; no pickle."""
+        """Write the policy to exactly ``path`` (an .npz archive whatever the suffix) atomically; no pickle."""
         path = Path(path)
-        with atomic_path(path) as temporary:
+        with atomic_open(path) as stream:  # a stream: numpy then adds no '.npz' to the name
             np.savez(
-                temporary,
+                stream,
                 alphas=self.alphas,
                 actions=self.actions,
                 stages=self.stages,
