@@ -7,9 +7,14 @@
     result = world.step_macro(robot_target=1, human_command=HumanCommand.move_to(3))
     result.odometry_node, result.rfid_events, world.ground_truth(), world.render("overhead")
 
-During a macro step the robot drives to ``robot_target`` with the waypoint controller tracking its *odometry*
-estimate, while the human executes its command; the step ends when both are done (or at the timeout).
-Everything random (encoder noise, wheel slip, RFID misses) derives from the reset seed: same seed, same run.
+During a macro step the robot drives to ``robot_target`` with the waypoint controller tracking its *pose
+estimate*, while the human executes its command; the step ends when both are done, when the robot is blocked (its
+estimate made no progress for ``stall_seconds``, or the controller gave up short of the goal), or at the timeout.
+The estimate is the Monte Carlo localiser's (``sim.localisation``: wheel odometry + the 2D lidar against the
+scene's map) or, with ``localisation=None``, wheel odometry alone. The robot-node reading
+(``MacroStepResult.robot_node_reading``) is the localiser's area, None ("unknown") when its particles span more
+than one area. Everything random (encoder noise, wheel slip, RFID misses, lidar noise, the particle filter)
+derives from the reset seed: same seed, same run.
 """
 
 from __future__ import annotations
@@ -20,11 +25,14 @@ from dataclasses import dataclass, field
 import mujoco
 import numpy as np
 
+from embodied_adhoc.control.reference import wrap_angle
 from embodied_adhoc.control.waypoint_controller import ControllerConfig, WaypointController
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.sim.human import HumanCommand, HumanSenses, HumanWalker
 from embodied_adhoc.sim.lab_layout import LAB_LAYOUT, LabLayout
 from embodied_adhoc.sim.lab_model import CAMERA_ALIASES, LabIds, load_lab_model, yaw_of
+from embodied_adhoc.sim.lidar import Lidar, LidarConfig
+from embodied_adhoc.sim.localisation import LikelihoodField, LocalisationConfig, MonteCarloLocaliser
 from embodied_adhoc.sim.odometry import OdometryConfig, WheelOdometry
 from embodied_adhoc.sim.sensing import RfidReader, robot_wall_contact
 
@@ -42,10 +50,18 @@ class LabWorldConfig:
         control_period: controller/odometry/human/RFID tick (s), a whole multiple of ``timestep``.
         controller: waypoint controller limits, gains and arrival tolerance.
         odometry: encoder noise and wheel slip of dead reckoning.
+        lidar: range window, noise and dropout of the 2D lidar (``enabled=False``: no scans).
+        localisation: particle-filter settings; None = the controller and the robot-node reading use wheel
+            odometry alone (no localiser).
+        stall_seconds: a moving robot whose pose estimate advances less than 10 cm and 0.2 rad over a window of
+            this many simulated seconds is blocked: the macro step ends with ``blocked=True``.
         rfid_miss_probability: chance that the reader misses a ball entering the container (one read per ball).
         human_speed: walking speed of the human (m/s).
         macro_timeout: a macro step ends after this many simulated seconds even if unfinished.
         min_macro_seconds: a macro step lasts at least this long (a "stay" still lets time pass).
+        sensor_period: the RFID reader and the wall-contact check run this often (s; a whole multiple of
+            ``control_period``) and once more at the end of every macro step. A ball in the bin stays there, so
+            no read is lost; a wall touch shorter than this can go unreported (it is a diagnostic).
         video_fps: rate (simulated frames per second) at which ``frame_callback`` is called.
         render_width, render_height: default image size of ``render``.
         render_quality: "fast" (no shadows, reflections, floor texture or anti-aliasing: software EGL without
@@ -57,10 +73,14 @@ class LabWorldConfig:
     control_period: float = 0.02
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     odometry: OdometryConfig = field(default_factory=OdometryConfig)
+    lidar: LidarConfig = field(default_factory=LidarConfig)
+    localisation: LocalisationConfig | None = field(default_factory=LocalisationConfig)
+    stall_seconds: float = 5.0
     rfid_miss_probability: float = 0.0
     human_speed: float = 1.2
     macro_timeout: float = 60.0
     min_macro_seconds: float = 1.0
+    sensor_period: float = 0.1
     video_fps: float = 15.0
     render_width: int = 640
     render_height: int = 512
@@ -76,6 +96,12 @@ class LabWorldConfig:
                 f"LabWorldConfig.control_period ({self.control_period}) must be a whole multiple of timestep "
                 f"({self.timestep})"
             )
+        sensing = self.sensor_period / self.control_period
+        if sensing < 1 or abs(sensing - round(sensing)) > 1e-9:
+            raise ConfigError(
+                f"LabWorldConfig.sensor_period ({self.sensor_period}) must be a whole multiple of control_period "
+                f"({self.control_period})"
+            )
         if not 0.0 <= self.rfid_miss_probability <= 1.0:
             raise ConfigError(
                 f"LabWorldConfig.rfid_miss_probability must be in [0, 1], got {self.rfid_miss_probability}"
@@ -84,7 +110,7 @@ class LabWorldConfig:
             raise ConfigError(
                 f"LabWorldConfig.render_quality must be one of {RENDER_QUALITIES}, got {self.render_quality!r}"
             )
-        for name in ("human_speed", "macro_timeout", "video_fps"):
+        for name in ("human_speed", "macro_timeout", "video_fps", "stall_seconds"):
             if not getattr(self, name) > 0:
                 raise ConfigError(f"LabWorldConfig.{name} must be > 0, got {getattr(self, name)}")
 
@@ -106,6 +132,11 @@ class MacroStepResult:
     timed_out: bool
     odometry_error: float  # metres between dead-reckoning and true position at the end of the step
     mujoco_warnings: int  # MuJoCo warnings raised during this step (0 in a healthy run)
+    robot_node_reading: int | None = None  # the robot's area reading: localiser (None: unknown) or odometry
+    blocked: bool = False  # the robot could not reach its waypoint (stalled, or the controller gave up)
+    pose_error: float = 0.0  # metres between the pose estimate the controller tracks and the true position
+    localisation_mode: str = "odometry"  # "lidar", "odometry" (localiser without scans) or "off" (no localiser)
+    kidnaps: int = 0  # times the localiser declared itself lost during this step
 
 
 @dataclass(frozen=True)
@@ -132,9 +163,18 @@ class LabWorld:
         self.data = mujoco.MjData(self.model)
         self.ids = LabIds.resolve(self.model)
         self.substeps = int(round(self.config.control_period / self.config.timestep))
+        # RFID and wall contact every sensor_ticks control ticks: polled every tick they cost a third of the
+        # bookkeeping around mj_step (scripts/bench_sim.py, "LabWorld cost / raw mj_step cost")
+        self.sensor_ticks = int(round(self.config.sensor_period / self.config.control_period))
         self.controller = WaypointController(self.config.controller)
         self.human = HumanWalker(layout, speed=self.config.human_speed)
         self.odometry = WheelOdometry(self.config.odometry, np.random.default_rng(0))
+        self.lidar = Lidar(self.model, self.config.lidar)
+        self._lidar_rng = np.random.default_rng(0)
+        self._next_scan = 0.0
+        self.localiser: MonteCarloLocaliser | None = None
+        if self.config.localisation is not None:
+            self.localiser = MonteCarloLocaliser(self._map(), self.config.localisation)
         self.rfid = RfidReader(
             self.model, self.ids, self.config.rfid_miss_probability, np.random.default_rng(0)
         )
@@ -155,8 +195,10 @@ class LabWorld:
             layout.check_node(node)
         if len(ball_nodes) != len(ids.ball_bodies):
             raise ConfigError(f"reset: ball_nodes needs {len(ids.ball_bodies)} nodes, got {list(ball_nodes)}")
-        odometry_seed, rfid_seed = np.random.SeedSequence(int(seed)).spawn(2)
+        # spawn(4)[:2] are the odometry and RFID streams spawn(2) gave before the lidar existed
+        odometry_seed, rfid_seed, lidar_seed, localiser_seed = np.random.SeedSequence(int(seed)).spawn(4)
         self.odometry.rng = np.random.default_rng(odometry_seed)
+        self._lidar_rng = np.random.default_rng(lidar_seed)
         self.rfid.reset(np.random.default_rng(rfid_seed))
         mujoco.mj_resetData(self.model, self.data)
         qpos = self.data.qpos
@@ -176,6 +218,11 @@ class LabWorld:
         mujoco.mj_forward(self.model, self.data)
         self._physics(int(round(0.3 / self.config.timestep)))  # let wheels and balls settle on the floor
         self.odometry.reset(self.true_robot_pose(), self.data.qpos[ids.wheel_qpos])
+        if self.localiser is not None:  # the start pose is known, as for dead reckoning
+            self.localiser.reset(
+                np.random.default_rng(localiser_seed), self.odometry.pose, self.true_robot_pose(), time=self.data.time
+            )
+        self._next_scan = self._scan_time_after(self.data.time)
         self._next_frame = self.data.time
         self._reset_done = True
         return self.ground_truth()
@@ -192,35 +239,57 @@ class LabWorld:
         config, data = self.config, self.data
         if robot_target is not None:
             self.layout.check_node(robot_target)
-            self.current_route = tuple(self.layout.route_from(self.odometry.pose[:2], robot_target))
-            self.controller.start(self.odometry.pose, self.current_route)
+            estimate = self.pose_estimate()
+            self.current_route = tuple(self.layout.route_from(estimate[:2], robot_target))
+            self.controller.start(estimate, self.current_route)
         else:
             self.current_route = ()
             self.controller.finished, self.controller.arrived = True, True
         self.human.start(human_command, self._senses())
         start, warnings_before = data.time, int(sum(w.number for w in data.warning))
         events: list[int] = []
-        wall_contact = False
+        tick = 0
+        wall_contact = blocked = False
+        kidnaps_before = 0 if self.localiser is None else self.localiser.kidnaps
+        progress_pose, progress_time = self.pose_estimate(), start
         while True:
             elapsed = data.time - start
             done = self.controller.finished and self.human.finished and elapsed >= config.min_macro_seconds
             if done or elapsed >= config.macro_timeout:
                 break
-            wheels = self.controller.update(elapsed, self.odometry.pose)
+            estimate = self.pose_estimate()
+            if not self.controller.finished and data.time - progress_time >= config.stall_seconds:
+                # progress over the last window: a robot pushing against an obstacle, with its wheels spinning,
+                # gets lidar corrections that keep its estimate in place
+                moved = np.hypot(estimate[0] - progress_pose[0], estimate[1] - progress_pose[1]) >= 0.1 or abs(
+                    wrap_angle(estimate[2] - progress_pose[2])
+                ) >= 0.2
+                if not moved:
+                    self.controller.finished, self.controller.arrived = True, False
+                    blocked = True
+                progress_pose, progress_time = estimate, data.time
+            wheels = self.controller.update(elapsed, estimate)
             data.ctrl[self.ids.wheel_actuators] = wheels
             if not self.human.finished:  # an idle human stands still: nothing to update
                 for kind, ball in self.human.tick(config.control_period, self._senses()):
                     data.eq_active[self.ids.grasp_welds[ball]] = kind == "grasp"
                 self._apply_human()
             self._physics(self.substeps)
-            self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
-            events.extend(self.rfid.poll(data))
-            wall_contact = wall_contact or robot_wall_contact(data, self.ids)
+            self._sense()
+            tick += 1
+            if tick % self.sensor_ticks == 0:
+                events.extend(self.rfid.poll(data))
+                wall_contact = wall_contact or robot_wall_contact(data, self.ids)
             while frame_callback is not None and data.time >= self._next_frame - 1e-9:
                 frame_callback(self)  # once per due frame (repeats if video_fps exceeds the control rate)
                 self._next_frame += 1.0 / config.video_fps
         data.ctrl[self.ids.wheel_actuators] = 0.0
+        events.extend(self.rfid.poll(data))  # whatever entered since the last sensor tick
+        wall_contact = wall_contact or robot_wall_contact(data, self.ids)
         truth = self.ground_truth()
+        # a robot that could not reach its goal: stalled, or the controller gave up (or ran out of time)
+        blocked = blocked or (robot_target is not None and not self.controller.arrived)
+        estimate = self.pose_estimate()
         return MacroStepResult(
             robot_arrived=self.controller.arrived,
             odometry_node=self.odometry_node(),
@@ -234,6 +303,11 @@ class LabWorld:
             timed_out=not (self.controller.finished and self.human.finished),
             odometry_error=self.odometry_error(),
             mujoco_warnings=int(sum(w.number for w in data.warning)) - warnings_before,
+            robot_node_reading=self.robot_node_reading(),
+            blocked=blocked,
+            pose_error=float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
+            localisation_mode="off" if self.localiser is None else self.localiser.mode,
+            kidnaps=0 if self.localiser is None else self.localiser.kidnaps - kidnaps_before,
         )
 
     # ------------------------------------------------------------------------------------------ state
@@ -244,6 +318,55 @@ class LabWorld:
     def odometry_pose(self) -> tuple[float, float, float]:
         """Dead-reckoning pose (x, y, yaw) from the wheel encoders."""
         return tuple(float(v) for v in self.odometry.pose)  # type: ignore[return-value]
+
+    def pose_estimate(self) -> tuple[float, float, float]:
+        """The pose the controller tracks: the localiser's estimate, or dead reckoning without a localiser."""
+        if self.localiser is None:
+            return self.odometry_pose()
+        return self.localiser.pose
+
+    def robot_node_reading(self) -> int | None:
+        """The robot's own area reading: the localiser's area (None = unknown: its particles span more than one
+        area, or lie outside every area), or the odometry pose's area without a localiser."""
+        if self.localiser is None:
+            return self.odometry_node()
+        return self.localiser.area(self.layout.node_at, len(self.layout.nodes))
+
+    def _map(self) -> LikelihoodField:
+        """The localiser's likelihood field of this scene at the lidar's scan height (built once per world)."""
+        data = mujoco.MjData(self.model)
+        mujoco.mj_forward(self.model, data)
+        height = float(data.xpos[self.lidar.body][2]) + self.lidar.height
+        return LikelihoodField.from_scene(
+            self.model, data, height, self.config.localisation, self.lidar.config.max_range, self.layout.room_extent
+        )
+
+    def drive(self, wheels: tuple[float, float], seconds: float) -> None:
+        """Open-loop: hold wheel speeds (rad/s, left/right) for ``seconds`` of simulated time, with odometry and
+        localisation running (for tests and scripted checks; the human and the balls are not updated)."""
+        if not self._reset_done:
+            raise ConfigError("LabWorld.drive called before reset()")
+        self.data.ctrl[self.ids.wheel_actuators] = wheels
+        for _ in range(int(round(seconds / self.config.control_period))):
+            self._physics(self.substeps)
+            self._sense()
+        self.data.ctrl[self.ids.wheel_actuators] = 0.0
+
+    def _sense(self) -> None:
+        """The robot's sensing at a control tick: encoders into odometry, a due lidar scan into the localiser."""
+        data = self.data
+        self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
+        if self.localiser is not None:
+            scan = None
+            if data.time >= self._next_scan - 1e-9:
+                scan = self.lidar.scan(data, self._lidar_rng)
+                self._next_scan = self._scan_time_after(data.time)
+            self.localiser.tick(self.odometry.pose, scan, data.time)
+
+    def _scan_time_after(self, time: float) -> float:
+        """Simulated time of the lidar's next scan after ``time`` (MuJoCo casts the beams every period)."""
+        period = self.lidar.period or self.config.control_period
+        return (np.floor(time / period + 1e-9) + 1) * period
 
     def odometry_node(self) -> int | None:
         """Node of the dead-reckoning pose from the area polygons (None outside every area)."""
