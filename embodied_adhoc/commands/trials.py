@@ -122,11 +122,15 @@ def handle(args: argparse.Namespace) -> int:
 
 
 def _default_cap(domain_name: str, backend: str, options: dict) -> int:
-    """The registered step cap (``envs/registry.py``, the one definition) of the env id the sweep runs."""
-    from embodied_adhoc.envs.registry import registered_cap
+    """The registered step cap (``envs/registry.py``, the one definition) of the env id the sweep runs; a plug-in
+    domain whose session names no registered id (``session.env_id``) gets the runner's default."""
+    from embodied_adhoc.envs.registry import ENV_SPECS
     from embodied_adhoc.experiments.executors import open_session
+    from embodied_adhoc.experiments.runner import DEFAULT_MAX_STEPS
 
-    return registered_cap(open_session(domain_name, backend, options).env_id)
+    env_id = getattr(open_session(domain_name, backend, options), "env_id", None)
+    caps = {spec.id: spec.max_episode_steps for spec in ENV_SPECS}
+    return caps.get(env_id) or DEFAULT_MAX_STEPS
 
 
 def _run_one(args: argparse.Namespace, config, out):
