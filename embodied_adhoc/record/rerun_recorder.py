@@ -18,8 +18,8 @@ entity                           archetype          content
 ``world/human``                  Points3D           ground-truth human position
 ``world/balls``                  Points3D           ball positions, coloured and labelled
 ``world/odometry``               Points3D           dead-reckoning (odometry) robot position
-``world/tracks/ground_truth``    LineStrips3D       ground-truth robot track so far
-``world/tracks/odometry``        LineStrips3D       odometry track so far (beside the ground truth)
+``world/tracks/ground_truth``    LineStrips3D       ground-truth robot track so far (updated at each macro step)
+``world/tracks/odometry``        LineStrips3D       odometry track so far (beside the ground truth; each step)
 ``belief/task``                  BarChart           task posterior over the task library
 ``belief/entropy``               Scalars            normalised entropy of the task posterior
 ``metrics/odometry_error``       Scalars            distance between odometry and ground-truth position (m)
@@ -32,6 +32,12 @@ entity                           archetype          content
 ===============================  =================  ==========================================================
 
 Timelines: ``step`` (macro step, sequence) and ``sim_time`` (simulated seconds, duration).
+
+Batching: per-frame poses (robot, odometry, human, balls, odometry error) are buffered and sent as columns
+(``send_columns``); everything else is logged row by row and compacted by the SDK's batcher, which flushes by size
+only (no 200 ms wall-clock tick). An episode's file thus holds one or two chunks per entity (the main job: 47
+chunks in all, of which 20 are the blueprint's, instead of 530). Camera frames are JPEG-encoded on a worker
+thread (``record.worker``).
 """
 
 from __future__ import annotations

@@ -179,6 +179,9 @@ class LabWorld:
             self.model, self.ids, self.config.rfid_miss_probability, np.random.default_rng(0)
         )
         self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
+        # images show the world, not the sensors: no lidar rays (MuJoCo draws every rangefinder by default)
+        self._scene_option = mujoco.MjvOption()
+        self._scene_option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
         self._next_frame = 0.0
         self._reset_done = False
         self.current_route: tuple[tuple[float, float], ...] = ()
@@ -422,7 +425,7 @@ class LabWorld:
         self.model.geom_matid[self.ids.floor_tiles] = (
             self.ids.floor_textured if high else self.ids.floor_plain
         )
-        renderer.update_scene(self.data, camera=name)
+        renderer.update_scene(self.data, camera=name, scene_option=self._scene_option)
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
         return renderer.render()

@@ -61,3 +61,14 @@ def test_an_encoding_error_is_raised_and_nothing_is_published(tmp_path):
     with pytest.raises(RuntimeError, match="video broken.mp4 failed"):
         writer.close()
     assert not (tmp_path / "broken.mp4").exists() and not list(tmp_path.glob(".*partial*"))
+
+
+def test_recorded_frames_show_the_world_not_the_lidar_rays():
+    """The robot's 72 rangefinders are sensors, not scenery: MuJoCo draws their rays unless told not to."""
+    from embodied_adhoc.sim.lab_world import LabWorld
+
+    with LabWorld() as world:
+        world.reset(seed=0, robot_node=1, human_node=1, ball_nodes=(0, 1, 2))
+        image = world.render("overhead", 320, 256).astype(int)
+    ray_yellow = (image[..., 0] > 240) & (image[..., 1] > 240) & (image[..., 2] < 60)
+    assert ray_yellow.sum() < 20, ray_yellow.sum()
