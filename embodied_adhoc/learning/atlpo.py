@@ -184,30 +184,42 @@ class AtlpoAgent:
 
     It follows the project's ``Agent`` protocol, but needs raw egocentric observations (arrays) where the tabular
     agents take observation indices: :meth:`start` gives it the first observation of an episode (after
-    :meth:`reset`), and :meth:`observe` each following one.
+    :meth:`reset`), and :meth:`observe` each following one. With ``known=k`` the posterior stays on environment
+    ``k``: the library member alone, the model-free RL baseline that knows task and team (section 6.2.4).
     """
 
     observes_state = False
 
     def __init__(self, library: PolicyLibrary, classifier: RecurrentBayesianClassifier, greedy: bool = False,
-                 name: str = "atlpo-mf") -> None:
+                 name: str = "atlpo-mf", known: int | None = None) -> None:
         if classifier.config.environments != len(library.policies):
             raise ConfigError(f"classifier over {classifier.config.environments} environments for a library of "
                               f"{len(library.policies)}: train the classifier on this library")
-        self.library, self.classifier, self.greedy, self.name = library, classifier, greedy, name
+        if known is not None and not 0 <= known < len(library.policies):
+            raise ConfigError(f"known={known}: the library has environments 0..{len(library.policies) - 1}")
+        self.library, self.classifier, self.greedy, self.name, self.known = library, classifier, greedy, name, known
         self.rng = np.random.default_rng(0)
-        self._posterior = np.full(len(library.policies), 1.0 / len(library.policies))
+        self._posterior = self._prior()
         self._history = None
         self._observation: np.ndarray | None = None
 
+    def _prior(self) -> np.ndarray:
+        size = len(self.library.policies)
+        return np.full(size, 1.0 / size) if self.known is None else np.eye(size)[self.known]
+
+    def _update(self, observation, action: int | None) -> None:
+        self._observation = self._checked(observation)
+        if self.known is None:
+            self._posterior, self._history = self.classifier.posterior_step(self._observation, action, self._history)
+
     def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
         self.rng, self._history, self._observation = rng, None, None
-        self._posterior = np.full(len(self.library.policies), 1.0 / len(self.library.policies))
+        self._posterior = self._prior()
 
     def start(self, observation: np.ndarray) -> None:
         """The episode's first observation ``z_0`` (Eq. 6.2 with no previous action)."""
-        self._observation = self._checked(observation)
-        self._posterior, self._history = self.classifier.posterior_step(self._observation, None, None)
+        self._history = None
+        self._update(observation, None)
 
     def _checked(self, observation) -> np.ndarray:
         if np.ndim(observation) != 3:
@@ -229,8 +241,7 @@ class AtlpoAgent:
         return draw_action(self.action_distribution(), self.rng, self.greedy)
 
     def observe(self, action: int, observation, state: int | None = None) -> None:
-        self._observation = self._checked(observation)
-        self._posterior, self._history = self.classifier.posterior_step(self._observation, action, self._history)
+        self._update(observation, action)
 
     @property
     def task_posterior(self) -> np.ndarray:

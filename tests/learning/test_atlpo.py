@@ -16,6 +16,7 @@ from embodied_adhoc.learning.atlpo import (
     train_library,
     write_manifest,
 )
+from embodied_adhoc.learning.atlpo_eval import evaluate
 from embodied_adhoc.learning.classifier import (
     ClassifierConfig,
     ClassifierTraining,
@@ -62,6 +63,16 @@ def test_tiny_library_classifier_and_agent(tmp_path):
             break
     with pytest.raises(ConfigError, match="egocentric"):
         agent.observe(0, 17)
+    known = AtlpoAgent(library, classifier, known=2)
+    known.reset(np.random.default_rng(0))
+    known.start(observation)
+    known.observe(known.act(), observation)
+    assert known.task_posterior.tolist() == [0.0, 0.0, 1.0]
+    results = evaluate(library, classifier, episodes=1, seed=0, max_steps=8)
+    assert results == evaluate(library, classifier, episodes=1, seed=0, max_steps=8)  # seeded
+    for name in ("original", "known", "atlpo-mf", "random"):
+        assert len(results[name]["steps"]) == 3 and all(1 <= s <= 8 for s in results[name]["steps"])
+    assert 1 <= len(results["true_posterior_per_step"]) <= 8
     again = train_library("foraging", "team", config, tmp_path)  # resumes: members are loaded, not retrained
     assert load_library(tmp_path)[1] is not None  # and the classifier stays in the manifest
     for a, b in zip(again.policies, library.policies, strict=True):
