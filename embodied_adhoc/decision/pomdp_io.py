@@ -226,11 +226,18 @@ class _Writes:
         becomes 0 (the statement writes whole rows)."""
         n_pairs = len(actions) * len(rows)
         self._reserve(n_pairs * len(columns), seq, what)
-        cell = np.ix_(actions, rows)
-        self.row_written[cell] = np.maximum(self.row_written[cell], seq)
+        # Statements parsed one by one come in file order, so plain assignment keeps the latest statement.
+        cell = np.ix_(actions, rows) if n_pairs > 1 else (actions[0], rows[0])
+        self.row_written[cell] = seq
         if clear_rows:
-            self.row_clear[cell] = np.maximum(self.row_clear[cell], seq)
+            self.row_clear[cell] = seq
         if len(columns) == 0 or n_pairs == 0:
+            return
+        if n_pairs == 1:
+            count = len(columns)
+            self.parts.append(
+                (np.full(count, actions[0]), np.full(count, rows[0]), columns, values, np.full(count, seq))
+            )
             return
         self.parts.append(
             (
@@ -245,8 +252,8 @@ class _Writes:
     def matrix(self, actions, rows, columns, values, seq: int, what: str) -> None:
         """Whole matrices: the entries (rows, columns, values) for every action, every other entry 0."""
         self._reserve(len(actions) * len(rows), seq, what)
-        self.row_written[actions] = np.maximum(self.row_written[actions], seq)
-        self.row_clear[actions] = np.maximum(self.row_clear[actions], seq)
+        self.row_written[actions] = seq
+        self.row_clear[actions] = seq
         count = len(rows)
         self.parts.append(
             (
@@ -260,8 +267,8 @@ class _Writes:
 
     def clear_columns(self, actions, column: int, seq: int) -> None:
         """``X: a : * : c 0``: column ``c`` of every row becomes 0 (every row counts as written)."""
-        self.column_clear[actions, column] = np.maximum(self.column_clear[actions, column], seq)
-        self.row_written[actions] = np.maximum(self.row_written[actions], seq)
+        self.column_clear[actions, column] = seq
+        self.row_written[actions] = seq
 
     def resolve(self) -> tuple[np.ndarray, ...]:
         """The surviving nonzero-or-zero entries, sorted by (action, row, column): (a, row, col, value, seq)."""
