@@ -179,8 +179,9 @@ def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, 
 
 class AtlpoAgent:
     """The ATLPO ad hoc agent: posterior ``p_t`` over the library from the classifier (Eq. 6.2) and the action
-    distribution ``pi_t(a | h_t) = sum_k p_t(m_k) [a = argmax pi_k(. | z_t)]`` drawn (or its argmax with
-    ``greedy``) by the decision layer's :func:`draw_action`, as ATPO does with its library.
+    distribution ``pi_t(a | h_t) = sum_k p_t(m_k) pi_k(a | z_t)`` drawn (or its argmax with ``greedy``) by the
+    decision layer's :func:`draw_action`, as ATPO does with its library (whose Perseus policies are
+    deterministic; PPO's are stochastic, so their whole distributions are mixed).
 
     It follows the project's ``Agent`` protocol, but needs raw egocentric observations (arrays) where the tabular
     agents take observation indices: :meth:`start` gives it the first observation of an episode (after
@@ -234,7 +235,8 @@ class AtlpoAgent:
         observation = torch.as_tensor(self._observation)[None]
         distribution = np.zeros(self.library.policies[0].config.actions)
         for k, policy in enumerate(self.library.policies):
-            distribution[int(policy(observation)[0].argmax())] += self._posterior[k]
+            if self._posterior[k] > 0.0:
+                distribution += self._posterior[k] * policy.action_distribution(observation)[0].double().numpy()
         return distribution
 
     def act(self) -> int:
