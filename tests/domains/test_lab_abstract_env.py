@@ -13,7 +13,7 @@ from embodied_adhoc.errors import ConfigError
 
 
 def test_check_env_passes():
-    check_env(ToxicWasteAbstractEnv(), skip_render_check=True)
+    check_env(gymnasium.make("EmbodiedAdhoc/ToxicWasteAbstract-v0", render_mode="rgb_array").unwrapped)
     check_env(ToxicWasteAbstractEnv(communication=False), skip_render_check=True)
 
 
