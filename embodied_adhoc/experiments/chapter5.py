@@ -226,6 +226,14 @@ class Chapter5Domain:
         group.add_argument(
             "--task", type=int, default=None, metavar="K", help="fix the true model to K (default: uniform)"
         )
+        if self.name not in ("panic-buttons", "power-plant"):  # panic buttons: --teammate picks the library's
+            group.add_argument(
+                "--teammate",
+                default=None,
+                metavar="MODULE:CALLABLE",
+                help="the world's teammate instead of the library's: CALLABLE(library, model) returns its policy, "
+                "an (S x B) array over its B actions (the agents keep their library: a model-mismatch test)",
+            )
         group.add_argument(
             "--beliefs", type=int, default=None, help="Perseus belief-set size (default: Table 5.2's)"
         )
@@ -251,7 +259,7 @@ class Chapter5Domain:
         if args.solve_seconds is not None and args.solve_seconds <= 0:
             raise ConfigError(f"--solve-seconds must be positive, got {args.solve_seconds}")
         options = {
-            "library": library_options(self.name, args),
+            "library": library_options(self.name, args, ignore=("teammate",)),
             "task": args.task,
             "beliefs": args.beliefs,
             "solve_seconds": args.solve_seconds,

@@ -140,3 +140,24 @@ def test_a_users_teammate_replaces_the_worlds(tmp_path, monkeypatch):
     options = {**_options(), "teammate": "my_teammates:frozen"}
     config = SweepConfig("ntu", "abstract", options, ("value-iteration",), episodes=2, seed=1, max_steps=20)
     assert len(run_sweep(config).records) == 2
+
+
+def test_cli_map_domains_take_a_users_teammate(tmp_path):
+    import os
+
+    (tmp_path / "still_teammate.py").write_text(
+        "import numpy as np\n"
+        "def still(library, model):\n"
+        "    policy = np.zeros((library.n_states, 5))\n"
+        "    policy[:, 4] = 1.0\n"
+        "    return policy\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    result = _cli(
+        "ntu", "--agents", "value-iteration,random", "--episodes", "2", "--teammate", "still_teammate:still",
+        "--json", env=env,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["config"]["options"]["teammate"] == "still_teammate:still"
+    result = _cli("ntu", "--episodes", "1", "--teammate", "nowhere:still", env=env)
+    assert result.returncode == 2 and "--teammate 'nowhere:still': cannot import it" in result.stderr

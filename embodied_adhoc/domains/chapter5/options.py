@@ -77,14 +77,15 @@ def add_library_arguments(parser: argparse.ArgumentParser, domain: str | None = 
         )
 
 
-def library_options(domain: str, args: argparse.Namespace) -> dict:
-    """The ``build_library`` keyword arguments of ``domain`` from parsed flags; ConfigError on a foreign flag."""
+def library_options(domain: str, args: argparse.Namespace, ignore: tuple[str, ...] = ()) -> dict:
+    """The ``build_library`` keyword arguments of ``domain`` from parsed flags; ConfigError on a foreign flag.
+    ``ignore``: flags (dest names) that the caller owns for this domain (trials' ``--teammate MODULE:CALLABLE``)."""
     if domain not in _ACCEPTED:
         raise ConfigError(f"unknown chapter-5 domain {domain!r}; choose from {', '.join(_ACCEPTED)}")
     options = {}
     for dest, flag in _FLAGS.items():
         value = getattr(args, dest, None)
-        if value is None or value is False:
+        if value is None or value is False or (dest in ignore and dest not in _ACCEPTED[domain]):
             continue
         if dest not in _ACCEPTED[domain]:
             raise ConfigError(f"{flag} does not apply to domain {domain}; its flags: {_flag_list(domain)}")
