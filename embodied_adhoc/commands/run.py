@@ -70,6 +70,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     toxic.add_argument(
         "--max-steps", type=int, default=100, help="macro-step cap (default 100, as the thesis)"
     )
+    from embodied_adhoc.experiments.toxic_waste import add_fault_arguments
+
+    add_fault_arguments(toxic.add_argument_group("faults and localisation"))
     toxic.add_argument(
         "--record", type=Path, default=None, metavar="DIR", help="write episode.mp4/.rrd, metrics.json"
     )
@@ -110,6 +113,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
     from embodied_adhoc.errors import ConfigError
     from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.toxic_waste import fault_options
 
     if args.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {args.max_steps}")
@@ -123,6 +127,9 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         communication=not args.no_communication,
         speech=args.speech,
         confusion=args.confusion,
+        faults=fault_options(args),
+        localisation=not args.no_localisation,
+        localisation_model=args.localisation_model,
         max_steps=args.max_steps,
         record_dir=args.record,
         video_fps=args.video_fps,
@@ -173,6 +180,16 @@ def format_summary(summary: dict) -> str:
         f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated, "
         f"{float('nan') if step_time is None else step_time:.2f} s wall per macro step",
     ]
+    localisation = summary.get("localisation")
+    if localisation is not None:
+        blocked = localisation["blocked_steps"]
+        lines.append(
+            f"localisation:   {'/'.join(localisation['modes'])}; worst pose error "
+            f"{localisation['worst_pose_error_m']:.2f} m (odometry {localisation['worst_odometry_error_m']:.2f} m); "
+            f"blocked {'never' if not blocked else 'at steps ' + ','.join(map(str, blocked))}; "
+            f"{localisation['kidnaps']} re-localisation(s); readings unknown {localisation['unknown_readings']}, "
+            f"wrong {localisation['wrong_readings']}"
+        )
     for name, path in summary.get("files", {}).items():
         lines.append(f"{name + ':':<16}{path}")
     return "\n".join(lines)

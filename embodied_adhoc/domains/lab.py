@@ -84,7 +84,9 @@ class LabConfig:
 
     ``confusion``: "measured" (default), "thesis" or a JSON path (``domains.confusion``); ``robot_node_accuracy``:
     probability that the robot-node reading is right (else unknown); ``rfid_miss``: probability that the
-    container's reader misses a ball going in.
+    container's reader misses a ball going in; ``localisation_model``: None (the ``robot_node_accuracy`` factor),
+    "measured" or a JSON path: the robot-node factor is the localiser's measured confusion
+    (``domains.lab_observations.load_localisation_model``), and the physics env adds no random loss.
     """
 
     graph: LabGraph = DEFAULT_GRAPH
@@ -94,6 +96,7 @@ class LabConfig:
     confusion: str = DEFAULT_CONFUSION
     robot_node_accuracy: float = 0.99
     rfid_miss: float = 0.0
+    localisation_model: str | None = None
     reward: LabReward = LabReward()
     discount: float = 0.95
 
@@ -104,6 +107,8 @@ class LabConfig:
             raise ConfigError(f"reward={self.reward!r}: must be a domains.lab.LabReward")
         if not isinstance(self.confusion, (str, os.PathLike)):
             raise ConfigError(f"confusion={self.confusion!r}: use 'measured', 'thesis' or a JSON path")
+        if self.localisation_model is not None and not isinstance(self.localisation_model, (str, os.PathLike)):
+            raise ConfigError(f"localisation_model={self.localisation_model!r}: use None, 'measured' or a JSON path")
         discount = checks.number("discount", self.discount, 0.0, 1.0)
         if discount >= 1.0:
             raise ConfigError(f"discount must lie in [0, 1), got {self.discount}")
@@ -114,6 +119,7 @@ class LabConfig:
             "confusion": os.fspath(self.confusion),
             "robot_node_accuracy": checks.number("robot_node_accuracy", self.robot_node_accuracy, 0.0, 1.0),
             "rfid_miss": checks.number("rfid_miss", self.rfid_miss, 0.0, 1.0),
+            "localisation_model": None if self.localisation_model is None else os.fspath(self.localisation_model),
             "discount": discount,
         }
         for name, value in normalised.items():
@@ -127,7 +133,9 @@ class LabConfig:
 
     @property
     def observation(self) -> ObservationConfig:
-        return ObservationConfig(self.communication, self.robot_node_accuracy, self.rfid_miss, self.confusion)
+        return ObservationConfig(
+            self.communication, self.robot_node_accuracy, self.rfid_miss, self.confusion, self.localisation_model
+        )
 
 
 LAB_PARAMETERS = tuple(f.name for f in fields(LabConfig))

@@ -2,7 +2,9 @@
 
 An observation is ``z = (robot node, human node, rfid)`` (thesis section 7.1, "the observations"):
 
-* robot node from dead reckoning: the true node with probability ``robot_node_accuracy`` (0.99), else unknown;
+* robot node: the true node with probability ``robot_node_accuracy`` (0.99), else unknown (the thesis's model);
+  or, with ``localisation_model`` ("measured" or a JSON path), the row of a measured confusion matrix of the
+  robot's localiser (true area x reported area + unknown; :func:`load_localisation_model`);
 * human node: with communication, only after "locate human": a column drawn from the speech confusion-matrix
   row of the human's true node ("failed" reads as none); without communication the human is seen only when
   co-located with the robot (then the human node is the robot's true node); otherwise none;
@@ -23,7 +25,33 @@ import numpy as np
 from embodied_adhoc.domains.confusion import ConfusionMatrix, load_confusion
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["LabObservation", "ObservationConfig", "ObservationModel", "observation_names"]
+__all__ = [
+    "MEASURED_LOCALISATION",
+    "LabObservation",
+    "ObservationConfig",
+    "ObservationModel",
+    "load_localisation_model",
+    "observation_names",
+]
+
+MEASURED_LOCALISATION = "data/localisation_confusion_measured.json"
+"""The robot-node confusion of the physics lab's localiser, measured by ``scripts/measure_localisation.py``
+(schema of ``domains.confusion``; the last column is "unknown")."""
+
+
+def load_localisation_model(source: str) -> ConfusionMatrix:
+    """The robot-node confusion matrix: ``"measured"`` = :data:`MEASURED_LOCALISATION`, else a JSON path."""
+    from embodied_adhoc import paths
+
+    if source == "measured":
+        try:
+            return load_confusion(paths.asset(MEASURED_LOCALISATION))
+        except FileNotFoundError:
+            raise ConfigError(
+                f"localisation_model='measured': {MEASURED_LOCALISATION} is missing; run "
+                "scripts/measure_localisation.py or pass a JSON path"
+            ) from None
+    return load_confusion(source)
 
 
 @dataclass(frozen=True)
@@ -88,6 +116,7 @@ class ObservationConfig:
     robot_node_accuracy: float
     rfid_miss: float
     confusion: str
+    localisation_model: str | None = None
 
 
 class ObservationModel:
@@ -109,10 +138,20 @@ class ObservationModel:
                     f"confusion matrix '{config.confusion}' has {self.confusion.n_nodes} nodes, the graph has {n_nodes}; "
                     "give a matrix with one row per graph node"
                 )
-        accuracy = config.robot_node_accuracy
-        self._robot = np.zeros((n_nodes, n_nodes + 1))
-        self._robot[np.arange(n_nodes), np.arange(n_nodes)] = accuracy
-        self._robot[:, n_nodes] += 1.0 - accuracy
+        self.localisation: ConfusionMatrix | None = None
+        if config.localisation_model is not None:
+            self.localisation = load_localisation_model(config.localisation_model)
+            if self.localisation.n_nodes != n_nodes:
+                raise ConfigError(
+                    f"localisation model '{config.localisation_model}' has {self.localisation.n_nodes} nodes, the "
+                    f"graph has {n_nodes}; give a matrix with one row per graph node"
+                )
+            self._robot = self.localisation.matrix.copy()
+        else:
+            accuracy = config.robot_node_accuracy
+            self._robot = np.zeros((n_nodes, n_nodes + 1))
+            self._robot[np.arange(n_nodes), np.arange(n_nodes)] = accuracy
+            self._robot[:, n_nodes] += 1.0 - accuracy
         self._rfid = np.array([[1.0, 0.0], [config.rfid_miss, 1.0 - config.rfid_miss]])
         none = np.zeros(n_nodes + 1)
         none[n_nodes] = 1.0

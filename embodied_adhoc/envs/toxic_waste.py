@@ -63,7 +63,7 @@ class ToxicWasteEnv(gymnasium.Env):
 
     | element | value |
     |---|---|
-    | robot node | area containing the wheel-odometry (dead-reckoning) pose; 5 if outside every area, and 5 with probability 1 - ``robot_node_accuracy`` (the model's robot-node factor, drawn from its own seeded stream) |
+    | robot node | the robot's own area reading: the Monte Carlo localiser's area (lidar + odometry against the lab map, ``sim.localisation``), 5 (unknown) when its particles span more than one area; with ``localisation=False`` the wheel-odometry pose's area (5 outside every area). Without a measured ``localisation_model``, also 5 with probability 1 - ``robot_node_accuracy`` (the model's robot-node factor, drawn from its own seeded stream) |
     | human node | after "locate human": the node recognised from the human's reply through ``speech`` (5 = no location); without communication: the robot's true area when the human is in it; else 5 |
     | rfid | 1 if the container's reader read a ball entering during this step (missed w.p. ``rfid_miss``) |
 
@@ -88,6 +88,10 @@ class ToxicWasteEnv(gymnasium.Env):
     | ``task`` | None | fixed task index; None = drawn uniformly at each reset |
     | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx on every query), "perfect" |
     | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig`` defaults) |
+    | ``localisation`` | True | Monte Carlo localisation on the lidar; False: the controller and the robot-node reading use wheel odometry alone |
+    | ``lidar_noise``, ``lidar_dropout`` | None | lidar range noise (m) and per-beam dropout probability (None = ``sim.lidar.LidarConfig`` defaults, 0.015 and 0.01); ``lidar_dropout=1`` is a dead lidar (the localiser falls back to odometry and says so) |
+    | ``speech_failure`` | 0.0 | probability that the human's reply to "locate human" is lost (heard as no location); the agents' model is not told |
+    | ``reader_miss`` | None | the physical RFID reader's miss probability, a fault the agents' model is not told about (None = the model's ``rfid_miss``) |
     | ``macro_timeout`` | 60.0 | simulated seconds after which an unfinished macro step ends |
     | ``render_mode`` | None | "rgb_array": ``render()`` returns the overhead camera image |
     | ``width``, ``height`` | 640, 480 | image size of ``render()`` and of recorded frames |
@@ -103,7 +107,11 @@ class ToxicWasteEnv(gymnasium.Env):
     1 held, 2 container), ``rfid_event`` (a ball truly entered the container), ``robot_pose`` and
     ``odometry_pose`` (x, y, yaw), ``odometry_error`` (m), ``human_position``, ``ball_positions``, ``sim_time``
     (s), ``macro_seconds``, ``robot_arrived``, ``timed_out``, ``wall_contact``, ``human_status``,
-    ``utterances`` (lines of dialogue this step), ``speech_audio`` (WAV bytes, ``speech="audio"`` only).
+    ``utterances`` (lines of dialogue this step), ``speech_audio`` (WAV bytes, ``speech="audio"`` only);
+    localisation: ``estimated_pose`` (the pose the controller tracks), ``pose_error`` (m, estimate vs truth),
+    ``pose_covariance`` (3 x 3, None without a localiser), ``localisation_mode`` ("lidar", "odometry": no usable
+    scans, "off": no localiser), ``kidnaps`` (times the localiser declared itself lost this step), ``blocked``
+    (the robot could not reach its waypoint: stalled or gave up).
 
     ## Version history
     v0: first version.
@@ -124,6 +132,11 @@ class ToxicWasteEnv(gymnasium.Env):
         height: int = 480,
         render_quality: str = "fast",
         frame_rate: float = 15.0,
+        localisation: bool = True,
+        lidar_noise: float | None = None,
+        lidar_dropout: float | None = None,
+        speech_failure: float = 0.0,
+        reader_miss: float | None = None,
         **lab,
     ) -> None:
         from embodied_adhoc.envs.toxic_waste_world import make_world
@@ -142,8 +155,23 @@ class ToxicWasteEnv(gymnasium.Env):
         render_quality = checks.choice("render_quality", render_quality, ("fast", "high"))
         frame_rate = checks.number("frame_rate", frame_rate, 0.0, low_open=True)
         self.width, self.height, self.render_quality = width, height, render_quality
+        localisation = checks.flag("localisation", localisation)
+        lidar_noise = None if lidar_noise is None else checks.number("lidar_noise", lidar_noise, 0.0)
+        lidar_dropout = None if lidar_dropout is None else checks.number("lidar_dropout", lidar_dropout, 0.0, 1.0)
+        self.speech_failure = checks.number("speech_failure", speech_failure, 0.0, 1.0)
+        reader_miss = config.rfid_miss if reader_miss is None else checks.number("reader_miss", reader_miss, 0.0, 1.0)
         self.world = make_world(
-            encoder_noise, wheel_slip, config.rfid_miss, macro_timeout, frame_rate, width, height, render_quality
+            encoder_noise,
+            wheel_slip,
+            reader_miss,
+            macro_timeout,
+            frame_rate,
+            width,
+            height,
+            render_quality,
+            localisation=localisation,
+            lidar_noise=lidar_noise,
+            lidar_dropout=lidar_dropout,
         )
         self.layout = self.world.layout
         if (
@@ -168,7 +196,8 @@ class ToxicWasteEnv(gymnasium.Env):
     def set_frame_sink(self, sink: FrameSink | None) -> None:
         """Receive ``(overhead_rgb, snapshot)`` ``frame_rate`` times per simulated second during every step.
 
-        ``snapshot`` has ``step``, ``sim_time``, ``robot_pose``, ``odometry_pose``, ``human_position``,
+        ``snapshot`` has ``step``, ``sim_time``, ``robot_pose``, ``odometry_pose``, ``estimated_pose``,
+        ``particles`` (P x 2 xy of the localiser's particle cloud, None without a localiser), ``human_position``,
         ``ball_positions``. Used by ``embodied-adhoc run --record`` for the video and the rerun recording.
         """
         self._frame_sink = sink
@@ -180,6 +209,7 @@ class ToxicWasteEnv(gymnasium.Env):
         world_seed, human_seed, speech_seed, sensor_seed = self.np_random.integers(0, 2**63 - 1, size=4)
         self._human_rng = np.random.default_rng(int(human_seed))
         self._speech_rng = np.random.default_rng(int(speech_seed))
+        self._failure_rng = np.random.default_rng((int(speech_seed), 1))  # speech_failure's own stream
         self._sensor_rng = np.random.default_rng(int(sensor_seed))
         self._status = (GROUND,) * len(lib.tasks[self._task])
         self._steps = self._step_index = 0
@@ -187,7 +217,7 @@ class ToxicWasteEnv(gymnasium.Env):
         self._episode.open()
         truth = self.world.reset(int(world_seed), robot, human, lib.tasks[self._task])
         observation = self._observation(
-            self.world.odometry_node(), truth.robot_node, truth.human_node, None, False
+            self.world.robot_node_reading(), truth.robot_node, truth.human_node, None, False
         )
         return observation.to_vector(), self._info(observation, truth, False, None, [], None)
 
@@ -213,8 +243,8 @@ class ToxicWasteEnv(gymnasium.Env):
         self._step_index += 1
         result = self.world.step_macro(target, command, self._on_frame if self._frame_sink else None)
         truth = self.world.ground_truth()
-        if result.odometry_node is not None:
-            self._robot_believed_node = result.odometry_node
+        if result.robot_node_reading is not None:
+            self._robot_believed_node = result.robot_node_reading
         elif target is not None:
             self._robot_believed_node = target
         previous = self._status
@@ -225,8 +255,11 @@ class ToxicWasteEnv(gymnasium.Env):
         speech_audio = None
         if self.speech is not None and action == lib.locate_action:
             heard, utterances, speech_audio = self.speech.ask(truth.human_node, self._speech_rng)
+            if self.speech_failure > 0 and self._failure_rng.random() < self.speech_failure:
+                heard = None  # the reply was lost (noise, the human did not answer): no location heard
+                utterances = [*utterances, "(reply lost)"]
         observation = self._observation(
-            result.odometry_node, truth.robot_node, truth.human_node, heard, bool(result.rfid_events), action
+            result.robot_node_reading, truth.robot_node, truth.human_node, heard, bool(result.rfid_events), action
         )
         self._steps += 1
         terminated = all(s == DISPOSED for s in self._status)
@@ -252,15 +285,16 @@ class ToxicWasteEnv(gymnasium.Env):
         self.world.close()
 
     # ----------------------------------------------------------------------------------------- internals
-    def _observation(self, odometry_node, true_robot, true_human, heard, rfid, action=None) -> LabObservation:
+    def _observation(self, robot_reading, true_robot, true_human, heard, rfid, action=None) -> LabObservation:
         n = self.library.graph.n_nodes
-        if self._sensor_rng.random() >= self.library.config.robot_node_accuracy:
-            odometry_node = None  # the model's robot-node factor: the reading is lost w.p. 1 - accuracy
+        config = self.library.config
+        if config.localisation_model is None and self._sensor_rng.random() >= config.robot_node_accuracy:
+            robot_reading = None  # the model's robot-node factor: the reading is lost w.p. 1 - accuracy
         if self.speech is not None:
             human = heard if action == self.library.locate_action else None
         else:
             human = true_human if true_robot is not None and true_robot == true_human else None
-        return LabObservation(odometry_node, human, bool(rfid), n)
+        return LabObservation(robot_reading, human, bool(rfid), n)
 
     def _info(self, observation, truth, entered, result, utterances, speech_audio) -> dict:
         robot_node = _area(self.layout, truth.robot_pose, truth.robot_node)
@@ -269,6 +303,8 @@ class ToxicWasteEnv(gymnasium.Env):
         if state < 0 and entered:
             state = states.fast_index(robot_node, truth.human_node, self._status, False)
         odometry_pose = self.world.odometry_pose()
+        estimate = self.world.pose_estimate()
+        localiser = self.world.localiser
         return {
             "state": int(state),
             "observation_index": observation.encode(),
@@ -282,6 +318,13 @@ class ToxicWasteEnv(gymnasium.Env):
             "odometry_error": float(
                 np.hypot(odometry_pose[0] - truth.robot_pose[0], odometry_pose[1] - truth.robot_pose[1])
             ),
+            "estimated_pose": estimate,
+            "pose_error": float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
+            "localisation_mode": "off" if localiser is None else localiser.mode,
+            "pose_covariance": None if localiser is None else localiser.covariance,
+            "kidnaps": 0 if result is None else result.kidnaps,
+            "robot_node_reading": self.world.robot_node_reading() if result is None else result.robot_node_reading,
+            "blocked": False if result is None else result.blocked,
             "human_position": truth.human_pose[:2],
             "ball_positions": np.array(truth.ball_positions),
             "sim_time": truth.time,
@@ -305,6 +348,8 @@ class ToxicWasteEnv(gymnasium.Env):
             "sim_time": truth.time,
             "robot_pose": truth.robot_pose,
             "odometry_pose": world.odometry_pose(),
+            "estimated_pose": world.pose_estimate(),
+            "particles": None if world.localiser is None else world.localiser.particles[:, :2].copy(),
             "human_position": truth.human_pose[:2],
             "ball_positions": np.array(truth.ball_positions),
         }

@@ -16,10 +16,15 @@ def make_world(
     width: int,
     height: int,
     render_quality: str = "fast",
+    localisation: bool = True,
+    lidar_noise: float | None = None,
+    lidar_dropout: float | None = None,
 ):
-    """A ``sim.lab_world.LabWorld`` with the env's odometry noise, RFID miss rate, timeout, frame rate and
-    rendering settings."""
+    """A ``sim.lab_world.LabWorld`` with the env's odometry noise, RFID miss rate, timeout, frame rate,
+    rendering settings, lidar noise/dropout and localiser (``localisation=False``: wheel odometry alone)."""
     from embodied_adhoc.sim.lab_world import LabWorld, LabWorldConfig
+    from embodied_adhoc.sim.lidar import LidarConfig
+    from embodied_adhoc.sim.localisation import LocalisationConfig
     from embodied_adhoc.sim.odometry import OdometryConfig
 
     if not float(frame_rate) > 0:
@@ -29,8 +34,15 @@ def make_world(
         odometry = dataclasses.replace(odometry, encoder_noise=float(encoder_noise))
     if wheel_slip is not None:
         odometry = dataclasses.replace(odometry, wheel_slip=float(wheel_slip))
+    lidar = LidarConfig()
+    if lidar_noise is not None:
+        lidar = dataclasses.replace(lidar, noise=float(lidar_noise))
+    if lidar_dropout is not None:
+        lidar = dataclasses.replace(lidar, dropout=float(lidar_dropout))
     config = LabWorldConfig(
         odometry=odometry,
+        lidar=lidar,
+        localisation=LocalisationConfig() if localisation else None,
         rfid_miss_probability=float(rfid_miss),
         macro_timeout=float(macro_timeout),
         video_fps=float(frame_rate),

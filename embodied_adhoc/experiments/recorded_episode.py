@@ -49,6 +49,9 @@ class EpisodeConfig:
     rerun_camera_hz: float = 2.0
     video_overlay: bool = True  # heads-up text (step, action, what was heard, task belief) on the video
     env_kwargs: dict = field(default_factory=dict)
+    faults: dict = field(default_factory=dict)  # experiments.toxic_waste.FAULTS name -> value
+    localisation: bool = True  # False: wheel odometry alone
+    localisation_model: str | None = None  # the agent's robot-node model: None (thesis), "measured" or a path
 
 
 @dataclass
@@ -82,6 +85,31 @@ class _Progress(EpisodeObserver):
         self.progress(record.step, record.info)
 
 
+def localisation_fields(info: dict) -> dict:
+    """The localisation outcome of a physics step for ``metrics.json``: errors (m), mode, blocked, kidnaps."""
+    return {
+        "pose_error_m": round(float(info["pose_error"]), 4),
+        "odometry_error_m": round(float(info["odometry_error"]), 4),
+        "localisation_mode": info["localisation_mode"],
+        "robot_node_reading": info["robot_node_reading"],
+        "true_robot_node": info["robot_node"],
+        "blocked": bool(info["blocked"]),
+        "kidnaps": int(info["kidnaps"]),
+    }
+
+
+def localisation_events(info: dict) -> list[str]:
+    """Lines for the recording's event log: a blocked robot, a lost localiser, a lidar that gives nothing."""
+    lines = []
+    if info.get("blocked"):
+        lines.append(f"robot blocked: it could not reach its waypoint (pose error {info['pose_error']:.2f} m)")
+    if info.get("kidnaps"):
+        lines.append(f"localiser lost: re-localised globally {info['kidnaps']} time(s)")
+    if info.get("localisation_mode") == "odometry":
+        lines.append("no lidar scans: localisation degraded to odometry")
+    return lines
+
+
 class _Metrics(EpisodeObserver):
     """Feeds :class:`~embodied_adhoc.record.metrics.EpisodeMetrics` (``metrics.json``)."""
 
@@ -108,6 +136,8 @@ class _Metrics(EpisodeObserver):
             entropy,
             record.info["utterances"],
         )
+        if "pose_error" in record.info:
+            self.metrics.per_step[-1].update(localisation_fields(record.info))
 
     def episode_finished(self, trace: EpisodeTrace) -> None:
         self.metrics.finish(success=trace.success, truncated=trace.truncated)
@@ -160,7 +190,10 @@ class _Recording(EpisodeObserver):
             snapshot["human_position"],
             snapshot["ball_positions"],
         )
-        if snapshot["sim_time"] + 1e-9 >= self._next_camera:
+        camera_due = snapshot["sim_time"] + 1e-9 >= self._next_camera
+        if "estimated_pose" in snapshot:
+            self.rerun.log_localisation(snapshot["estimated_pose"], snapshot["particles"] if camera_due else None)
+        if camera_due:
             self.rerun.log_camera("overhead", frame)
             self._next_camera = snapshot["sim_time"] + self._camera_period
 
@@ -214,6 +247,8 @@ class _Recording(EpisodeObserver):
             rerun.log_audio(info["speech_audio"])
         if info.get("rfid_event"):
             rerun.log_text("events", f"step {step}: a ball entered the container")
+        for line in localisation_events(info):
+            rerun.log_text("events", f"step {step}: {line}", level="WARN")
         if posterior is not None:
             rerun.log_belief(posterior, max(0.0, float(normalised_entropy(posterior))))
         rerun.log_camera("robot", self.env.unwrapped.render_camera("robot"))
@@ -254,6 +289,9 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
         communication=config.communication,
         task=config.task,
         confusion=config.confusion,
+        faults=config.faults,
+        localisation=config.localisation,
+        localisation_model=config.localisation_model,
     )
     spec = domain.episode_spec(options, seeding.episode_rng(config.seed, 0))
     if config.robot_node is not None:

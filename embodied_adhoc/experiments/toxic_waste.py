@@ -29,6 +29,56 @@ from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.errors import ConfigError
 
 ENV_IDS = {"abstract": "EmbodiedAdhoc/ToxicWasteAbstract-v0", "mujoco": "EmbodiedAdhoc/ToxicWaste-v0"}
+FAULTS = {
+    # option name: (physics env kwarg, upper bound, help)
+    "wheel_slip": ("wheel_slip", None, "per-episode wheel-radius error, relative std (default 0.0005)"),
+    "encoder_noise": ("encoder_noise", None, "encoder noise, rad^0.5 (default 0.002)"),
+    "rfid_miss": ("reader_miss", 1.0, "probability that the RFID reader misses a ball (the model is not told)"),
+    "lidar_noise": ("lidar_noise", None, "lidar range noise std in metres (default 0.015)"),
+    "lidar_dropout": ("lidar_dropout", 1.0, "probability that a lidar beam returns nothing (1 = dead lidar)"),
+    "speech_failure": ("speech_failure", 1.0, "probability that the human's reply is lost (the model is not told)"),
+}
+"""Sensor and actuator faults of the physics lab (``--wheel-slip`` ...): none is told to the agents' model."""
+
+
+def add_fault_arguments(parser) -> None:
+    """The fault options and the localisation switches, shared by ``run toxic-waste`` and ``trials toxic-waste``."""
+    for name, (_, _, text) in FAULTS.items():
+        parser.add_argument(f"--{name.replace('_', '-')}", type=float, default=None, metavar="X", help=text)
+    parser.add_argument(
+        "--no-localisation",
+        action="store_true",
+        help="drive and read the robot's area on wheel odometry alone (no lidar Monte Carlo localisation)",
+    )
+    parser.add_argument(
+        "--localisation-model",
+        default=None,
+        metavar="measured|PATH",
+        help="the agents' robot-node observation model: the localiser's measured confusion (default: the "
+        "thesis's 0.99 accuracy)",
+    )
+
+
+def fault_options(args: argparse.Namespace) -> dict:
+    """The fault values given on the command line, checked (only those given)."""
+    faults = {}
+    for name, (_, high, _) in FAULTS.items():
+        value = getattr(args, name)
+        if value is None:
+            continue
+        if not (value >= 0.0 and (high is None or value <= high)) or value != value:
+            bound = f"[0, {high}]" if high is not None else ">= 0"
+            raise ConfigError(f"--{name.replace('_', '-')} {value}: must be {bound}")
+        faults[name] = float(value)
+    return faults
+
+
+def fault_env_kwargs(options: dict) -> dict:
+    """The physics env's kwargs for the faults and localisation switch in ``options``."""
+    kwargs = {FAULTS[name][0]: value for name, value in options.get("faults", {}).items()}
+    if not options.get("localisation", True):
+        kwargs["localisation"] = False
+    return kwargs
 AGENTS_GIVEN_THE_TASK = ("known-task", "oracle")
 DEFAULT_TASKS = ((0, 1, 2), (1, 2, 3))  # the thesis's two ball placements (as the lab's DEFAULT_TASKS)
 N_NODES = 5  # the lab graph's areas (the CLI does not change the graph)
@@ -69,11 +119,23 @@ class ToxicWasteSession:
             "communication": options["communication"],
             "confusion": options["confusion"],
         }
+        model = {}
+        if options.get("localisation_model") is not None:
+            model["localisation_model"] = options["localisation_model"]
+        self.env_kwargs.update(model)
+        physical = fault_env_kwargs(options)
+        if physical and backend != "mujoco":
+            raise ConfigError(
+                f"fault and localisation options ({', '.join(sorted(physical))}) act on the physics lab only: "
+                "use --backend mujoco"
+            )
+        self.env_kwargs.update(physical)
         self.library = build_lab_library(
             tasks=options["tasks"],
             human_epsilon=options["human_epsilon"],
             communication=options["communication"],
             confusion=options["confusion"],
+            **model,
         )
         self.task_names = tuple(
             "[" + ",".join(str(node) for node in task) + "]" for task in self.library.tasks
@@ -145,6 +207,8 @@ class ToxicWasteDomain:
             metavar="thesis|measured|PATH",
             help="speech confusion matrix of 'locate human' (default: measured, our offline pipeline's; 'thesis' = the original's)",
         )
+        faults = parser.add_argument_group("physics-lab faults and localisation (--backend mujoco)")
+        add_fault_arguments(faults)
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
         return self.options(
@@ -153,6 +217,9 @@ class ToxicWasteDomain:
             task=args.task,
             tasks=args.tasks,
             confusion=args.confusion,
+            faults=fault_options(args),
+            localisation=not args.no_localisation,
+            localisation_model=args.localisation_model,
         )
 
     def options(
@@ -162,6 +229,9 @@ class ToxicWasteDomain:
         task: int | None = None,
         tasks=None,
         confusion: str = DEFAULT_CONFUSION,
+        faults: dict | None = None,
+        localisation: bool = True,
+        localisation_model: str | None = None,
     ) -> dict:
         """Validated, JSON-ready options (what identifies a run in its ``config.json``)."""
         tasks = [list(map(int, t)) for t in (tasks if tasks is not None else DEFAULT_TASKS)]
@@ -169,13 +239,24 @@ class ToxicWasteDomain:
             raise ConfigError(f"--human-epsilon must lie in [0, 1], got {human_epsilon}")
         if task is not None and not 0 <= int(task) < len(tasks):
             raise ConfigError(f"--task {task} is outside the task library 0..{len(tasks) - 1} ({tasks})")
-        return {
+        unknown = sorted(set(faults or {}) - set(FAULTS))
+        if unknown:
+            raise ConfigError(f"unknown fault(s) {unknown}; known: {', '.join(FAULTS)}")
+        options = {
             "human_epsilon": float(human_epsilon),
             "communication": bool(communication),
             "task": None if task is None else int(task),
             "tasks": tasks,
             "confusion": str(confusion),
         }
+        # only what differs from the defaults, so that stored runs made before these options still resume
+        if faults:
+            options["faults"] = {name: float(value) for name, value in faults.items()}
+        if not localisation:
+            options["localisation"] = False
+        if localisation_model is not None:
+            options["localisation_model"] = str(localisation_model)
+        return options
 
     def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
         drawn_task = int(rng.integers(len(options["tasks"])))

@@ -17,6 +17,11 @@ field                  meaning
 ``per_step``           list of {step, action, observation, reward, entropy, sim_time_s, wall_time_s}, plus
                        ``utterances`` (the "locate human" dialogue: question, reply, transcript, node heard)
                        on steps that had one
+``localisation``       physics runs: ``blocked_steps``, ``kidnaps``, ``worst_pose_error_m`` (the pose the
+                       controller tracked), ``worst_odometry_error_m``, ``unknown_readings`` and
+                       ``wrong_readings`` (robot-node readings unknown / not the true area); per step
+                       ``pose_error_m``, ``odometry_error_m``, ``localisation_mode``, ``robot_node_reading``,
+                       ``true_robot_node``, ``blocked``, ``kidnaps``. Null for envs without them.
 ``config``             the run's configuration (agent, seed, task, env kwargs, ...)
 =====================  ===============================================================================
 """
@@ -125,6 +130,7 @@ class EpisodeMetrics:
                 "median": round(float(np.median(step_times)), 4) if len(step_times) else None,
                 "max": round(float(step_times.max()), 4) if len(step_times) else None,
             },
+            "localisation": _localisation_summary(self.per_step),
             "config": self.config,
             "per_step": self.per_step,
         }
@@ -132,3 +138,22 @@ class EpisodeMetrics:
     def write(self, path: str | Path) -> Path:
         """Write ``metrics.json`` atomically."""
         return atomic_write_text(path, json.dumps(self.summary(), indent=2, allow_nan=False) + "\n")
+
+
+def _localisation_summary(per_step: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """Failures of the robot's localisation over an episode (see the module docstring); None without them."""
+    steps = [record for record in per_step if "pose_error_m" in record]
+    if not steps:
+        return None
+    return {
+        "blocked_steps": [record["step"] for record in steps if record["blocked"]],
+        "kidnaps": sum(record["kidnaps"] for record in steps),
+        "worst_pose_error_m": max(record["pose_error_m"] for record in steps),
+        "worst_odometry_error_m": max(record["odometry_error_m"] for record in steps),
+        "unknown_readings": sum(record["robot_node_reading"] is None for record in steps),
+        "wrong_readings": sum(
+            record["robot_node_reading"] is not None and record["robot_node_reading"] != record["true_robot_node"]
+            for record in steps
+        ),
+        "modes": sorted({record["localisation_mode"] for record in steps}),
+    }

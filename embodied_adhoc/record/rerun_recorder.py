@@ -20,6 +20,8 @@ entity                           archetype          content
 ``world/odometry``               Points3D           dead-reckoning (odometry) robot position
 ``world/tracks/ground_truth``    LineStrips3D       ground-truth robot track so far (updated at each macro step)
 ``world/tracks/odometry``        LineStrips3D       odometry track so far (beside the ground truth; each step)
+``world/localisation/estimate``  Points3D           the localiser's pose estimate (what the controller tracks)
+``world/localisation/particles`` Points3D           the localiser's particle cloud (at the camera rate)
 ``belief/task``                  BarChart           task posterior over the task library
 ``belief/entropy``               Scalars            normalised entropy of the task posterior
 ``metrics/odometry_error``       Scalars            distance between odometry and ground-truth position (m)
@@ -63,6 +65,8 @@ ENTITY_PATHS: tuple[str, ...] = (
     "world/odometry",
     "world/tracks/ground_truth",
     "world/tracks/odometry",
+    "world/localisation/estimate",
+    "world/localisation/particles",
     "belief/task",
     "belief/entropy",
     "metrics/odometry_error",
@@ -309,6 +313,20 @@ class RerunRecorder:
         """Log the task posterior as bars and its (normalised) entropy as a scalar."""
         self._stream.log("belief/task", self._rr.BarChart(np.asarray(probabilities, dtype=np.float64)))
         self._stream.log("belief/entropy", self._rr.Scalars(float(entropy)))
+
+    def log_localisation(self, estimate: Sequence[float], particles: np.ndarray | None = None) -> None:
+        """Log the localiser's pose estimate (x, y[, yaw]) and, if given, its particle cloud (P x 2 xy) at the
+        current time, beside the ground truth and odometry of :meth:`log_poses`."""
+        rr, log = self._rr, self._stream.log
+        log(
+            "world/localisation/estimate",
+            rr.Points3D([[float(estimate[0]), float(estimate[1]), 0.05]], colors=[(30, 110, 255)], radii=0.07),
+        )
+        if particles is not None:
+            cloud = np.zeros((len(particles), 3))
+            cloud[:, :2] = np.asarray(particles, dtype=np.float64)[:, :2]
+            cloud[:, 2] = 0.02
+            log("world/localisation/particles", rr.Points3D(cloud, colors=[(90, 160, 255)], radii=0.02))
 
     def log_text(self, channel: str, text: str, level: str = "INFO") -> None:
         """Log a line on ``log/<channel>``; channel is one of observations, actions, utterances, events."""

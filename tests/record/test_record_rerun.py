@@ -42,6 +42,7 @@ def write_small_recording(path: Path) -> None:
         for step in range(3):
             recorder.set_time(step, 1.5 * step)
             recorder.log_poses((step, 0.0, 0.1), (step + 0.05, 0.0, 0.1), (3.0, 3.0), np.zeros((3, 3)))
+            recorder.log_localisation((step + 0.01, 0.0, 0.1), np.full((5, 2), float(step)))
             recorder.log_belief(np.array([0.4, 0.6]), 0.97)
             for channel in ("observations", "actions", "utterances", "events"):
                 recorder.log_text(channel, f"{channel} {step}")
