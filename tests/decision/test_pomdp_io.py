@@ -395,9 +395,11 @@ def test_any_statement_sequence_gives_what_a_dense_painter_gives(case):
     # R is collapsed with stochastic T and O (the reader copies R(s, a) exactly when no statement of an action
     # names an end state or observation, which equals the sum only for rows summing to 1)
     rng = np.random.default_rng(len(text))
-    weights = [rng.random(shape) * (rng.random(shape) < 0.6) + 1e-3 * (rng.random(shape) < 0.2) for shape in (
-        transitions.shape, observations.shape)]  # fmt: skip
-    stochastic = [w / np.maximum(w.sum(axis=2, keepdims=True), 1e-300) for w in weights]
+    stochastic = []
+    for shape in (transitions.shape, observations.shape):
+        weights = rng.random(shape) * (rng.random(shape) < 0.6)
+        np.put_along_axis(weights, rng.integers(shape[2], size=(*shape[:2], 1)), 1.0, axis=2)  # no empty row
+        stochastic.append(weights / weights.sum(axis=2, keepdims=True))
     rewards = parser._collapse_rewards(*([sp.csr_matrix(m) for m in array] for array in stochastic))
     collapsed = np.einsum("ase,aez,asez->sa", *stochastic, expected["R"])
     np.testing.assert_allclose(rewards, collapsed, rtol=1e-12, atol=1e-12)
