@@ -35,7 +35,7 @@ class ToxicWasteEnv(gymnasium.Env):
     The MuJoCo lab (``scenes/lab.xml``, 10 m x 8 m; ``sim.lab_world.LabWorld``) has five areas: 0 door, 1 open
     space, 2 robot station, 3 single workbench, 4 double workbench, joined by passages 0-1, 1-2, 1-3, 3-4. A task
     places the three balls (default library: nodes [0, 1, 2] and [1, 2, 3]). The human knows the task and follows
-    ``teammates.lab_human.LabHuman`` (nearest ball on the ground, pick it up, wait holding it until the robot is in
+    ``domains.lab_human.LabHuman`` (nearest ball on the ground, pick it up, wait holding it until the robot is in
     the same area and stays or asks; with probability ``human_epsilon`` a move or pick fails). The robot knows
     neither the task nor where the human is: it perceives its wheel-odometry area, the human's spoken reply and
     its container's RFID reader. It is the embodied twin of ``EmbodiedAdhoc/ToxicWasteAbstract-v0``: same actions,

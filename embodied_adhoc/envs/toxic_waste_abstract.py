@@ -20,7 +20,7 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
     ## Description
     Five areas (0 door, 1 open space, 2 robot station, 3 single workbench, 4 double workbench; passages 0-1, 1-2,
     1-3, 3-4). A task places the balls (default tasks: nodes [0, 1, 2] and [1, 2, 3]). The human
-    (``teammates.lab_human``) knows the task, walks to the nearest ball on the ground, picks it up, and waits
+    (``domains.lab_human``) knows the task, walks to the nearest ball on the ground, picks it up, and waits
     holding it until the robot is at the same node and stays or asks; then the ball goes into the container.
     With probability ``human_epsilon`` a human move or pick fails. The robot knows neither the task nor where
     the human is. Dynamics, observations and reward are those of ``domains.lab`` (sampled from the rules).
