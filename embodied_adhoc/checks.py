@@ -31,24 +31,26 @@ def integer(name: str, value, low: int | None = None, high: int | None = None) -
 
     Refused: bools, floats (even ``2.0``), strings, ``None`` and arrays with a shape (``np.array([2])``).
     """
+    bounds = _range_text(low, high)
     if not _is_integer(value):
+        where = f" in {bounds}" if ".." in bounds else f" {bounds}" if bounds else ""
         raise ConfigError(
-            f"{name}={value!r} ({type(value).__name__}): must be an integer (a Python or numpy int, or a 0-d "
-            "integer array)" + _range_text(low, high)
+            f"{name}={value!r} ({type(value).__name__}): must be an integer{where} "
+            "(a Python or numpy int, or a 0-d integer array)"
         )
     result = int(value)
     if (low is not None and result < low) or (high is not None and result > high):
-        raise ConfigError(f"{name}={result}: outside{_range_text(low, high)}")
+        raise ConfigError(f"{name}={result}: " + (f"outside {bounds}" if ".." in bounds else f"must be {bounds}"))
     return result
 
 
 def _range_text(low, high) -> str:
     if low is not None and high is not None:
-        return f" {low}..{high}"
+        return f"{low}..{high}"
     if low is not None:
-        return f" >= {low}"
+        return f">= {low}"
     if high is not None:
-        return f" <= {high}"
+        return f"<= {high}"
     return ""
 
 
