@@ -154,8 +154,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     try:
         outcome = run_episode(config, progress)
         if bar is not None and outcome.metrics["success"]:
-            bar.total = bar.n  # finished before the step cap: close the bar as done (100 %, no ETA)
-            bar.refresh()
+            finish_progress(bar)
     finally:
         if bar is not None:
             bar.close()
@@ -166,6 +165,13 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     else:
         print(format_summary(summary))
     return 0
+
+
+def finish_progress(bar) -> None:
+    """An episode that succeeded before the step cap: the bar's total becomes the steps taken, so it closes as
+    done ("12/12, 100%") instead of "12/100, 12%" with an ETA."""
+    bar.total = bar.n
+    bar.refresh()
 
 
 def format_summary(summary: dict) -> str:

@@ -133,3 +133,39 @@ def test_interrupted_run_keeps_finished_work(tmp_path):
     assert written["outcome"] == "interrupted" and written["steps"] == 1 and not written["success"]
     assert (tmp_path / "episode.mp4").stat().st_size > 0 and (tmp_path / "episode.rrd").stat().st_size > 0
     assert not list(tmp_path.glob(".*partial*"))
+
+
+def test_progress_bar_closes_as_done_when_the_episode_succeeds_early():
+    import io
+
+    from tqdm import tqdm
+
+    from embodied_adhoc.commands.run import finish_progress
+
+    stream = io.StringIO()
+    bar = tqdm(total=100, file=stream, ascii=True)
+    bar.update(12)
+    finish_progress(bar)
+    bar.close()
+    last = stream.getvalue().replace("\r", "\n").strip().splitlines()[-1]
+    assert "12/12" in last and "100%" in last and "?" not in last, last
+
+
+def test_move_actions_are_labelled_by_the_node_the_env_drives_to():
+    """At the door (one neighbour) every move action drives to node 1: the label says so, and the step agrees."""
+    import gymnasium
+
+    import embodied_adhoc.envs  # noqa: F401
+    from embodied_adhoc.experiments.recorded_episode import action_label
+
+    env = gymnasium.make("EmbodiedAdhoc/ToxicWaste-v0", disable_env_checker=True)
+    try:
+        env.reset(seed=0, options={"task": 0, "robot_node": 0, "human_node": 4})
+        lab = env.unwrapped
+        labels = [action_label(lab.library, action, lab.move_target(action)) for action in range(5)]
+        assert labels[:3] == ["move to 1 open space"] * 3, labels
+        assert lab.move_target(3) is None and labels[3] == lab.library.action_names[3]
+        *_, info = env.step(2)  # "move to neighbour 3" of a node with one neighbour
+        assert info["robot_node"] == 1
+    finally:
+        env.close()

@@ -88,7 +88,8 @@ def test_frames_are_batched_and_images_keep_their_own_time(tmp_path):
             if frame % 20 == 0:
                 recorder.log_camera("overhead", np.full((24, 32, 3), frame % 250, np.uint8))
                 recorder.log_text("actions", f"step {step}")
-            time.sleep(0.003)  # about 1 s of wall time: the SDK's default 200 ms flush tick would cut ~5 chunks
+            # about 1 s of wall time in all: the SDK's default 200 ms flush tick would cut ~5 chunks
+            time.sleep(0.003)
     chunks: dict[str, list] = {}
     for chunk in RrdReader(path).store().stream().to_chunks():
         chunks.setdefault(chunk.entity_path.lstrip("/"), []).append(chunk.to_record_batch())
