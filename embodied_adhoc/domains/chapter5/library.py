@@ -36,6 +36,7 @@ __all__ = [
     "optimal_teammate_policy",
     "reduce_joint",
     "step_rewards",
+    "task_pomdp",
 ]
 
 DISCOUNT = 0.95
@@ -161,3 +162,27 @@ def reduce_joint(
 ) -> list[sp.csr_matrix]:
     """Fig. 5.2: the ad hoc agent's transitions with the teammate's policy averaged out, one matrix per action."""
     return [average_over_teammate(list(per_action), teammate_policy) for per_action in joint]
+
+
+def task_pomdp(
+    transitions: Sequence[sp.csr_matrix],
+    rewards: np.ndarray,
+    observation: sp.csr_matrix,
+    start: np.ndarray,
+    state_names: Sequence[str],
+    action_names: Sequence[str],
+    observation_names: Sequence[str],
+) -> POMDP:
+    """One library model with the same observation matrix after every action and an initial belief uniform over
+    the states of the boolean mask ``start``."""
+    start = np.asarray(start, dtype=np.float64)
+    return POMDP(
+        transitions,
+        rewards,
+        DISCOUNT,
+        tuple(state_names),
+        tuple(action_names),
+        [observation] * len(action_names),
+        start / start.sum(),
+        tuple(observation_names),
+    )

@@ -33,16 +33,15 @@ import itertools
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.domains.chapter5.grid_maps import ACTION_NAMES, STAY, GridMap, load_map, open_grid
 from embodied_adhoc.domains.chapter5.library import (
-    DISCOUNT,
     ModelLibrary,
     deterministic_matrix,
     joint_mdp,
     optimal_teammate_policy,
     reduce_joint,
     step_rewards,
+    task_pomdp,
 )
 from embodied_adhoc.errors import ConfigError
 
@@ -167,12 +166,8 @@ def _library(
         start[absorbing] = False
         if not shared_cells:
             start[:n_live] &= np.isin(agent, grid.starts) & np.isin(teammate, grid.starts)
-        initial = start / start.sum()
-        observation_stack = [observations] * len(ACTION_NAMES)
         pomdps.append(
-            POMDP(
-                transitions, rewards, DISCOUNT, state_names, ACTION_NAMES, observation_stack, initial, z_names
-            )
+            task_pomdp(transitions, rewards, observations, start, state_names, ACTION_NAMES, z_names)
         )
         mmdps.append(mmdp)
         names.append(f"{grid.cell_name(pair[0])}+{grid.cell_name(pair[1])}")

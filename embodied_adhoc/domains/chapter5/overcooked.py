@@ -31,15 +31,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.domains.chapter5.library import (
-    DISCOUNT,
     ModelLibrary,
     deterministic_matrix,
     joint_mdp,
     optimal_teammate_policy,
     reduce_joint,
     step_rewards,
+    task_pomdp,
 )
 
 __all__ = ["TEAMMATES", "build_overcooked"]
@@ -172,14 +171,13 @@ def build_overcooked(
         & (fields[5] == NOTHING)
         & (fields[6] == 0)
     )
-    initial = start / start.sum()
     observation = deterministic_matrix(np.arange(n_states), n_states)
-    pomdps = []
-    for name in TEAMMATES:
-        transitions = reduce_joint(joint, policies[name])
-        pomdps.append(
-            POMDP(transitions, rewards, DISCOUNT, names, ACTION_NAMES, [observation] * 4, initial, names)
+    pomdps = [
+        task_pomdp(
+            reduce_joint(joint, policies[name]), rewards, observation, start, names, ACTION_NAMES, names
         )
+        for name in TEAMMATES
+    ]
     settings = {"stubbornness": stubbornness, "bug_compatible": bool(bug_compatible), "bug_seed": bug_seed}
     return ModelLibrary(
         "overcooked",

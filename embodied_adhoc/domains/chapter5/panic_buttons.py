@@ -18,16 +18,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.domains.chapter5.grid_maps import ACTION_NAMES, STAY, open_grid
 from embodied_adhoc.domains.chapter5.library import (
-    DISCOUNT,
     ModelLibrary,
     deterministic_matrix,
     joint_mdp,
     optimal_teammate_policy,
     reduce_joint,
     step_rewards,
+    task_pomdp,
 )
 from embodied_adhoc.domains.chapter5.navigation import (
     goal_mask,
@@ -84,18 +83,7 @@ def build_panic_buttons(size: int = 3, teammate: str = "optimal", horizon: int =
         start = ~goal
         start[absorbing] = False
         transitions = reduce_joint(joint, policy)
-        pomdps.append(
-            POMDP(
-                transitions,
-                rewards,
-                DISCOUNT,
-                names,
-                ACTION_NAMES,
-                [observation] * 5,
-                start / start.sum(),
-                names,
-            )
-        )
+        pomdps.append(task_pomdp(transitions, rewards, observation, start, names, ACTION_NAMES, names))
         mmdps.append(mmdp)
         task_names.append(f"{grid.cell_name(pair[0])}+{grid.cell_name(pair[1])}")
     settings = {"size": size, "teammate": teammate}

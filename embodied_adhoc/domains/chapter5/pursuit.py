@@ -29,13 +29,12 @@ from collections import deque
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.domains.chapter5.library import (
-    DISCOUNT,
     ModelLibrary,
     joint_mdp,
     reduce_joint,
     step_rewards,
+    task_pomdp,
 )
 from embodied_adhoc.domains.grid_rules import pair_tasks
 from embodied_adhoc.errors import ConfigError
@@ -162,18 +161,7 @@ def build_pursuit(
         transitions = reduce_joint(joint, policy)
         start = ~goal
         start[absorbing] = False
-        pomdps.append(
-            POMDP(
-                transitions,
-                rewards,
-                DISCOUNT,
-                names,
-                ACTION_NAMES,
-                [observations] * 5,
-                start / start.sum(),
-                z_names,
-            )
-        )
+        pomdps.append(task_pomdp(transitions, rewards, observations, start, names, ACTION_NAMES, z_names))
         mmdps.append(joint_mdp(joint, rewards, ACTION_NAMES))
         task_names.append(f"{teammate_name}:{task.name.split(':')[1]}")
     settings = {"variant": variant, "size": size, "noise": noise}
