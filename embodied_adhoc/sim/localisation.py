@@ -77,8 +77,8 @@ class LocalisationConfig:
     max_beams: int = 30
     resolution: float = 0.04
     clearance: float = 0.2
-    update_distance: float = 0.03
-    update_angle: float = 0.03
+    update_distance: float = 0.1
+    update_angle: float = 0.1
     update_period: float = 1.0
     alpha_slow: float = 0.02
     alpha_fast: float = 0.3

@@ -1,0 +1,307 @@
+"""Fault sweep of the physics lab (issue 17): HOTSPOT in ``EmbodiedAdhoc/ToxicWaste-v0`` under sensor and actuator
+faults, with the lidar Monte Carlo localiser on and off (wheel odometry alone), same seeds; and the localiser's
+cost per control step against the physics step, measured in the same run.
+
+Per row and mode it prints the success rate, the mean steps (capped episodes count the cap), the worst pose error
+(the pose the controller tracked vs the truth, over every step of every episode), blocked macro steps and the
+robot-node readings that were unknown or wrong. Episodes are those of ``trials toxic-waste --backend mujoco
+--seed S`` (same episode draw and seeds), so a row can be replayed with ``run toxic-waste --seed ...``.
+
+With ``--confusion-out PATH`` it also writes the localiser's measured robot-node confusion (true area x reported
+area + unknown, pooled over the rows with the localiser on, smoothed with ``--floor``) with its provenance (the
+counts per fault setting, seeds, episodes, commit), in the schema of ``domains.confusion``; the lab model reads it
+with ``--localisation-model PATH`` (``measured`` = ``assets/data/localisation_confusion_measured.json``).
+
+Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py [--episodes 16] [--seed 0] [--max-steps 100]
+       [--workers 1] [--rows defaults encoder_noise=0.05 ...] [--confusion-out PATH] [--cost-seconds 60]
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import subprocess
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+from embodied_adhoc.errors import ConfigError  # noqa: E402
+from embodied_adhoc.experiments.script_args import parse_dataclass_args  # noqa: E402
+
+ROWS = (
+    "defaults",
+    "encoder_noise=0.05",
+    "wheel_slip=0.005",
+    "wheel_slip=0.02",
+    "rfid_miss=1.0",
+    "lidar_noise=0.05,lidar_dropout=0.3",
+    "lidar_dropout=1.0",
+    "speech_failure=0.5",
+)
+AGENT = "hotspot"
+
+
+@dataclass(frozen=True)
+class Args:
+    episodes: int = 16
+    """episodes per row and mode"""
+    seed: int = 0
+    """seed of the sweep (as trials --seed)"""
+    max_steps: int = 100
+    """macro-step cap (the thesis's 100)"""
+    workers: int = 1
+    """worker processes (results do not depend on it)"""
+    rows: tuple[str, ...] = ROWS
+    """fault settings: 'defaults' or name=value[,name=value] with the names of --wheel-slip etc."""
+    confusion_out: str = ""
+    """write the measured robot-node confusion (JSON) here"""
+    floor: float = 0.01
+    """smoothing floor of the measured confusion"""
+    cost_seconds: float = 60.0
+    """simulated seconds of driving for the cost measurement (0: skip)"""
+
+
+def parse_row(text: str) -> dict[str, float]:
+    from embodied_adhoc.experiments.toxic_waste import FAULTS
+
+    if text == "defaults":
+        return {}
+    faults = {}
+    for part in text.split(","):
+        name, _, value = part.partition("=")
+        if name not in FAULTS or not value:
+            raise ConfigError(f"--rows '{text}': use name=value with names {', '.join(FAULTS)}, or 'defaults'")
+        faults[name] = float(value)
+    return faults
+
+
+_SESSIONS: dict = {}
+
+
+def run_one(task: tuple[str, bool, int, int, int]) -> dict:
+    """One episode: (row, localisation on, episode, seed, max_steps) -> outcome and per-step readings."""
+    import gymnasium
+
+    from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
+    from embodied_adhoc.experiments.toxic_waste import DOMAIN
+
+    row, localisation, episode, seed, max_steps = task
+    options = DOMAIN.options(faults=parse_row(row), localisation=localisation)
+    key = repr(options)
+    if key not in _SESSIONS:
+        _SESSIONS[key] = DOMAIN.open_session("mujoco", options)
+    session = _SESSIONS[key]
+    spec = DOMAIN.episode_spec(options, seeding.episode_rng(seed, episode))
+    env = gymnasium.make(
+        session.env_id, max_episode_steps=max_steps, disable_env_checker=True, **session.env_kwargs
+    )
+
+    class Collect(EpisodeObserver):
+        def __init__(self):
+            self.pose_errors, self.odometry_errors, self.readings = [], [], []
+            self.blocked = self.kidnaps = 0
+
+        def episode_started(self, info, posterior):
+            self.readings.append((info["robot_node"], info["robot_node_reading"]))
+
+        def step_finished(self, record):
+            info = record.info
+            self.pose_errors.append(info["pose_error"])
+            self.odometry_errors.append(info["odometry_error"])
+            self.readings.append((info["robot_node"], info["robot_node_reading"]))
+            self.blocked += int(info["blocked"])
+            self.kidnaps += int(info["kidnaps"])
+
+    collect = Collect()
+    started = time.perf_counter()
+    trace = run_episode_loop(
+        env,
+        session.make_agent(AGENT, spec, seeding.agent_seed(seed, episode, AGENT)),
+        env_seed=seeding.env_seed(seed, episode, AGENT),
+        agent_rng=seeding.agent_rng(seed, episode, AGENT),
+        reset_options=session.reset_options(spec),
+        max_steps=max_steps,
+        observation_index=session.observation_index,
+        observers=[collect],
+    )
+    env.close()
+    return {
+        "row": row,
+        "localisation": localisation,
+        "episode": episode,
+        "success": trace.success,
+        "steps": trace.steps,
+        "worst_pose_error": max(collect.pose_errors, default=0.0),
+        "worst_odometry_error": max(collect.odometry_errors, default=0.0),
+        "blocked": collect.blocked,
+        "kidnaps": collect.kidnaps,
+        "readings": collect.readings,
+        "wall_s": time.perf_counter() - started,
+    }
+
+
+def localiser_cost(seconds: float) -> dict[str, float]:
+    """Wall time per control step of: the physics (its substeps), the localiser (lidar scan + filter), and the
+    physics step of the same scene without the lidar's rangefinders; one scripted tour, this process."""
+    import mujoco
+
+    from embodied_adhoc import paths
+    from embodied_adhoc.sim.lab_world import LabWorld
+
+    world = LabWorld()
+    world.reset(seed=0, robot_node=1, human_node=4, ball_nodes=(0, 1, 2))
+    ticks = int(seconds / world.config.control_period)
+    physics = sensing = 0.0
+    wheels = [(4.0, 4.0), (3.0, -3.0), (4.0, 3.0), (-2.0, 2.0)]
+    for tick in range(ticks):
+        world.data.ctrl[world.ids.wheel_actuators] = wheels[(tick // 100) % len(wheels)]
+        if tick % 200 == 150:  # keep clear of the walls: back to the open space now and then
+            q = world.ids.root_qpos
+            world.data.qpos[q : q + 2] = (0.5, -0.5)
+            world.localiser.reset(world.localiser.rng, world.odometry.pose, world.true_robot_pose(), time=world.data.time)
+        start = time.perf_counter()
+        world._physics(world.substeps)
+        middle = time.perf_counter()
+        world._sense()
+        end = time.perf_counter()
+        physics += middle - start
+        sensing += end - middle
+    # odometry alone (the sensing without the localiser) on the same world
+    localiser, world.localiser = world.localiser, None
+    odometry = 0.0
+    for _ in range(ticks):
+        start = time.perf_counter()
+        world._sense()
+        odometry += time.perf_counter() - start
+    world.localiser = localiser
+    # the scene without the lidar's rangefinders: what the physics step cost before the lidar
+    spec = mujoco.MjSpec.from_file(str(paths.scene("lab.xml")))
+    for sensor in list(spec.sensors):
+        if sensor.name.startswith("lidar_"):
+            spec.delete(sensor)
+    model = spec.compile()
+    model.opt.timestep = world.config.timestep
+    data = mujoco.MjData(model)
+    data.ctrl[:2] = 4.0
+    start = time.perf_counter()
+    for _ in range(ticks):
+        mujoco.mj_step(model, data, nstep=world.substeps)
+    bare = time.perf_counter() - start
+    world.close()
+    return {
+        "control_steps": ticks,
+        "physics_ms": 1e3 * physics / ticks,
+        "physics_without_lidar_ms": 1e3 * bare / ticks,
+        "localiser_ms": 1e3 * (sensing - odometry) / ticks,
+        "odometry_ms": 1e3 * odometry / ticks,
+    }
+
+
+def write_confusion(path: Path, results: list[dict], args: Args) -> None:
+    from embodied_adhoc.domains.confusion import ConfusionMatrix, save_confusion, smooth_confusion
+    from embodied_adhoc.sim.lab_layout import LAB_LAYOUT
+
+    n = len(LAB_LAYOUT.nodes)
+    per_row: dict[str, np.ndarray] = {}
+    for result in results:
+        if not result["localisation"]:
+            continue
+        counts = per_row.setdefault(result["row"], np.zeros((n, n + 1), dtype=np.int64))
+        for true, reading in result["readings"]:
+            counts[true, n if reading is None else reading] += 1
+    if not per_row:
+        raise ConfigError("--confusion-out needs rows run with the localiser on")
+    pooled = sum(per_row.values())
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        commit = "unknown"
+    provenance = {
+        "source": "scripts/bench_faults.py: robot-node readings of the physics lab's Monte Carlo localiser "
+        "(sim/localisation.py) after every reset and macro step of HOTSPOT episodes; rows = true area, "
+        "columns = reported area, last = unknown",
+        "columns_note": "the last column (named 'failed' by the shared schema) is 'unknown'",
+        "agent": AGENT,
+        "episodes_per_row": args.episodes,
+        "seed": args.seed,
+        "max_steps": args.max_steps,
+        "rows": {row: counts.tolist() for row, counts in per_row.items()},
+        "pooled_counts": pooled.tolist(),
+        "commit": commit,
+        "date": datetime.date.today().isoformat(),
+    }
+    matrix = ConfusionMatrix(LAB_LAYOUT.node_names, smooth_confusion(pooled, args.floor), args.floor, provenance)
+    save_confusion(matrix, path)
+    print(f"wrote {path} (pooled over {len(per_row)} fault settings, {int(pooled.sum())} readings)")
+
+
+def table_line(row: str, localisation: bool, chosen: list[dict]) -> str:
+    readings = [reading for r in chosen for reading in r["readings"]]
+    unknown = sum(reading is None for _, reading in readings)
+    wrong = sum(reading is not None and reading != true for true, reading in readings)
+    return (
+        f"| {row} | {'on' if localisation else 'off'} | {sum(r['success'] for r in chosen)}/{len(chosen)} "
+        f"| {np.mean([r['steps'] for r in chosen]):.1f} "
+        f"| {max(r['worst_pose_error'] for r in chosen):.2f} m "
+        f"| {sum(r['blocked'] for r in chosen)} "
+        f"| {unknown} / {wrong} of {len(readings)} "
+        f"| {np.mean([r['wall_s'] for r in chosen]):.1f} |"
+    )
+
+
+def main() -> None:
+    args = parse_dataclass_args(Args, __doc__)
+    if args.episodes < 1 or args.workers < 1:
+        raise SystemExit("bench_faults: --episodes and --workers must be >= 1")
+    for row in args.rows:
+        parse_row(row)
+    print(
+        f"HOTSPOT, {args.episodes} episodes per row and mode, seed {args.seed}, cap {args.max_steps}; "
+        f"localiser on = lidar MCL, off = wheel odometry alone; {args.workers} worker(s)\n"
+    )
+    header = (
+        "| fault | localiser | success | mean steps | worst pose error | blocked steps | unknown / wrong readings "
+        "| wall s/episode |"
+    )
+    print(header)
+    print("|---|---|---|---|---|---|---|---|", flush=True)
+    pool = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
+    results: list[dict] = []
+    started = time.perf_counter()
+    try:
+        for row in args.rows:  # rows one after the other, so a long sweep shows its table as it goes
+            tasks = [
+                (row, localisation, episode, args.seed, args.max_steps)
+                for localisation in (True, False)
+                for episode in range(args.episodes)
+            ]
+            done = list(pool.map(run_one, tasks)) if pool is not None else [run_one(task) for task in tasks]
+            results.extend(done)
+            for localisation in (True, False):
+                print(table_line(row, localisation, [r for r in done if r["localisation"] == localisation]), flush=True)
+    finally:
+        if pool is not None:
+            pool.shutdown()
+    print(f"\n{time.perf_counter() - started:.0f} s wall for the sweep")
+    if args.confusion_out:
+        write_confusion(Path(args.confusion_out), results, args)
+    if args.cost_seconds > 0:
+        cost = localiser_cost(args.cost_seconds)
+        print(
+            f"\ncost per control step ({cost['control_steps']} steps of 20 ms, this process, wall clock): physics "
+            f"{cost['physics_ms']:.3f} ms (the same scene without the lidar's rangefinders: "
+            f"{cost['physics_without_lidar_ms']:.3f} ms), localiser {cost['localiser_ms']:.3f} ms "
+            f"({cost['localiser_ms'] / cost['physics_ms']:.2f}x the physics), odometry {cost['odometry_ms']:.3f} ms"
+        )
+
+
+if __name__ == "__main__":
+    main()
