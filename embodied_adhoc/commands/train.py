@@ -51,8 +51,11 @@ def handle_atlpo(args: argparse.Namespace) -> int:
 
         library = train_library(args.domain, args.set, config, out, progress=progress)
     policy_seconds = time.perf_counter() - started
-    data = collect_trajectories(library, args.episodes, args.episode_steps, seed=args.seed)
-    held_out = collect_trajectories(library, max(8, args.episodes // 4), args.episode_steps, seed=args.seed + 10**6)
+    if not 0.0 <= args.mixing <= 1.0:
+        raise ConfigError(f"--mixing {args.mixing}: a probability in [0, 1]")
+    data = collect_trajectories(library, args.episodes, args.episode_steps, seed=args.seed, mixing=args.mixing)
+    held_out = collect_trajectories(library, max(8, args.episodes // 8), args.episode_steps, seed=args.seed + 10**6,
+                                    mixing=args.mixing)
     classifier = RecurrentBayesianClassifier(ClassifierConfig(channels=data.observations.shape[2],
                                                               environments=len(members)))
     device = pick_device(args.device)
@@ -61,7 +64,8 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     write_manifest(out, library, classifier)
     scores = per_step_scores(classifier, held_out)
     report = {"domain": args.domain, "set": args.set, "members": [m.name for m in members], "steps": args.steps,
-              "seed": args.seed, "device": str(device), "policy_seconds": round(policy_seconds, 1),
+              "seed": args.seed, "device": str(device), "classifier_episodes": args.episodes,
+              "classifier_iterations": args.iterations, "mixing": args.mixing, "policy_seconds": round(policy_seconds, 1),
               "total_seconds": round(time.perf_counter() - started, 1),
               "classifier_loss": {"first": losses[0], "last": losses[-1]}, "per_step": scores}
     atomic_write_text(out / "training.json", json.dumps(report, indent=1) + "\n")
@@ -85,9 +89,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     atlpo.add_argument("--steps", type=int, default=30_000, help="env steps per policy (default 30000, the thesis's)")
     atlpo.add_argument("--seed", type=int, default=0)
     atlpo.add_argument("--envs", type=int, default=16, help="parallel sub-envs of the vector env (default 16)")
-    atlpo.add_argument("--episodes", type=int, default=64, help="classifier training episodes per environment")
+    atlpo.add_argument("--episodes", type=int, default=256, help="classifier training episodes per environment")
     atlpo.add_argument("--episode-steps", type=int, default=30, help="steps kept per classifier episode")
-    atlpo.add_argument("--iterations", type=int, default=300, help="classifier training iterations")
+    atlpo.add_argument("--iterations", type=int, default=600, help="classifier training iterations")
+    atlpo.add_argument("--mixing", type=float, default=0.5,
+                       help="chance per step that a classifier episode takes a random member's action (default 0.5)")
     atlpo.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     atlpo.add_argument("--threads", type=int, default=0, help="torch CPU threads (default: torch's choice)")
     atlpo.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -144,9 +144,15 @@ def load_library(folder: str | Path) -> tuple[PolicyLibrary, RecurrentBayesianCl
 
 
 @torch.no_grad()
-def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, seed: int) -> Trajectories:
+def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, seed: int,
+                         mixing: float = 0.0) -> Trajectories:
     """``episodes`` episodes of each library environment ``k`` played by its own policy (sampled actions), cut at
-    ``max_steps``: the classifier's training data, labelled ``k``."""
+    ``max_steps``: the classifier's training data, labelled ``k``. With ``mixing`` > 0, each step's action comes
+    with that probability from a library member drawn uniformly instead, so that the data also covers the
+    episodes of an agent still unsure which member to follow (ATLPO's own)."""
+    if not 0.0 <= mixing <= 1.0:
+        raise ConfigError(f"mixing={mixing}: a probability in [0, 1]")
+    rng = np.random.default_rng(seed)
     observations, previous, labels, lengths = [], [], [], []
     for k, policy in enumerate(library.policies):
         env = GridVectorEnv(library.domain, episodes, **library.env_for(k, max_episode_steps=max_steps))
@@ -160,8 +166,13 @@ def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, 
         for t in range(max_steps):
             obs[live, t] = observation[live]
             length[live] += 1
-            logits, _ = policy(torch.as_tensor(observation))
-            action = torch.distributions.Categorical(logits=logits).sample().numpy()
+            batch = torch.as_tensor(observation)
+            action = torch.distributions.Categorical(logits=policy(batch)[0]).sample().numpy()
+            if mixing > 0.0:
+                member = rng.integers(len(library.policies), size=episodes)
+                other = np.stack([torch.distributions.Categorical(logits=p(batch)[0]).sample().numpy()
+                                  for p in library.policies])
+                action = np.where(rng.random(episodes) < mixing, other[member, np.arange(episodes)], action)
             if t + 1 < max_steps:
                 acts[live, t + 1] = action[live]
             observation, _, terminated, truncated, _ = env.step(action)

@@ -42,6 +42,10 @@ def test_tiny_library_classifier_and_agent(tmp_path):
     data = collect_trajectories(library, episodes=4, max_steps=12, seed=0)
     assert data.observations.shape[:2] == (12, 12) and set(data.labels.tolist()) == {0, 1, 2}
     assert np.all(data.previous_actions[:, 0] == 5)
+    mixed = collect_trajectories(library, episodes=4, max_steps=12, seed=0, mixing=1.0)
+    assert not np.array_equal(mixed.previous_actions, data.previous_actions)  # other members' actions
+    with pytest.raises(ConfigError, match="mixing"):
+        collect_trajectories(library, episodes=4, max_steps=12, seed=0, mixing=1.5)
     classifier = RecurrentBayesianClassifier(ClassifierConfig(channels=data.observations.shape[2], environments=3,
                                                               features=16, hidden=16, hidden_channels=4))
     train_classifier(classifier, data, ClassifierTraining(iterations=5, batch_size=8))
