@@ -102,7 +102,9 @@ def localisation_events(info: dict) -> list[str]:
     """Lines for the recording's event log: a blocked robot, a lost localiser, a lidar that gives nothing."""
     lines = []
     if info.get("blocked"):
-        lines.append(f"robot blocked: it could not reach its waypoint (pose error {info['pose_error']:.2f} m)")
+        lines.append(
+            f"robot blocked: it could not reach its waypoint (pose error {info['pose_error']:.2f} m)"
+        )
     if info.get("kidnaps"):
         lines.append(f"localiser lost: re-localised globally {info['kidnaps']} time(s)")
     if info.get("localisation_mode") == "odometry":
@@ -192,7 +194,9 @@ class _Recording(EpisodeObserver):
         )
         camera_due = snapshot["sim_time"] + 1e-9 >= self._next_camera
         if "estimated_pose" in snapshot:
-            self.rerun.log_localisation(snapshot["estimated_pose"], snapshot["particles"] if camera_due else None)
+            self.rerun.log_localisation(
+                snapshot["estimated_pose"], snapshot["particles"] if camera_due else None
+            )
         if camera_due:
             self.rerun.log_camera("overhead", frame)
             self._next_camera = snapshot["sim_time"] + self._camera_period

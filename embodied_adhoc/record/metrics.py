@@ -152,7 +152,8 @@ def _localisation_summary(per_step: list[dict[str, Any]]) -> dict[str, Any] | No
         "worst_odometry_error_m": max(record["odometry_error_m"] for record in steps),
         "unknown_readings": sum(record["robot_node_reading"] is None for record in steps),
         "wrong_readings": sum(
-            record["robot_node_reading"] is not None and record["robot_node_reading"] != record["true_robot_node"]
+            record["robot_node_reading"] is not None
+            and record["robot_node_reading"] != record["true_robot_node"]
             for record in steps
         ),
         "modes": sorted({record["localisation_mode"] for record in steps}),

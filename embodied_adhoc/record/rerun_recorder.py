@@ -320,7 +320,9 @@ class RerunRecorder:
         rr, log = self._rr, self._stream.log
         log(
             "world/localisation/estimate",
-            rr.Points3D([[float(estimate[0]), float(estimate[1]), 0.05]], colors=[(30, 110, 255)], radii=0.07),
+            rr.Points3D(
+                [[float(estimate[0]), float(estimate[1]), 0.05]], colors=[(30, 110, 255)], radii=0.07
+            ),
         )
         if particles is not None:
             cloud = np.zeros((len(particles), 3))
