@@ -32,6 +32,7 @@ def abstract_step_seconds(episodes: int) -> float:
 
     import embodied_adhoc.envs  # noqa: F401
     from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.episode import run_episode_loop
     from embodied_adhoc.experiments.registry import get_trial_domain
 
     domain = get_trial_domain("toxic-waste")
@@ -44,15 +45,16 @@ def abstract_step_seconds(episodes: int) -> float:
     for episode in range(episodes * 20):  # many short episodes: the abstract step is microseconds
         spec = domain.episode_spec(options, seeding.episode_rng(0, episode))
         agent = session.make_agent("hotspot", spec, 0)
-        env.reset(seed=episode, options=session.reset_options(spec))
-        agent.reset(seeding.agent_rng(0, episode, "hotspot"))
-        for _ in range(100):
-            action = agent.act()
-            _, _, terminated, truncated, info = env.step(action)
-            agent.observe(action, info["observation_index"])
-            steps += 1
-            if terminated or truncated:
-                break
+        trace = run_episode_loop(  # the loop run and trials use
+            env,
+            agent,
+            env_seed=episode,
+            agent_rng=seeding.agent_rng(0, episode, "hotspot"),
+            reset_options=session.reset_options(spec),
+            max_steps=100,
+            observation_index=session.observation_index,
+        )
+        steps += trace.steps
     return (time.perf_counter() - started) / steps
 
 
