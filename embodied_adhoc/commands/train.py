@@ -22,7 +22,13 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from embodied_adhoc.atomic import atomic_write_text
-    from embodied_adhoc.learning.atlpo import collect_trajectories, library_set, train_library, write_manifest
+    from embodied_adhoc.learning.atlpo import (
+        collect_trajectories,
+        library_set,
+        train_generalist,
+        train_library,
+        write_manifest,
+    )
     from embodied_adhoc.learning.classifier import (
         ClassifierConfig,
         ClassifierTraining,
@@ -43,13 +49,16 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     out = Path(args.out)
     members = library_set(args.set)
     started = time.perf_counter()
-    with tqdm(total=len(members) * max(1, args.steps // (args.envs * rollout)) * args.envs * rollout,
+    policies = len(members) + (1 if args.generalist else 0)
+    with tqdm(total=policies * max(1, args.steps // (args.envs * rollout)) * args.envs * rollout,
               unit="step", desc=f"atlpo {args.domain} {args.set}", disable=args.quiet) as bar:
         def progress(member: str, steps: int, row: dict) -> None:
             bar.set_postfix_str(f"{member} episode length {row['mean_episode_length'] or '-'}")
             bar.update(args.envs * rollout)
 
         library = train_library(args.domain, args.set, config, out, progress=progress)
+        if args.generalist:
+            train_generalist(args.domain, args.set, config, out, progress=lambda steps, row: progress("all", steps, row))
     policy_seconds = time.perf_counter() - started
     if not 0.0 <= args.mixing <= 1.0:
         raise ConfigError(f"--mixing {args.mixing}: a probability in [0, 1]")
@@ -96,6 +105,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="chance per step that a classifier episode takes a random member's action (default 0.5)")
     atlpo.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     atlpo.add_argument("--threads", type=int, default=0, help="torch CPU threads (default: torch's choice)")
+    atlpo.add_argument("--generalist", action="store_true",
+                       help="also train the model-free baseline on all the set's environments together")
     atlpo.add_argument("--quiet", action="store_true", help="no progress bar")
     atlpo.add_argument("--out", required=True, help="folder for the weights, library.json and training.json")
     atlpo.set_defaults(func=handle_atlpo)

@@ -94,6 +94,24 @@ def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | P
     return library
 
 
+def generalist_path(folder: str | Path, domain: str, set_name: str) -> Path:
+    return Path(folder) / f"{domain}-all-{set_name.replace('+', '-')}.safetensors"
+
+
+def train_generalist(domain: str, set_name: str, config: PpoConfig, folder: str | Path,
+                     env_kwargs: dict | None = None, progress: Callable[[int, dict], None] | None = None) -> ActorCritic:
+    """The model-free RL baseline trained on all environments of ``set_name`` together (each episode draws one
+    uniformly), with ``config.seed + 100``; loaded instead if its weights exist."""
+    path = generalist_path(folder, domain, set_name)
+    if path.exists():
+        return load_policy(path)
+    kwargs = {**(env_kwargs or {}), "environments": [(e.task, e.team) for e in library_set(set_name)]}
+    seeded = replace(config, seed=config.seed + 100)
+    result = train_ppo(domain, kwargs, seeded, progress)
+    save_weights(path, result.model, training_metadata(domain, kwargs, seeded, result))
+    return result.model
+
+
 def load_policy(path: str | Path) -> ActorCritic:
     _, metadata = load_weights(path)
     if metadata.get("kind") != "atlpo-mf-policy":

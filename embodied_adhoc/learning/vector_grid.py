@@ -41,7 +41,8 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, domain: str, num_envs: int, max_episode_steps: int | None = None, **env_kwargs) -> None:
+    def __init__(self, domain: str, num_envs: int, max_episode_steps: int | None = None,
+                 environments: list[tuple[int, str]] | None = None, **env_kwargs) -> None:
         import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 
         if domain not in GRID_IDS:
@@ -79,8 +80,21 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.needs_reset = np.zeros(num_envs, bool)
         self.rngs: list[np.random.Generator] = []
         self.observers = np.zeros((num_envs, 1), np.int64)
+        # optional (task, team) pairs drawn per episode instead of the product tasks x teams; one extra draw
+        # from the sub-env's Generator before the single env's own (the step-for-step match holds without it)
+        self.environments = None if environments is None else [(int(t), str(m)) for t, m in environments]
+        if self.environments is not None:
+            if not self.environments:
+                raise ConfigError("environments=[]: give (task, team) pairs, or None for tasks x teams")
+            for task, team in self.environments:
+                if not 1 <= task <= len(self.core.tasks) or team not in self.core.teams:
+                    raise ConfigError(f"environments: ({task}, {team!r}) is not a task 1..{len(self.core.tasks)} "
+                                      f"with a team of {sorted(self.core.teams)}")
 
     def _reset_one(self, index: int, options: dict | None) -> None:
+        if self.environments is not None:
+            task, team = self.environments[int(self.rngs[index].integers(len(self.environments)))]
+            options = {"task": task, "team": team, **(options or {})}
         self.core.reset(self.rngs[index], options)
         episode = self.core.episode
         self.batch.put(index, episode.state)

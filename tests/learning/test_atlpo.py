@@ -11,8 +11,10 @@ from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.atlpo import (
     AtlpoAgent,
     collect_trajectories,
+    generalist_path,
     library_set,
     load_library,
+    train_generalist,
     train_library,
     write_manifest,
 )
@@ -72,9 +74,11 @@ def test_tiny_library_classifier_and_agent(tmp_path):
     known.start(observation)
     known.observe(known.act(), observation)
     assert known.task_posterior.tolist() == [0.0, 0.0, 1.0]
-    results = evaluate(library, classifier, episodes=1, seed=0, max_steps=8)
-    assert results == evaluate(library, classifier, episodes=1, seed=0, max_steps=8)  # seeded
-    for name in ("original", "known", "atlpo-mf", "random"):
+    generalist = train_generalist("foraging", "team", config, tmp_path)
+    assert generalist_path(tmp_path, "foraging", "team").exists()
+    results = evaluate(library, classifier, episodes=1, seed=0, max_steps=8, generalist=generalist)
+    assert results == evaluate(library, classifier, episodes=1, seed=0, max_steps=8, generalist=generalist)  # seeded
+    for name in ("original", "known", "mf-all", "atlpo-mf", "random"):
         assert len(results[name]["steps"]) == 3 and all(1 <= s <= 8 for s in results[name]["steps"])
     assert 1 <= len(results["true_posterior_per_step"]) <= 8
     again = train_library("foraging", "team", config, tmp_path)  # resumes: members are loaded, not retrained

@@ -65,3 +65,12 @@ def test_vector_env_seeding_is_deterministic_and_checks_actions():
         first.step(np.array([0, 1, 2]))
     with pytest.raises(ConfigError, match="backend"):
         GridVectorEnv("foraging", 2, backend="mujoco")
+
+
+def test_vector_env_draws_listed_environments():
+    env = GridVectorEnv("foraging", 16, environments=[(2, "tau0"), (3, "tau2")])
+    _, info = env.reset(seed=0)
+    pairs = {(int(t), env.team_names[m]) for t, m in zip(info["task"], info["team"], strict=True)}
+    assert pairs == {(2, "tau0"), (3, "tau2")}
+    with pytest.raises(ConfigError, match="environments"):
+        GridVectorEnv("foraging", 2, environments=[(5, "tau0")])
