@@ -61,8 +61,8 @@ class VideoWriter:
             quality=quality,
             macro_block_size=1,
             ffmpeg_log_level="error",
-            # x264's "veryfast" preset: same file size as the default "medium" on these flat-shaded frames, about
-            # 40 % less encoder CPU (scripts/bench_sim.py counts the encoder's CPU)
+            # x264's "veryfast" preset: the same file size as the default "medium" on these flat-shaded frames for
+            # about 20 % less encoder CPU (280 frames of 640x512: 0.99 instead of 1.23 CPU s, one loaded run)
             output_params=["-preset", "veryfast"],
         )
         self._writer.send(None)  # start the ffmpeg process
