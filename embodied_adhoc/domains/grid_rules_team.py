@@ -83,10 +83,34 @@ class TeamPlanner:
         cells = np.arange(len(rules.neighbours))
         self.step_to = np.concatenate([np.where(rules.neighbours >= 0, rules.neighbours, cells[:, None]),
                                        cells[:, None]], axis=1)
+        self.cells = np.stack(np.divmod(cells, rules.config.cols), axis=-1)
+        # task offsets seen so far, as columns of the goal tables (filled on first use of an offset)
+        rows, cols = rules.config.rows, rules.config.cols
+        self.offset_index = np.full((2 * rows + 1) * (2 * cols + 1), -1, dtype=np.int64)
+        self.slot_cell = np.zeros((len(cells), 0), dtype=np.int64)  # [target cell, offset]: the task slot
+        self.ring_cell = np.zeros((len(cells), len(cells), 0), dtype=np.int64)  # [target, member, offset]
+
+    def _offset_columns(self, offsets: np.ndarray) -> np.ndarray:
+        """Column of each task offset (..., 2) in the goal tables, adding the columns of new offsets: the slot
+        ``target + offset`` and the :func:`ring_goal` of every member cell, as flat cells."""
+        cfg = self.rules.config
+        code = (offsets[..., 0] + cfg.rows) * (2 * cfg.cols + 1) + offsets[..., 1] + cfg.cols
+        new = np.unique(code[self.offset_index[code] < 0])
+        for value in new.tolist():
+            offset = np.array(divmod(value, 2 * cfg.cols + 1)) - [cfg.rows, cfg.cols]
+            targets = np.broadcast_to(self.cells[:, None, :], (len(self.cells), len(self.cells), 2))
+            members = np.broadcast_to(self.cells[None, :, :], targets.shape)
+            ring = self.rules.flat(ring_goal(self.rules, members, targets, np.broadcast_to(offset, targets.shape)))
+            slot = self.rules.flat(self.rules.normalise(self.cells + offset)[0])
+            self.offset_index[value] = self.slot_cell.shape[1]
+            self.slot_cell = np.concatenate([self.slot_cell, slot[:, None]], axis=1)
+            self.ring_cell = np.concatenate([self.ring_cell, ring[..., None]], axis=2)
+        return self.offset_index[code]
 
     def goals(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable) -> np.ndarray:
-        """(B, N, 2) the cell each member heads for now: its task slot around its target, or its point on the
-        ring. Every member computes the same target rule and slot assignment from the full state."""
+        """(B, N) flat cell each member heads for now: its task slot around its target, or its point on the
+        ring (:func:`ring_goal`, tabulated). Every member computes the same target rule and slot assignment
+        from the full state."""
         rules, agents = self.rules, batch.agents
         n = agents.shape[1]
         env = np.arange(len(agents))[:, None]
@@ -95,21 +119,21 @@ class TeamPlanner:
         cost = np.where(teams.target[:, None, None] == 0, distance, -batch.target_levels[:, None, :])
         cost = np.where(teams.target[:, None, None] == 2, distance.sum(axis=1, keepdims=True), cost)
         target = np.argmin(np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1)  # (B, N)
-        target_cells = batch.targets[env, target]  # (B, N, 2)
-        slots, _ = rules.normalise(target_cells[:, :, None, :] + offsets[:, None, :, :])  # (B, member, slot, 2)
+        target_flat = rules.flat(batch.targets)[env, target]  # (B, N)
+        columns = self._offset_columns(offsets)  # (B, slot)
         if interchangeable:
             # greedy: the closest slot, skipping slots another agent already stands on
-            slot_flat = rules.flat(slots)  # (B, member, slot)
+            slot_flat = self.slot_cell[target_flat[:, :, None], columns[:, None, :]]  # (B, member, slot)
             on_slot = start[:, None, :, None] == slot_flat[:, :, None, :]  # (B, member, agent, slot)
             taken = np.any(on_slot & ~np.eye(n, dtype=bool)[None, :, :, None], axis=2)
             closest = np.argmin(self.cellbits.distance[start[:, :, None], slot_flat] + 1000 * taken, axis=-1)
             cost = self.cellbits.distance[start[:, None, :, None], slot_flat[:, :, None, :]]
             slot = np.where(teams.slot_closest[:, None], closest, assign_slots(cost, self.orders))
+            column = columns[env, slot]
         else:
-            slot = np.broadcast_to(np.arange(n), target.shape)
-        goal = slots[env, np.arange(n)[None, :], slot]
-        ring = ring_goal(rules, agents, target_cells, offsets[env, slot])
-        return np.where(teams.ring[:, None, None], ring, goal)
+            column = columns  # member i fills slot i
+        ring = self.ring_cell[target_flat, start, column]
+        return np.where(teams.ring[:, None], ring, self.slot_cell[target_flat, column])
 
     def actions(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable,
                 uniforms: np.ndarray) -> np.ndarray:
@@ -124,7 +148,7 @@ class TeamPlanner:
         rules, bits = self.rules, self.cellbits
         n = batch.agents.shape[1]
         start = rules.flat(batch.agents)
-        goal = rules.flat(self.goals(batch, offsets, interchangeable, teams))
+        goal = self.goals(batch, offsets, interchangeable, teams)
         settled = goal == start  # (B, N)
         lower = np.tril(np.ones((n, n), dtype=bool), -1)  # lower[i, j]: j < i
         obstacle = (settled[:, None, :] | (lower[None] & ~teams.greedy[:, None, None])) & ~np.eye(n, dtype=bool)
