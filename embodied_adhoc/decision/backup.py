@@ -135,12 +135,14 @@ class BackupOperator:
         return branch_keys % n_obs, branch_keys // n_obs, best
 
     def backup(
-        self, beliefs: np.ndarray, alphas: np.ndarray | PreparedAlphas
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self, beliefs: np.ndarray, alphas: np.ndarray | PreparedAlphas, with_children: bool = False
+    ) -> tuple[np.ndarray, ...]:
         """Backed-up vectors for each row of ``beliefs``: ``(vectors (n, S), actions (n,), values (n,))``.
 
         ``values[i] = beliefs[i] . vectors[i]``. ``alphas`` is the current value function (K x S), or its
-        :meth:`prepare`-d form when several batches are backed up against the same one.
+        :meth:`prepare`-d form when several batches are backed up against the same one. ``with_children``
+        appends ``children`` (n, Z): the row of ``alphas`` each new vector continues with after each
+        observation, i.e. its conditional plan (``vectors[i] = R_a + gamma T_a sum_z O_z alphas[children[i, z]]``).
         Internally everything is laid out (S, n) so that every sparse product is a row-oriented CSR product.
         """
         prepared = alphas if isinstance(alphas, PreparedAlphas) else self.prepare(alphas)
@@ -151,6 +153,7 @@ class BackupOperator:
         best_vectors = np.empty((n, n_states))
         best_values = np.full(n, -np.inf)
         best_actions = np.zeros(n, dtype=np.int64)
+        best_children = np.zeros((n, n_obs), dtype=np.int64) if with_children else None
         for action in range(self.pomdp.n_actions):
             end_states, observations, probabilities, from_entries, observation_t = self.entries[action]
             # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
@@ -182,6 +185,10 @@ class BackupOperator:
             best_values[better] = values[better]
             best_actions[better] = action
             best_vectors[better] = vectors[:, better].T
+            if with_children:
+                best_children[better] = chosen[:, better].T
+        if with_children:
+            return best_vectors, best_actions, best_values, best_children
         return best_vectors, best_actions, best_values
 
 

@@ -10,10 +10,12 @@ Saved as ``.npz`` (``allow_pickle=False`` on load), written atomically.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse as sp
 
 from embodied_adhoc.atomic import atomic_open
 from embodied_adhoc.errors import ModelError
@@ -23,7 +25,7 @@ _FORMAT_VERSION = 1
 
 @dataclass(frozen=True)
 class SolverStats:
-    """How a solve went: for reports and benchmarks (not saved with the policy)."""
+    """How a solve went: for reports and benchmarks (saved with the policy as JSON metadata)."""
 
     solver: str
     iterations: int
@@ -32,6 +34,21 @@ class SolverStats:
     residual: float  # last improvement (Perseus: max over beliefs; VI/QMDP: Bellman sup-norm); nan if n/a
     n_beliefs: int = 0
     trace: tuple[tuple[float, float], ...] = ()  # (seconds since start, value at b0) after each iteration
+    lower: float = float("nan")  # bounds on the optimal value at b0 (Perseus): the policy achieves lower
+    upper: float = float("nan")
+    converged_on_beliefs: bool = False  # the backups converged on the belief set (Perseus' own criterion)
+    n_stage_vectors: int = 0  # vectors of the last stage V_n (the policy also keeps their continuations)
+
+    @property
+    def gap(self) -> float:
+        return self.upper - self.lower
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (the trace as [seconds, value] pairs)."""
+        fields = {name: getattr(self, name) for name in self.__dataclass_fields__}
+        fields["trace"] = [list(point) for point in self.trace]
+        fields["gap"] = self.gap
+        return fields
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,10 +117,20 @@ class AlphaVectorPolicy:
         scores = self.alphas[rows] @ np.asarray(belief, dtype=np.float64)
         return int(self.actions[rows][int(np.argmax(scores))])
 
+    def actions_of(self, beliefs: np.ndarray, steps_to_go: int | None = None) -> np.ndarray:
+        """The action of each row of ``beliefs`` (N, S), batched."""
+        rows = self._rows(steps_to_go)
+        beliefs = np.atleast_2d(beliefs)
+        if np.count_nonzero(beliefs) < 0.3 * beliefs.size:  # sparse beliefs: a product over their support only
+            beliefs = sp.csr_matrix(beliefs)
+        return self.actions[rows][np.asarray(np.argmax(beliefs @ self.alphas[rows].T, axis=1)).ravel()]
+
     # ------------------------------------------------------------------------------------------ files
     def save(self, path: str | Path) -> Path:
         """Write the policy to exactly ``path`` (an .npz archive whatever the suffix) atomically; no pickle."""
         path = Path(path)
+        # The solver's report (bounds at b0, gap, convergence, trace) as a JSON string: metadata, not pickle.
+        metadata = {} if self.stats is None else {"solver_stats": np.array(json.dumps(self.stats.as_dict()))}
         with atomic_open(path) as stream:  # a stream: numpy then adds no '.npz' to the name
             np.savez(
                 stream,
@@ -111,6 +138,7 @@ class AlphaVectorPolicy:
                 actions=self.actions,
                 stages=self.stages,
                 format_version=np.int64(_FORMAT_VERSION),
+                **metadata,
             )
         return path
 
@@ -122,8 +150,14 @@ class AlphaVectorPolicy:
                 missing = {"alphas", "actions", "stages"} - set(data.files)
                 if missing:
                     raise ModelError(f"{path}: not an alpha-vector policy file (missing {sorted(missing)})")
-                return cls(data["alphas"], data["actions"], data["stages"])
-        except (OSError, ValueError) as error:
+                stats = None
+                if "solver_stats" in data.files:
+                    fields = json.loads(str(data["solver_stats"]))
+                    fields.pop("gap", None)
+                    fields["trace"] = tuple(tuple(point) for point in fields["trace"])
+                    stats = SolverStats(**fields)
+                return cls(data["alphas"], data["actions"], data["stages"], stats=stats)
+        except (OSError, ValueError, TypeError, KeyError) as error:
             if isinstance(error, ModelError):
                 raise
             raise ModelError(f"{path}: cannot read an alpha-vector policy ({error})") from error
