@@ -39,6 +39,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "on the belief set is <= tolerance; 'gain' = the classic rule, that gain itself is <= tolerance",
     )
     solve.add_argument(
+        "--precision",
+        type=float,
+        default=1e-3,
+        help="Perseus: stop when upper - lower bound at b0 <= this (default 1e-3); only this sets 'converged'",
+    )
+    solve.add_argument(
+        "--no-expand",
+        action="store_true",
+        help="Perseus: keep the fixed belief set of --beliefs (default: grow it while solving, and stop at "
+        "--time-limit, --precision, or when an expansion round moves neither bound by --tolerance)",
+    )
+    solve.add_argument(
         "--horizon", type=int, default=None, help="finite horizon (required when discount is 1.0)"
     )
     solve.add_argument("--seed", type=int, default=0, help="seed of belief collection and simulation")
@@ -151,6 +163,8 @@ def _solve(args: argparse.Namespace) -> int:
                 time_limit=args.time_limit,
                 seed=args.seed,
                 horizon=args.horizon,
+                precision=args.precision,
+                expand=not args.no_expand,
             )
             policy = perseus(pomdp, config, progress=None if args.quiet else _progress_printer())
         report.update(
@@ -161,6 +175,8 @@ def _solve(args: argparse.Namespace) -> int:
         )
         if policy.stats.n_beliefs:
             report["beliefs"] = policy.stats.n_beliefs
+        if not math.isnan(policy.stats.upper):
+            report.update(lower=policy.stats.lower, upper=policy.stats.upper, gap=policy.stats.gap)
     report["seconds"] = time.perf_counter() - start
     if args.save_policy is not None and policy is not None:
         report["policy"] = str(policy.save(args.save_policy))
@@ -189,11 +205,16 @@ def _progress_printer():
     last = [0.0]
 
     def report(progress) -> None:
-        if progress.seconds - last[0] >= 1.0 or progress.iteration == 1:
+        if progress.seconds - last[0] >= 1.0 or progress.iteration <= 1:
             last[0] = progress.seconds
+            bounds = (
+                f"  upper {progress.upper_b0:12.6f}  gap {progress.gap:.4g}  beliefs {progress.n_beliefs}"
+                if not math.isnan(progress.upper_b0)
+                else ""
+            )
             print(
-                f"  iteration {progress.iteration:5d}  {progress.seconds:7.1f} s  V(b0) {progress.value_b0:12.6f}  "
-                f"vectors {progress.n_vectors:6d}  improvement {progress.improvement:.3g}",
+                f"  iteration {progress.iteration:5d}  {progress.seconds:7.1f} s  lower {progress.value_b0:12.6f}"
+                f"{bounds}  vectors {progress.n_vectors:6d}  improvement {progress.improvement:.3g}",
                 file=sys.stderr,
                 flush=True,
             )
