@@ -47,8 +47,8 @@ _KEYWORDS = {"discount", "values", "states", "actions", "observations", "start",
 _MATRIX_WORDS = {"uniform", "identity", "reset"}
 _ASCII_SPACE = np.array([chr(code).isspace() for code in range(128)])  # str.split()'s whitespace
 _WILD = -1  # a '*' selector in index arrays
-MAX_ENTRIES = 20_000_000
-"""Most (action, row, column) entries the reader holds for T and O together (about 0.5 GB while parsing)."""
+MAX_ENTRIES = 10_000_000
+"""Most (action, row, column) entries the reader holds for T and O together (40 bytes each while parsing)."""
 MISSING_ROWS = ("error", "absorbing", "reset")
 """What to do with a transition row ``T(. | s, a)`` that the file never writes (e.g. mini-hall2's goal state):
 an error (default), a self-loop, or the start belief. Rows written but not summing to 1 are always errors."""
