@@ -5,7 +5,9 @@ solving its task. The mp4 shows the overhead camera at ``fps`` frames per simula
 robot's egocentric camera image inset in the top-left corner; the ``.rrd`` holds, per macro step, the overhead
 and egocentric frames, the egocentric grid observation (as an image), the joint action and the events.
 
-    MUJOCO_GL=egl .venv/bin/python scripts/record_arena.py --domain foraging --team tau1 --task 1 --out runs/arenas
+    .venv/bin/python scripts/record_arena.py --domain foraging --team tau1 --task 1 --out runs/arenas
+
+(Headless: EGL is chosen when there is no display, unless ``MUJOCO_GL`` is set.)
 """
 
 from __future__ import annotations
@@ -16,6 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
+from embodied_adhoc.gl import choose_gl_platform
+
+choose_gl_platform()  # before anything imports mujoco
 
 
 @dataclass(frozen=True)

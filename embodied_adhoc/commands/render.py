@@ -1,7 +1,8 @@
 """``embodied-adhoc render lab``: a still image of the MuJoCo lab (robot, human, balls) from a named camera.
 
 Example: ``embodied-adhoc render lab --out docs/images/lab_overhead.png --task 0,1,2 --pick 1``.
-Rendering is offscreen; on a machine without a display set ``MUJOCO_GL=egl`` (or ``osmesa``).
+Rendering is offscreen; on Linux without a display it uses EGL unless ``MUJOCO_GL`` says otherwise (e.g.
+``osmesa``): :func:`embodied_adhoc.gl.choose_gl_platform`.
 """
 
 from __future__ import annotations
@@ -9,7 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from embodied_adhoc.commands.arguments import output_file, seed
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.gl import choose_gl_platform
 
 CAMERAS = ("overhead", "perspective", "robot")
 
@@ -27,6 +30,7 @@ def _node_list(text: str) -> tuple[int, ...]:
 
 
 def handle_lab(args: argparse.Namespace) -> int:
+    choose_gl_platform()  # before mujoco is imported (by lab_world)
     import imageio.v3 as iio
 
     from embodied_adhoc.atomic import publish, temporary_sibling
@@ -61,7 +65,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     group = subparsers.add_parser(
         "render",
         help="render still images of the MuJoCo scenes",
-        description="Render still images of the MuJoCo scenes offscreen (set MUJOCO_GL=egl when headless).",
+        description="Render still images of the MuJoCo scenes offscreen (EGL when there is no display, unless "
+        "MUJOCO_GL is set).",
     )
     scenes = group.add_subparsers(dest="scene", metavar="SCENE")
     lab = scenes.add_parser(
@@ -69,7 +74,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="the HOTSPOT lab with robot, human and the three balls",
         description="Render the HOTSPOT lab (scenes/lab.xml) with the robot, the human and the balls of a task.",
     )
-    lab.add_argument("--out", required=True, help="output image (.png or .jpg)")
+    lab.add_argument("--out", type=output_file, required=True, help="output image (.png or .jpg)")
     lab.add_argument("--camera", choices=CAMERAS, default="overhead", help="camera (default: overhead)")
     lab.add_argument(
         "--task", type=_node_list, default=(0, 1, 2), help="ball nodes, e.g. 0,1,2 (default) or 1,2,3"
@@ -88,6 +93,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help='render quality "fast" (what videos use): no shadows, reflections or floor texture',
     )
-    lab.add_argument("--seed", type=int, default=0, help="seed of the world (default 0)")
+    lab.add_argument("--seed", type=seed, default=0, help="seed of the world, >= 0 (default 0)")
     lab.set_defaults(func=handle_lab)
     group.set_defaults(_parser=group)

@@ -10,9 +10,10 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
 
+from embodied_adhoc.commands.arguments import output_folder, seed
 from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
+from embodied_adhoc.gl import choose_gl_platform
 
 AGENTS = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
 EPILOG = """\
@@ -39,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     toxic.add_argument("--agent", choices=AGENTS, default="hotspot", help="decision agent (default hotspot)")
-    toxic.add_argument("--seed", type=int, default=0, help="seed of the episode (default 0)")
+    toxic.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
     toxic.add_argument("--task", type=int, default=None, metavar="K", help="true task index (default: drawn)")
     toxic.add_argument(
         "--robot-node", type=int, default=None, metavar="N", help="robot start node (default: drawn)"
@@ -74,7 +75,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     add_fault_arguments(toxic.add_argument_group("faults and localisation"))
     toxic.add_argument(
-        "--record", type=Path, default=None, metavar="DIR", help="write episode.mp4/.rrd, metrics.json"
+        "--record",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="write episode.mp4/.rrd, metrics.json",
     )
     toxic.add_argument("--video-fps", type=float, default=15.0, help="frames per second of the video (15)")
     toxic.add_argument(
@@ -105,12 +110,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def handle_toxic_waste(args: argparse.Namespace) -> int:
-    import os
-
-    # Headless by default: MuJoCo picks its GL backend when first imported, so decide before that.
-    if not os.environ.get("DISPLAY"):
-        os.environ.setdefault("MUJOCO_GL", "egl")
-        os.environ.setdefault("PYOPENGL_PLATFORM", "egl")
+    choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
     from embodied_adhoc.errors import ConfigError
     from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
     from embodied_adhoc.experiments.toxic_waste import fault_options

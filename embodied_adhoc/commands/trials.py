@@ -10,6 +10,7 @@ import argparse
 import json
 import sys
 
+from embodied_adhoc.commands.arguments import output_folder, seed
 from embodied_adhoc.experiments.registry import get_trial_domain, trial_domain_names
 
 EPILOG = """\
@@ -63,7 +64,7 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
         f"(default {','.join(domain.default_agents)})",
     )
     parser.add_argument("--episodes", type=int, default=32, help="episodes per agent (default 32)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the whole sweep (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the whole sweep, >= 0 (default 0)")
     parser.add_argument(
         "--max-steps",
         type=int,
@@ -76,7 +77,8 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
         "--workers",
         type=int,
         default=1,
-        help="parallel worker processes (default 1; 0 = one per CPU); results do not depend on it",
+        help="parallel worker processes (default 1; 0 = one per CPU; capped at the CPUs available); results do "
+        "not depend on it",
     )
     parser.add_argument(
         "--executor",
@@ -85,7 +87,11 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
         help="local process pool (default) or Ray (pip install 'embodied-adhoc[ray]')",
     )
     parser.add_argument(
-        "--out", default=None, metavar="DIR", help="store (and resume) the run in DIR, with plots"
+        "--out",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="store (and resume) the run in DIR, with plots",
     )
     parser.add_argument("--json", action="store_true", help="print only the JSON summary on stdout")
 
@@ -98,6 +104,7 @@ def handle(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.executors import worker_note
     from embodied_adhoc.experiments.runner import SweepConfig
 
     domain = get_trial_domain(args._trial_domain)
@@ -108,10 +115,22 @@ def handle(args: argparse.Namespace) -> int:
             f"--backend {args.backend!r}: choose one or more (comma-separated, once each) of {', '.join(domain.backends)}"
         )
     options = domain.options_from_args(args)
+    note = worker_note(args.workers)
+    if note:
+        print(f"embodied-adhoc: note: {note}", file=sys.stderr)
+    if "mujoco" in backends:
+        from embodied_adhoc.gl import choose_gl_platform
+
+        choose_gl_platform()  # before the MuJoCo backend imports mujoco (here or in forked workers)
     results = {}
     for backend in backends:
         config = SweepConfig(
-            domain.name, backend, options, parse_agents(args.agents), args.episodes, args.seed,
+            domain.name,
+            backend,
+            options,
+            parse_agents(args.agents),
+            args.episodes,
+            args.seed,
             _default_cap(domain.name, backend, options) if args.max_steps is None else args.max_steps,
         )
         out = None if args.out is None else Path(args.out) / (backend if len(backends) > 1 else "")

@@ -3,6 +3,11 @@ finish. Results do not depend on the backend or the number of workers (each tria
 
 A worker opens a domain session (models built and solved, env created) once per (domain, backend, options) and
 reuses it for every trial it runs (:func:`execute_job`).
+
+Signals: pool workers ignore SIGINT (a Ctrl-C reaches the whole terminal process group; only the parent reacts) and
+die on SIGTERM. When the parent stops early (Ctrl-C, SIGTERM raised as an exception by the CLI, an error in a
+trial) it terminates the workers at once: their running trials would be discarded anyway, and no worker outlives
+the command.
 """
 
 from __future__ import annotations
@@ -10,6 +15,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import signal
 from collections.abc import Iterator, Sequence
 
 from embodied_adhoc.errors import ConfigError
@@ -60,10 +66,28 @@ def execute_job(job: TrialJob) -> TrialResult:
     return run_trial(session, _env(job.domain, job.backend, job.options, job.max_steps), job)
 
 
+def available_cpus() -> int:
+    """CPUs this process may run on (its affinity mask where the OS has one, else the machine's count)."""
+    if hasattr(os, "sched_getaffinity"):
+        return len(os.sched_getaffinity(0)) or 1
+    return os.cpu_count() or 1
+
+
 def resolve_workers(workers: int) -> int:
+    """The number of worker processes for ``--workers``: 0 = one per CPU; more than the CPUs is capped to them
+    (extra processes only compete for the same cores; results do not depend on the count). The CLI tells the
+    user when it caps (:func:`worker_note`)."""
     if workers < 0:
         raise ConfigError(f"--workers must be >= 0 (0 = one per CPU), got {workers}")
-    return workers or (os.cpu_count() or 1)
+    return min(workers, available_cpus()) if workers else available_cpus()
+
+
+def worker_note(workers: int) -> str | None:
+    """The line to show when ``--workers`` is capped, else None."""
+    used = resolve_workers(workers)
+    if workers > used:
+        return f"--workers {workers}: using {used}, the number of CPUs available (more would only compete for them)"
+    return None
 
 
 def execute(jobs: Sequence[TrialJob], workers: int = 1, executor: str = "local") -> Iterator[TrialResult]:
@@ -88,17 +112,42 @@ def _execute_pool(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResul
     # fork keeps domains registered at run time (tests, notebooks); spawn elsewhere needs import-string domains.
     method = "fork" if "fork" in multiprocessing.get_all_start_methods() else "spawn"
     pool = ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)), mp_context=multiprocessing.get_context(method)
+        max_workers=min(workers, len(jobs)),
+        mp_context=multiprocessing.get_context(method),
+        initializer=_worker_signals,
     )
+    finished = False
     try:
         pending = {pool.submit(execute_job, job) for job in jobs}
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
                 yield future.result()
+        finished = True
     finally:
-        # On an interrupt or error: drop queued trials, let running ones end, keep what was yielded.
+        # Stopped early (interrupt, SIGTERM, a failed trial, the consumer closed us): what was yielded is kept;
+        # queued trials are dropped and running ones killed, so no worker outlives the sweep.
+        if not finished:
+            _terminate_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _worker_signals() -> None:
+    """Pool initializer: Ctrl-C is the parent's business; SIGTERM kills (a forked worker would otherwise inherit
+    the CLI's SIGTERM-as-exception handler and print a traceback)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _terminate_workers(pool) -> None:
+    # Python 3.14 has ProcessPoolExecutor.terminate_workers(); on 3.11 the processes are in ``_processes``.
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
+    for process in list((getattr(pool, "_processes", None) or {}).values()):
+        if process.is_alive():
+            process.terminate()
 
 
 def _execute_ray(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResult]:

@@ -108,7 +108,8 @@ def run_sweep(
 ) -> SweepResult:
     """Run (or resume, with ``out``) every (agent, episode) trial of ``config``; see the module docstring.
 
-    An interrupt (Ctrl-C) propagates after the trials that finished were written to ``out``.
+    An interrupt (Ctrl-C, or SIGTERM under the CLI) propagates after the trials that finished were written to
+    ``out`` and the worker processes were terminated.
     """
     started = time.perf_counter()
     domain = get_trial_domain(config.domain)
@@ -141,8 +142,9 @@ def run_sweep(
     ]
     curves: dict[tuple[str, int], list[float]] = {}
     bar = _progress_bar(len(jobs), config) if progress and jobs else None
+    results = execute(jobs, workers=workers, executor=executor)
     try:
-        for result in execute(jobs, workers=workers, executor=executor):
+        for result in results:
             rows[(result.agent, result.episode)] = (
                 store.append(result) if store else trial_row(result, spec_fields)
             )
@@ -151,6 +153,7 @@ def run_sweep(
             if bar is not None:
                 bar.update(1)
     finally:
+        results.close()  # stopped early: the executor terminates its workers now, not when garbage-collected
         if bar is not None:
             bar.close()
     if store is not None:

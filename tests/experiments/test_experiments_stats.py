@@ -82,6 +82,18 @@ def test_probability_of_improvement_is_rliables_mann_whitney_u():
     assert 0.0 <= low <= probability_of_improvement(a, b, lower_is_better=True) <= high <= 1.0
 
 
+@pytest.mark.parametrize("lower_is_better", [False, True])
+def test_improvement_interval_agrees_with_a_brute_force_bootstrap(lower_is_better):
+    rng = np.random.default_rng(8)
+    a, b = rng.integers(8, 20, size=24), rng.integers(9, 25, size=20)
+    replicates = [
+        probability_of_improvement(rng.choice(a, a.size), rng.choice(b, b.size), lower_is_better)
+        for _ in range(4000)
+    ]
+    reference = np.quantile(replicates, [0.025, 0.975])
+    assert improvement_interval(a, b, lower_is_better) == pytest.approx(tuple(reference), abs=0.03)
+
+
 def test_degenerate_samples():
     assert math.isnan(summarise_sample([]).mean)
     single = summarise_sample([7])
