@@ -9,6 +9,8 @@ teammates and apples on their cells). Total ``(N-1) + M + 1 (+1 for LBF)`` chann
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from embodied_adhoc.domains.grid_rules import GridBatch, GridRules, GridState
@@ -61,19 +63,34 @@ def observation_layers(rules: GridRules) -> np.ndarray:
     return np.array([[j for j in range(n) if j != i] + rest for i in range(n)], dtype=np.int64)
 
 
+_WINDOWS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _windows(rules: GridRules, view: int) -> np.ndarray:
+    """(N, R*C, channels, view, view): for observer ``i`` standing on flat cell ``c``, the flat index into one
+    state's :func:`_layers` of every channel and window cell (built once per grid and view)."""
+    tables = _WINDOWS.setdefault(rules, {})
+    if view not in tables:
+        cfg = rules.config
+        rows = _window_index(cfg.rows, view, cfg.toroidal)  # (R, view)
+        cols = _window_index(cfg.cols, view, cfg.toroidal)  # (C, view)
+        cell_rows, cell_cols = np.divmod(np.arange(cfg.rows * cfg.cols), cfg.cols)
+        plane = rows[cell_rows][:, :, None] * (cfg.cols + 1) + cols[cell_cols][:, None, :]  # (R*C, view, view)
+        channels = observation_layers(rules) * ((cfg.rows + 1) * (cfg.cols + 1))  # (N, channels)
+        tables[view] = channels[:, None, :, None, None] + plane[None, :, None, :, :]
+    return tables[view]
+
+
 def egocentric_batch(rules: GridRules, batch: GridBatch, observers: np.ndarray, view: int = 5) -> np.ndarray:
     """The observations of agents ``observers`` (B, K) in each of B states, ``(B, K, channels, view, view)``
-    (one padded world per state, K windows gathered at once)."""
+    (one world per state, all windows gathered by one flat index)."""
     if view < 1 or view % 2 == 0:
         raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
-    cfg = rules.config
     layers = _layers(rules, batch)
     env = np.arange(len(observers))[:, None]
-    cells = batch.agents[env, observers]  # (B, K, 2)
-    rows = _window_index(cfg.rows, view, cfg.toroidal)[cells[..., 0]][:, :, None, :, None]
-    cols = _window_index(cfg.cols, view, cfg.toroidal)[cells[..., 1]][:, :, None, None, :]
-    channels = observation_layers(rules)[observers][..., None, None]
-    return layers[env[..., None, None, None], channels, rows, cols]
+    cells = rules.flat(batch.agents[env, observers])  # (B, K)
+    index = _windows(rules, view)[observers, cells] + (env * layers[0].size)[..., None, None, None]
+    return layers.ravel()[index]
 
 
 def egocentric_observations(rules: GridRules, state: GridState, view: int = 5) -> np.ndarray:

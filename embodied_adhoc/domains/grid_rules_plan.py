@@ -105,17 +105,17 @@ def best_moves(cellbits: CellBits, neighbour_bits: np.ndarray, goal_bits: np.nda
     open_cells = cellbits.full ^ blocked
     around = neighbour_bits[..., 0] | neighbour_bits[..., 1] | neighbour_bits[..., 2] | neighbour_bits[..., 3]
     reach = np.broadcast_to(goal_bits, open_cells.shape)
-    layers = [reach]
+    touching = np.zeros(reach.shape, dtype=bool)
+    first_touch = reach  # the first layer that touches the start's neighbourhood (the goal's where none does)
     for _ in range(cellbits.cells):
+        touched = (reach & around) != cellbits.zero
+        first_touch = np.where(touched & ~touching, reach, first_touch)
+        touching |= touched
         grown = reach | (cellbits.expand(reach) & open_cells)
-        if (((reach & around) != cellbits.zero) | (grown == reach)).all():
+        if (touching | (grown == reach)).all():
             break  # every search touches its start's neighbourhood or cannot grow any more
-        layers.append(grown)
         reach = grown
-    touched = cellbits.has(np.stack(layers)[..., None], neighbour_bits)  # (layers, ..., 4)
-    codes = touched.astype(np.int64) @ MOVE_WEIGHTS
-    first = np.argmax(codes > 0, axis=0)  # the first layer touching a neighbour (0 if none does)
-    return np.take_along_axis(codes, first[None], axis=0)[0]
+    return cellbits.has(first_touch[..., None], neighbour_bits).astype(np.int64) @ MOVE_WEIGHTS
 
 
 def navigate(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, static: np.ndarray, obstacles: np.ndarray,
