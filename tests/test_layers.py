@@ -34,8 +34,13 @@ ALLOWED: dict[str, frozenset[str]] = {
     "experiments": frozenset(
         {"decision", "control", "domains", "teammates", "comms", "sim", "learning", "envs", "record"}
     ),
+    # the real-time lab and the browser live mode: an env subclass plus the episode loop and recorders
+    "live": frozenset(
+        {"decision", "control", "domains", "teammates", "comms", "sim", "envs", "record", "experiments"}
+    ),
     "commands": frozenset(
         {
+            "live",
             "decision",
             "control",
             "domains",

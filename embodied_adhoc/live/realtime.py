@@ -1,0 +1,299 @@
+"""The toxic-waste lab in real time: asynchronous decisions while physics and the human run continuously.
+
+:class:`RealtimeToxicWasteEnv` is ``EmbodiedAdhoc/ToxicWaste-v0`` (same actions, observations, encoding, reward,
+reset options, info and frame sink, so the one episode loop, the agents and the recorders run it unchanged) with
+a different notion of a step. In the turn-based env a step is a macro step of both teammates: the human's command
+is decided at its start and the step lasts until robot *and* human are done. Here:
+
+* the simulation advances control tick by control tick (``LabWorldConfig.control_period``, 20 ms) and is paced
+  by a :class:`RealtimeClock`: ``speed`` simulated seconds per wall-clock second (1 = real time, 10 = ten times
+  faster, None = as fast as the machine goes: the headless comparison);
+* the human is moved by its own driver (``live.humans``) every tick, independently of the robot: the scripted
+  cleaner decides whenever its own command is done, a participant walks with the keyboard;
+* ``step(action)`` starts the robot's macro action and returns when *that* action completes (the robot reached
+  its waypoint or gave up; "stay" after ``min_macro_seconds``; "locate human" when the answer came, or after
+  ``reply_timeout`` simulated seconds with no location heard), with the observation gathered meanwhile: the
+  localiser's area at completion, any RFID read since the previous decision, the answer heard. The agent then
+  decides; under a paced clock the wall time it took to decide passes in the simulation too (the robot stands
+  still, the human goes on): :meth:`step` first catches the simulation up to the clock.
+
+Nothing is random beyond the parent env's seeded streams; with ``speed=None`` and the scripted human an episode is
+a deterministic function of the seed (tested). Paced runs depend on wall-clock timing by design.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from embodied_adhoc import checks
+from embodied_adhoc.control.reference import wrap_angle
+from embodied_adhoc.domains.lab_graph import DISPOSED
+from embodied_adhoc.envs import contract
+from embodied_adhoc.envs.toxic_waste import BALL_STATUS, ToxicWasteEnv, _area
+from embodied_adhoc.errors import EmbodiedAdhocError
+from embodied_adhoc.live.humans import ScriptedHuman
+from embodied_adhoc.sim.lab_world import MacroStepResult
+
+__all__ = ["LiveStopped", "RealtimeClock", "RealtimeToxicWasteEnv"]
+
+
+class LiveStopped(EmbodiedAdhocError):
+    """The real-time loop was asked to stop (the server shut down or the participant ended the session)."""
+
+
+class RealtimeClock:
+    """Paces simulated time against ``time.perf_counter``: ``speed`` simulated seconds per wall second.
+
+    ``speed=None`` never waits. When the simulation falls more than ``max_lag`` wall seconds behind (the machine
+    cannot keep up), the clock re-anchors instead of racing to catch up and adds the skipped time to ``slipped``.
+    """
+
+    def __init__(self, speed: float | None, max_lag: float = 1.0, stop: threading.Event | None = None):
+        self.speed = None if speed is None else checks.number("speed", speed, 0.0, low_open=True)
+        self.max_lag = float(max_lag)
+        self.stop = stop or threading.Event()
+        self.slipped = 0.0
+        self._wall0 = self._sim0 = 0.0
+
+    def start(self, sim_time: float) -> None:
+        self._wall0, self._sim0, self.slipped = time.perf_counter(), float(sim_time), 0.0
+
+    def lag(self, sim_time: float) -> float:
+        """Wall seconds by which ``sim_time`` is late (negative: early); 0 when unpaced."""
+        if self.speed is None:
+            return 0.0
+        return time.perf_counter() - (self._wall0 + (sim_time - self._sim0) / self.speed)
+
+    def wait_for(self, sim_time: float) -> None:
+        """Sleep until ``sim_time`` is due; raise :class:`LiveStopped` if ``stop`` is set."""
+        if self.stop.is_set():
+            raise LiveStopped("the real-time loop was stopped")
+        late = self.lag(sim_time)
+        if late < 0:
+            if self.stop.wait(-late):
+                raise LiveStopped("the real-time loop was stopped")
+        elif late > self.max_lag:
+            self.slipped += late
+            self._wall0 += late
+
+
+class RealtimeToxicWasteEnv(ToxicWasteEnv):
+    """``ToxicWaste-v0`` with asynchronous decisions (module docstring). Extra arguments:
+
+    | argument | default | meaning |
+    |---|---|---|
+    | ``human`` | ``ScriptedHuman()`` | the human's driver (``live.humans``) |
+    | ``speed`` | 1.0 | simulated seconds per wall second; None = unpaced |
+    | ``reply_timeout`` | 20.0 | simulated seconds "locate human" waits for an answer before it hears none |
+    | ``tick_listener`` | None | called with the env after every control tick (simulation thread): live frames |
+    | ``stop`` | None | a ``threading.Event`` that ends the loop (:class:`LiveStopped`) |
+
+    Extra ``info`` keys: ``realtime_slip_s`` (wall seconds the clock skipped, 0 when it kept up),
+    ``reply_wait_s`` (simulated seconds the robot waited for an answer), ``decision_wait_s`` (simulated seconds
+    that passed while the agent decided, robot idle).
+    """
+
+    def __init__(
+        self,
+        human=None,
+        speed: float | None = 1.0,
+        reply_timeout: float = 20.0,
+        tick_listener: Callable[[RealtimeToxicWasteEnv], None] | None = None,
+        stop: threading.Event | None = None,
+        **kwargs,
+    ) -> None:
+        super().__init__(**kwargs)
+        self.human_driver = human if human is not None else ScriptedHuman()
+        self.clock = RealtimeClock(speed, stop=stop)
+        self.reply_timeout = checks.number("reply_timeout", reply_timeout, 0.0, low_open=True)
+        self.tick_listener = tick_listener
+        self.current_action: int | None = None
+        self.question_open = False
+        self._events: list[int] = []
+        self._wall_contact = False
+        self._ticks = 0
+        self._next_record_frame = 0.0
+
+    # ------------------------------------------------------------------ what the human drivers read
+    @property
+    def task_index(self) -> int:
+        return self._task
+
+    @property
+    def human_rng(self) -> np.random.Generator:
+        return self._human_rng
+
+    @property
+    def speech_rng(self) -> np.random.Generator:
+        return self._speech_rng
+
+    def true_robot_node(self, truth) -> int:
+        return _area(self.layout, truth.robot_pose, truth.robot_node)
+
+    def tick_walker(self, dt: float) -> None:
+        """Advance the walker's motion script one tick and apply its grasp/release events and pose."""
+        world = self.world
+        if world.human.finished:
+            return
+        for kind, ball in world.human.tick(dt, world._senses()):
+            world.data.eq_active[world.ids.grasp_welds[ball]] = kind == "grasp"
+        world._apply_human()
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        observation, info = super().reset(seed=seed, options=options)
+        self.current_action, self.question_open = None, False
+        self._events, self._wall_contact, self._ticks = [], False, 0
+        self._next_record_frame = self.world.data.time
+        self.human_driver.reset(self)
+        self.clock.start(self.world.data.time)
+        return observation, info
+
+    def step(self, action):
+        self._episode.check()
+        action = contract.action(
+            action, self.library.n_actions, "see the action table of the env's docstring"
+        )
+        lib, world, data = self.library, self.world, self.world.data
+        reward = float(lib.config.reward.of(np.array(self._status)))
+        decided_at = data.time
+        while self.clock.lag(data.time) > 0:  # the robot stood still while its agent decided
+            self._tick(None)
+        decision_wait = data.time - decided_at
+        target = self.move_target(action)
+        self._step_index += 1
+        self.current_action = action
+        controller = world.controller
+        if target is not None:
+            estimate = world.pose_estimate()
+            world.current_route = tuple(self.layout.route_from(estimate[:2], target))
+            controller.start(estimate, world.current_route)
+        else:
+            world.current_route = ()
+            controller.finished, controller.arrived = True, True
+        start = data.time
+        kidnaps_before = 0 if world.localiser is None else world.localiser.kidnaps
+        self._stall = (world.pose_estimate(), start, False)
+        asking = self.speech is not None and action == lib.locate_action
+        reply = None
+        if asking:
+            self.question_open = True
+            self.human_driver.ask(self, world.ground_truth().human_node)
+            reply = self.human_driver.reply(self)
+        try:
+            while True:
+                elapsed = data.time - start
+                answered = not asking or reply is not None or elapsed >= self.reply_timeout
+                if elapsed >= world.config.macro_timeout or (
+                    answered and controller.finished and elapsed >= world.config.min_macro_seconds
+                ):
+                    break
+                self._tick(elapsed)
+                if asking and reply is None:
+                    reply = self.human_driver.reply(self)
+                self.clock.wait_for(data.time)
+        finally:
+            self.current_action, self.question_open = None, False
+            data.ctrl[world.ids.wheel_actuators] = 0.0
+        if asking and reply is None and hasattr(self.human_driver, "close_question"):
+            self.human_driver.close_question()
+        return self._finish_step(action, target, reward, start, kidnaps_before, asking, reply, decision_wait)
+
+    # ------------------------------------------------------------------ internals
+    def _tick(self, elapsed: float | None) -> None:
+        """One control tick: robot controller (``elapsed`` since its macro action began; None = idle), human
+        driver, physics, sensing, RFID, frames. The loop body of ``LabWorld.step_macro``, one tick at a time."""
+        world, data, config = self.world, self.world.data, self.world.config
+        controller = world.controller
+        wheels = (0.0, 0.0)
+        if elapsed is not None and not controller.finished:
+            estimate = world.pose_estimate()
+            pose, since, _ = self._stall
+            if data.time - since >= config.stall_seconds:
+                moved = (
+                    np.hypot(estimate[0] - pose[0], estimate[1] - pose[1]) >= 0.1
+                    or abs(wrap_angle(estimate[2] - pose[2])) >= 0.2
+                )
+                if not moved:
+                    controller.finished, controller.arrived = True, False
+                self._stall = (estimate, data.time, not moved)
+            wheels = controller.update(elapsed, estimate)
+        data.ctrl[world.ids.wheel_actuators] = wheels
+        self.human_driver.tick(self, config.control_period)
+        world._physics(world.substeps)
+        world._sense()
+        self._ticks += 1
+        if self._ticks % world.sensor_ticks == 0:
+            self._events.extend(world.rfid.poll(data))
+            self._wall_contact = self._wall_contact or _wall_contact(world)
+        while self._frame_sink is not None and data.time >= self._next_record_frame - 1e-9:
+            self._on_frame(world)
+            self._next_record_frame += 1.0 / config.video_fps
+        if self.tick_listener is not None:
+            self.tick_listener(self)
+
+    def _finish_step(self, action, target, reward, start, kidnaps_before, asking, reply, decision_wait):
+        world, data = self.world, self.world.data
+        self._events.extend(world.rfid.poll(data))
+        wall_contact = self._wall_contact or _wall_contact(world)
+        events, self._events, self._wall_contact = tuple(self._events), [], False
+        truth = world.ground_truth()
+        reading = world.robot_node_reading()
+        if reading is not None:
+            self._robot_believed_node = reading
+        elif target is not None:
+            self._robot_believed_node = target
+        previous = self._status
+        self._status = tuple(BALL_STATUS[s] for s in truth.ball_states)
+        entered = any(a != DISPOSED and b == DISPOSED for a, b in zip(previous, self._status, strict=True))
+        heard, utterances, audio = None, [], None
+        if asking:
+            if reply is None:
+                utterances = ['robot: "Where are you?"', f"(no answer within {self.reply_timeout:g} s)"]
+            else:
+                heard, utterances, audio = reply.node, list(reply.lines), reply.audio_wav
+            if self.speech_failure > 0 and self._failure_rng.random() < self.speech_failure:
+                heard = None  # the reply was lost (noise, the human did not answer): no location heard
+                utterances = [*utterances, "(reply lost)"]
+        observation = self._observation(
+            reading, truth.robot_node, truth.human_node, heard, bool(events), action
+        )
+        self._steps += 1
+        terminated = all(s == DISPOSED for s in self._status)
+        self._episode.close_if(terminated)
+        controller, estimate = world.controller, world.pose_estimate()
+        result = MacroStepResult(
+            robot_arrived=controller.arrived,
+            odometry_node=world.odometry_node(),
+            rfid_events=events,
+            sim_seconds=float(data.time - start),
+            wall_contact=wall_contact,
+            true_robot_node=truth.robot_node,
+            human_node=truth.human_node,
+            human_succeeded=world.human.succeeded,
+            human_status=world.human.status,
+            timed_out=not controller.finished,
+            odometry_error=world.odometry_error(),
+            mujoco_warnings=0,
+            robot_node_reading=reading,
+            blocked=target is not None and not controller.arrived,
+            pose_error=float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
+            localisation_mode="off" if world.localiser is None else world.localiser.mode,
+            kidnaps=0 if world.localiser is None else world.localiser.kidnaps - kidnaps_before,
+        )
+        info = self._info(observation, truth, entered, result, utterances, audio)
+        info["human_command"] = world.human.status
+        info["realtime_slip_s"] = round(self.clock.slipped, 3)
+        info["reply_wait_s"] = round(float(data.time - start), 3) if asking else 0.0
+        info["decision_wait_s"] = round(float(decision_wait), 3)
+        return observation.to_vector(), reward, terminated, False, info
+
+
+def _wall_contact(world) -> bool:
+    from embodied_adhoc.sim.sensing import robot_wall_contact
+
+    return robot_wall_contact(world.data, world.ids)
