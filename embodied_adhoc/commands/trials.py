@@ -155,6 +155,7 @@ def _default_cap(domain_name: str, backend: str, options: dict) -> int:
 def _run_one(args: argparse.Namespace, config, out):
     """Run (or resume) one sweep; print its tables (or its JSON when it is the only one); write files to out."""
     from embodied_adhoc.atomic import atomic_write_text
+    from embodied_adhoc.experiments.executors import open_session
     from embodied_adhoc.experiments.runner import run_sweep
     from embodied_adhoc.experiments.summary import summary_json
     from embodied_adhoc.experiments.tables import comparison_table, summary_table
@@ -162,6 +163,9 @@ def _run_one(args: argparse.Namespace, config, out):
     result = run_sweep(config, out=out, workers=args.workers, executor=args.executor, progress=not args.json)
     summary = result.summary()
     document = summary_json(summary, config.describe())
+    timing = getattr(open_session(config.domain, config.backend, dict(config.options)), "timing", None)
+    if timing:  # seconds building the models and solving (or loading) policies, where the domain keeps them
+        document["timing"] = timing
     written = []
     if out is not None:
         from embodied_adhoc.experiments.plots import plot_entropy, plot_steps
