@@ -9,7 +9,10 @@
 2. physics overhead of one MuJoCo macro step (one grid step executed physically, controllers included) as a
    ratio to one raw ``mj_step`` of the same model, and the number of ``mj_step`` calls it makes.
 
-    MUJOCO_GL=egl .venv/bin/python scripts/bench_arenas.py [--seconds 3 --domain foraging]
+    MUJOCO_GL=egl .venv/bin/python scripts/bench_arenas.py [--seconds 3 --domain foraging --clock cpu|wall]
+
+Rates are per CPU second of this process by default (``--clock cpu``): on a shared machine other users' load
+changes wall-clock rates 2-3x within one run, CPU time much less.
 
 lbforaging is an optional reference (``pip install lbforaging==2.0.0``); without it the lbforaging row is
 skipped and our PettingZoo grid env becomes the reference.
@@ -34,17 +37,24 @@ class Args:
     seed: int = 0
     num_envs: int = 64
     """sub-envs of the vector env row"""
+    clock: str = "cpu"
+    """cpu: steps per CPU second of this process (fair on a shared, loaded machine; every env here runs on one
+    core); wall: per wall-clock second"""
+
+
+CLOCK = {"cpu": time.process_time, "wall": time.perf_counter}
+now = time.process_time
 
 
 def rate(step, reset, budget: float, minimum: int = 20) -> float:
-    """Steps per second of ``step()`` (``reset()`` on episode end) over ``budget`` seconds."""
+    """Steps per second of ``step()`` (``reset()`` on episode end) over ``budget`` seconds of the chosen clock."""
     reset()
-    steps, start = 0, time.perf_counter()
-    while steps < minimum or time.perf_counter() - start < budget:
+    steps, start = 0, now()
+    while steps < minimum or now() - start < budget:
         if step():
             reset()
         steps += 1
-    return steps / (time.perf_counter() - start)
+    return steps / (now() - start)
 
 
 def lbforaging_rate(args: Args) -> float | None:
@@ -66,6 +76,10 @@ def lbforaging_rate(args: Args) -> float | None:
 
 
 def main(args: Args) -> None:
+    global now
+    if args.clock not in CLOCK:
+        raise SystemExit(f"--clock {args.clock}: use cpu or wall")
+    now = CLOCK[args.clock]
     import gymnasium
     import mujoco
 
@@ -120,28 +134,75 @@ def main(args: Args) -> None:
     arena_env = gymnasium.make(ids[1]).unwrapped
     backend = arena_env.core.backend
     arena_env.reset(seed=1)
-    before_steps, before_time, macro = backend.physics_steps, time.perf_counter(), 0
-    while macro < 20 or time.perf_counter() - before_time < args.seconds / 3:
+    before_steps, before_time, macro = backend.physics_steps, now(), 0
+    while macro < 20 or now() - before_time < args.seconds / 3:
         if arena_env.step(int(rng.integers(5)))[2]:
             arena_env.reset(seed=next(seeds))
         macro += 1
-    macro_time = (time.perf_counter() - before_time) / macro
+    macro_time = (now() - before_time) / macro
     mj_steps_per_macro = (backend.physics_steps - before_steps) / macro
     results.append((f"{ids[1]} (MuJoCo), random ad hoc + scripted team", 1.0 / macro_time))
-    raw_start, raw_n = time.perf_counter(), 2000
+    raw_start, raw_n = now(), 2000
     mujoco.mj_step(backend.model, backend.data, raw_n)
-    raw = (time.perf_counter() - raw_start) / raw_n
+    raw = (now() - raw_start) / raw_n
     arena_env.close()
 
     reference_name, reference = results[0]
     print(f"{'env':62s} {'steps/s':>10s} {'ratio':>8s}")
     for name, value in results:
         print(f"{name:62s} {value:10.1f} {value / reference:8.3f}")
-    print(f"\nratios against: {reference_name}")
+    print(f"\nratios against: {reference_name}; clock: {args.clock}")
     print(f"MuJoCo macro step = {macro_time / raw:.0f} raw mj_step of the same model "
           f"({mj_steps_per_macro:.0f} mj_step calls per macro step, i.e. physics overhead "
           f"{macro_time / (mj_steps_per_macro * raw):.2f}x the physics it runs; "
           f"timestep {backend.model.opt.timestep} s)")
+    if args.domain == "pursuit":
+        hotspot_pursuit_overhead(args)
+
+
+def hotspot_pursuit_overhead(args: Args) -> None:
+    """Fig. 7.12 in the arena (``EmbodiedAdhoc/PursuitPairPomdp-v0``) driven by HOTSPOT: one macro step (the
+    POMDP draw, waypoints, controllers, physics, read-back, observation) against the raw ``mj_step`` calls it
+    drives, and the agent's own act + observe, measured in the same run."""
+    import gymnasium
+    import mujoco
+
+    from embodied_adhoc.decision.agents.factory import make_agent
+
+    env = gymnasium.make("EmbodiedAdhoc/PursuitPairPomdp-v0", max_episode_steps=10**6).unwrapped
+    agent = make_agent("hotspot", env.library)
+    seeds = iter(range(10**9))
+    env_time = agent_time = 0.0
+    macro, before_steps = 0, env.arena.physics_steps
+
+    def start() -> None:
+        env.reset(seed=next(seeds))
+        agent.reset(np.random.default_rng(macro))
+
+    start()
+    while macro < 20 or env_time + agent_time < args.seconds / 3:
+        t0 = now()
+        action = agent.act()
+        t1 = now()
+        _, _, terminated, _, info = env.step(action)
+        t2 = now()
+        agent.observe(action, info["observation_index"])
+        agent_time += (t1 - t0) + (now() - t2)
+        env_time += t2 - t1
+        macro += 1
+        if terminated:
+            start()
+    calls = (env.arena.physics_steps - before_steps) / macro
+    backend = env.arena.backend
+    raw_start, raw_n = now(), 2000
+    mujoco.mj_step(backend.model, backend.data, raw_n)
+    raw = (now() - raw_start) / raw_n
+    env.close()
+    macro_time = env_time / macro
+    print(f"HOTSPOT in the Fig. 7.12 arena (PursuitPairPomdp-v0), {macro} macro steps: a macro step "
+          f"{macro_time * 1e3:.1f} ms = {macro_time / raw:.0f} raw mj_step ({calls:.0f} mj_step calls per macro step: "
+          f"{macro_time / (calls * raw):.2f}x the physics it drives); HOTSPOT act + observe "
+          f"{agent_time / macro * 1e3:.2f} ms per step ({agent_time / env_time:.3f} of the macro step)")
 
 
 if __name__ == "__main__":

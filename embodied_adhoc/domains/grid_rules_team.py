@@ -95,8 +95,10 @@ class TeamPlanner:
         ``target + offset`` and the :func:`ring_goal` of every member cell, as flat cells."""
         cfg = self.rules.config
         code = (offsets[..., 0] + cfg.rows) * (2 * cfg.cols + 1) + offsets[..., 1] + cfg.cols
-        new = np.unique(code[self.offset_index[code] < 0])
-        for value in new.tolist():
+        columns = self.offset_index[code]
+        if (columns >= 0).all():
+            return columns
+        for value in np.unique(code[columns < 0]).tolist():
             offset = np.array(divmod(value, 2 * cfg.cols + 1)) - [cfg.rows, cfg.cols]
             targets = np.broadcast_to(self.cells[:, None, :], (len(self.cells), len(self.cells), 2))
             members = np.broadcast_to(self.cells[None, :, :], targets.shape)
