@@ -29,7 +29,7 @@ THESIS_ACCURACY = {"transcript_accuracy": 0.5862, "place_accuracy": 0.7777, "nod
 """Thesis Fig. 7.10: live accuracies of the original (online) pipeline, metrics 4-6."""
 
 SMOOTHING_FLOOR = 0.03
-"""Every confusion entry is raised to at least this, as the thesis's model loading did (hotspot-lab.md)."""
+"""Every confusion entry is raised to at least this, as the thesis's model loading did (docs/hotspot-original.md)."""
 
 
 @dataclass(frozen=True)

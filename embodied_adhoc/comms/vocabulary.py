@@ -1,6 +1,6 @@
 """The lab's place vocabulary: the five areas (nodes) and the words a person may use for each.
 
-Node ids follow the thesis (section 7.1, Fig. 7.4) and ``hotspot-lab.md``: 0 door, 1 open space,
+Node ids follow the thesis (section 7.1, Fig. 7.4) and ``docs/hotspot-original.md``: 0 door, 1 open space,
 2 robot station, 3 single workbench, 4 double workbench. Every other part of the communication module (phrase
 generator, recognition grammar, parser) is generated from this table, so adding a synonym here is enough.
 """

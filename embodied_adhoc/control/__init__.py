@@ -1,1 +1,4 @@
-"""control layer (see docs/architecture in README)."""
+"""Waypoint planning and tracking for the wheeled robots (ruckig + numpy; no mujoco import): takes poses, returns
+wheel speeds.
+
+Where this layer sits and what it may import: README, "Layout and conventions"."""

@@ -29,7 +29,7 @@ from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.errors import ConfigError
 
 THESIS_MATRIX = "data/speech_confusion_thesis.json"
-"""The matrix of the original implementation (hotspot-lab.md), smoothed with floor 0.03."""
+"""The matrix of the original implementation (docs/hotspot-original.md), smoothed with floor 0.03."""
 MEASURED_MATRIX = "data/speech_confusion_measured.json"
 """The matrix measured by ``embodied-adhoc speech eval`` (offline espeak-ng + pocketsphinx)."""
 DEFAULT_CONFUSION = "measured"

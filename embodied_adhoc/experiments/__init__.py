@@ -1,1 +1,4 @@
-"""experiments layer (see docs/architecture in README)."""
+"""The episode loop, the trial runner with its domain plug-ins and execution backends, statistics (bootstrap
+intervals, IQM, probability of improvement, Welch tests), tables and plots (docs/trials.md).
+
+Where this layer sits and what it may import: README, "Layout and conventions"."""

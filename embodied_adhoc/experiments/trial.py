@@ -3,7 +3,7 @@
 The loop is the project's one episode loop, :func:`embodied_adhoc.experiments.episode.run_episode_loop` (see
 :mod:`embodied_adhoc.experiments.registry` for the domain protocol that supplies env, agent and reset options).
 
-``steps`` counts the env steps taken (the original implementation counted one extra; see hotspot-lab.md); a
+``steps`` counts the env steps taken (the original implementation counted one extra; see docs/hotspot-original.md); a
 trial that hits the cap (or that the env truncates) reports the steps it took and ``success = False``.
 """
 

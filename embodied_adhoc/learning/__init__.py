@@ -1,1 +1,6 @@
-"""learning layer (see docs/architecture in README)."""
+"""Every torch piece lives here and only here: encoders and networks, PPO, the recurrent task/team classifier of
+ATLPO, world models, replay buffers, weights stored as safetensors (``torch.load(weights_only=True)`` only).
+Agents built on it implement the same ``Agent`` protocol as the tabular ones, so the trial runner does not know
+the difference.
+
+Where this layer sits and what it may import: README, "Layout and conventions"."""
