@@ -6,7 +6,7 @@ Three sweeps of the same episodes (tasks and start nodes drawn once from --seed)
 * ``no-communication``: the same agents without the "locate human" action (Fig. 7.11);
 * ``epsilon-0.3``: with communication, a human that fails to act with probability 0.3 (robustness).
 
-Prints our mean ± sd and 95 % CI beside the thesis numbers (hotspot-lab.md), the thesis's statistical claims
+Prints our mean ± sd and 95 % percentile-bootstrap CI beside the thesis numbers (docs/hotspot-original.md), the thesis's statistical claims
 with our p-values, and writes the runs (resumable CSVs) and plots to --out::
 
     .venv/bin/python scripts/reproduce_hotspot.py --out runs/reproduce_hotspot [--episodes 32 --seed 7]
@@ -25,7 +25,7 @@ from embodied_adhoc.experiments.registry import get_trial_domain
 from embodied_adhoc.experiments.runner import SweepConfig, SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.stats import welch_test
-from embodied_adhoc.experiments.tables import fmt, format_table, interval, mean_sd, p_value
+from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd, p_value
 
 AGENTS = ("hotspot", "known-task", "oracle", "random")
 SETTINGS = {  # name -> toxic-waste options
@@ -33,7 +33,7 @@ SETTINGS = {  # name -> toxic-waste options
     "no-communication": {"communication": False, "human_epsilon": 0.05},
     "epsilon-0.3": {"communication": True, "human_epsilon": 0.3},
 }
-# Thesis numbers (hotspot-lab.md; 32 simulated trials, cap 100): (mean, sd) of steps to finish.
+# Thesis numbers (docs/hotspot-original.md; 32 simulated trials, cap 100): (mean, sd) of steps to finish.
 THESIS = {
     ("communication", "hotspot"): (12.88, 1.87),
     ("communication", "known-task"): (11.81, 1.72),
@@ -71,7 +71,7 @@ def run_setting(args: Args, setting: str) -> SweepResult:
 
 def comparison_table(results: dict[str, SweepResult], markdown: bool) -> str:
     """Ours beside the thesis. The original code counted one step more than it took (its termination test read the
-    reward of the state before the transition: hotspot-lab.md), so "ours + 1" is the like-for-like column and the
+    reward of the state before the transition: docs/hotspot-original.md), so "ours + 1" is the like-for-like column and the
     Welch p-value (from summary statistics, n = 32 on both sides) compares it with the thesis's mean ± sd."""
     rows = []
     for setting, result in results.items():
@@ -94,7 +94,7 @@ def comparison_table(results: dict[str, SweepResult], markdown: bool) -> str:
                 f"{thesis[0]:.2f} ± {thesis[1]:.2f}" if thesis else "-",
                 p_value(p) if thesis else "-",
             ])  # fmt: skip
-    headers = ("setting", "agent", "steps (ours)", "95% CI", "ours + 1", "success", "identify", "final H",
+    headers = ("setting", "agent", "steps (ours)", f"steps {CI_HEADER}", "ours + 1", "success", "identify", "final H",
                "steps (thesis)", "p (ours + 1 vs thesis)")  # fmt: skip
     return format_table(headers, rows, markdown)
 

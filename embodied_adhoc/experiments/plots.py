@@ -89,7 +89,7 @@ def plot_steps(
             capsize=4,
             label=label,
         )
-    return _save_bars(figure, axes, names, "steps (mean, 95% CI)", title, path)
+    return _save_bars(figure, axes, names, "steps (mean, 95% bootstrap CI)", title, path)
 
 
 def plot_entropy(
@@ -145,4 +145,4 @@ def plot_settings(
             capsize=4,
             label=setting,
         )
-    return _save_bars(figure, axes, names, "steps to finish (mean, 95% CI)", title, path)
+    return _save_bars(figure, axes, names, "steps to finish (mean, 95% bootstrap CI)", title, path)

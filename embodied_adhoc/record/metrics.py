@@ -8,8 +8,9 @@ field                  meaning
 ``success``            all balls were disposed before the step cap
 ``outcome``            ``"success"``, ``"truncated"`` (step cap) or ``"interrupted"`` (Ctrl-C / error)
 ``steps``              macro steps taken
-``identify_step``      thesis Metric 2: first step from which the true task is the posterior's strict argmax
-                       to the end (0 = already at the prior); null if never, or the agent keeps no posterior
+``identify_step``      thesis Metric 2: first step from which the true task's posterior leads every other by
+                       more than 1e-6 to the end (0 = already at the prior; the caller's ``identify``, i.e.
+                       ``experiments.stats.identify_step``); null if never, or the agent keeps no posterior
 ``final_entropy``      normalised entropy of the final task posterior (null without posterior)
 ``wall_time_s``        wall-clock seconds of the whole episode (rendering and recording included)
 ``macro_step_time_s``  mean / median / max wall seconds per macro step, and the per-step list
