@@ -80,11 +80,13 @@ def _percentile_interval(replicates: np.ndarray, confidence: float) -> tuple[np.
     return low, high
 
 
-def _resample_counts(n: int, reps: int, rng: np.random.Generator) -> np.ndarray:
-    """How often each of ``n`` trials appears in each of ``reps`` resamples with replacement, shape (reps, n)."""
-    indices = rng.integers(0, n, size=(reps, n))
-    offsets = (indices + n * np.arange(reps)[:, None]).ravel()
-    return np.bincount(offsets, minlength=reps * n).reshape(reps, n)
+def _resample_counts(labels: np.ndarray, n_labels: int, reps: int, rng: np.random.Generator) -> np.ndarray:
+    """Resample the items (``labels[i]`` is item i's label in ``0..n_labels-1``) ``reps`` times with replacement and
+    count how often each label was drawn in each resample: float array of shape (reps, n_labels)."""
+    n = labels.size
+    drawn = labels[rng.integers(0, n, size=(reps, n))]
+    offsets = (drawn + n_labels * np.arange(reps)[:, None]).ravel()
+    return np.bincount(offsets, minlength=reps * n_labels).reshape(reps, n_labels).astype(np.float64)
 
 
 def _chunks(reps: int, width: int) -> list[int]:
@@ -175,20 +177,12 @@ def improvement_interval(
     rng = np.random.default_rng(seed)
     replicates = []
     for block in _chunks(reps, a.size + b.size):
-        counts_a = _value_counts(a_index, values.size, block, rng)
-        counts_b = _value_counts(b_index, values.size, block, rng)
+        counts_a = _resample_counts(a_index, values.size, block, rng)
+        counts_b = _resample_counts(b_index, values.size, block, rng)
         beaten = np.cumsum(counts_b, axis=1) - counts_b  # second's resampled values strictly worse than u_k
         replicates.append((counts_a * (beaten + 0.5 * counts_b)).sum(axis=1) / (a.size * b.size))
     low, high = _percentile_interval(np.concatenate(replicates), confidence)
     return float(low), float(high)
-
-
-def _value_counts(value_index: np.ndarray, n_values: int, reps: int, rng: np.random.Generator) -> np.ndarray:
-    """Per resample (rows), how often each distinct value (columns) was drawn, shape (reps, n_values)."""
-    n = value_index.size
-    drawn = value_index[rng.integers(0, n, size=(reps, n))]
-    offsets = (drawn + n_values * np.arange(reps)[:, None]).ravel()
-    return np.bincount(offsets, minlength=reps * n_values).reshape(reps, n_values).astype(np.float64)
 
 
 # ----------------------------------------------------------------------------------------------- comparisons
@@ -322,7 +316,7 @@ def mean_curve(
     if n > 1:
         rng = np.random.default_rng(seed)
         replicates = np.concatenate(
-            [_resample_counts(n, block, rng).astype(np.float64) @ padded / n for block in _chunks(reps, n)]
+            [_resample_counts(np.arange(n), n, block, rng) @ padded / n for block in _chunks(reps, n)]
         )
         # Each step's resampled means lie in that step's [min, max]; the clip removes floating-point rounding only.
         replicates = np.clip(replicates, padded.min(axis=0), padded.max(axis=0))
