@@ -106,6 +106,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     toxic.add_argument("--no-progress", action="store_true", help="no progress bar")
     toxic.set_defaults(func=handle_toxic_waste)
+    from embodied_adhoc.commands.run_arenas import register_arena_runs
+
+    register_arena_runs(domains)  # run pursuit (Fig. 7.12 on physics), run foraging
     parser.set_defaults(_parser=parser)
 
 

@@ -60,6 +60,13 @@ ENV_SPECS: list[EnvSpec] = [
     EnvSpec("EmbodiedAdhoc/PursuitPair-v0", "embodied_adhoc.envs.pursuit:PursuitEnv",
             "Fig. 7.12 two-predator pursuit in the MuJoCo arena",
             kwargs={"pairs": True, "backend": "mujoco"}, max_episode_steps=150, backend="mujoco"),
+    # issue 14: Fig. 7.12 with the pursuit POMDP's own dynamics and observations (HOTSPOT, ATPO, ... drive it)
+    EnvSpec("EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "embodied_adhoc.envs.pursuit_pomdp:PursuitPomdpEnv",
+            "Fig. 7.12 two-predator pursuit on the 5x5 torus, the pursuit-task POMDP as rules; Discrete(81) obs",
+            max_episode_steps=150),
+    EnvSpec("EmbodiedAdhoc/PursuitPairPomdp-v0", "embodied_adhoc.envs.pursuit_pomdp:PursuitPomdpEnv",
+            "Fig. 7.12 pursuit POMDP executed by robots in the MuJoCo arena; observation from the physical poses",
+            kwargs={"backend": "mujoco"}, max_episode_steps=150, backend="mujoco"),
 ]
 
 

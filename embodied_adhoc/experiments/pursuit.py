@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-from embodied_adhoc.experiments.foraging import GridTrialDomain
+from embodied_adhoc.experiments.pursuit_pairs import DOMAIN
 
-DOMAIN = GridTrialDomain("pursuit", "Predator-prey: 4 predators capture a random prey at N/S/W/E positions, "
-                         "teams tau0-2 (thesis ch. 6); --pairs for Fig. 7.12", ("tau0", "tau1", "tau2", "greedy", "aware"))
+__all__ = ["DOMAIN"]  # --pairs with the decision layer's agents (Fig. 7.12): experiments/pursuit_pairs.py

@@ -337,12 +337,27 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
         true_task=int(spec["task"]),
         identify=identify_step,
     )
+    return play_recorded_episode(
+        env, agent, session, spec, config, metrics, [_Metrics(metrics, library)],
+        (lambda files: _Recording(config, env, library, spec, files)) if recording else None, progress,
+    )
+
+
+def play_recorded_episode(env, agent, session, spec: dict, config, metrics, observers: list[EpisodeObserver],
+                          open_recorder: Callable[[dict], EpisodeObserver] | None,
+                          progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+    """Episode 0 of ``config.seed`` for ``config.agent`` (the trial runner's seeds) through the one loop, with
+    ``observers``, a recorder from ``open_recorder(files)`` (it adds its files; None: no recording) and a progress
+    callback; the recorder and the env are closed and ``metrics.json`` written even when the loop raises.
+    ``run toxic-waste`` and ``run pursuit`` share it."""
+    from embodied_adhoc.experiments import seeding
+
     files: dict[str, Path] = {}
-    observers: list[EpisodeObserver] = [_Metrics(metrics, library)]
-    recorder: _Recording | None = None
+    observers = list(observers)
+    recorder = None
     try:
-        if recording:
-            recorder = _Recording(config, env, library, spec, files)
+        if open_recorder is not None:
+            recorder = open_recorder(files)
             observers.append(recorder)
         if progress is not None:
             observers.append(_Progress(progress))
@@ -362,6 +377,6 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
                 recorder.close()
         finally:
             env.close()
-            if recording:
+            if open_recorder is not None:
                 files["metrics"] = metrics.write(Path(config.record_dir) / "metrics.json")
     return EpisodeOutcome(metrics.summary(), files, 0 if recorder is None else recorder.video.frame_count)

@@ -119,6 +119,10 @@ class GridArenaBackend:
         self.data.qpos[adr + 3 : adr + 7] = [math.cos(yaw / 2), 0, 0, math.sin(yaw / 2)]
         self.data.qvel[self.qvel_adr[robot] : self.qvel_adr[robot] + 6] = 0.0
 
+    def place(self, robot: int, cell: np.ndarray, yaw: float = math.pi / 2) -> None:
+        """Put ``robot`` at rest on ``cell``'s centre with heading ``yaw`` (a teleport: resets, wrapped moves)."""
+        self._place(robot, np.asarray(cell), float(yaw))
+
     def _park(self, robot: int, slot: int) -> None:
         """Move a captured prey out of the arena (beside the east wall)."""
         self._place(robot, np.array([slot, self.layout.cols + 1]))

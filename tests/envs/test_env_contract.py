@@ -14,6 +14,7 @@ from embodied_adhoc.errors import ConfigError
 
 IDS = [spec.id for spec in ENV_SPECS]
 MUJOCO = {spec.id for spec in ENV_SPECS if spec.backend == "mujoco"}
+POMDP_RULES = {"EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "EmbodiedAdhoc/PursuitPairPomdp-v0"}  # Fig. 7.12's POMDP
 LAB = {"EmbodiedAdhoc/ToxicWasteAbstract-v0", "EmbodiedAdhoc/ToxicWaste-v0"}
 SMALL = {"EmbodiedAdhoc/ToxicWaste-v0": {"width": 64, "height": 48}}  # small frames keep the physics test fast
 
@@ -87,7 +88,13 @@ def test_registered_cap_is_the_time_limit_and_make_overrides_it(env_id):
 def test_step_after_termination_raises(env_id):
     env = make(env_id)
     core = getattr(env.unwrapped, "core", None)
-    if core is None:  # the lab: a human who never fails, and a robot that follows it (see test_lab_abstract_env)
+    if env_id in POMDP_RULES:  # the oracle's policy (value iteration on the true task's MDP) captures the prey
+        from embodied_adhoc.decision.agents.factory import mdp_q_values
+
+        q_values = mdp_q_values(env.unwrapped.library)[0]
+        env.reset(seed=0, options={"task": 0})
+        policy = lambda: int(q_values[env.unwrapped.state].argmax())  # noqa: E731
+    elif core is None:  # the lab: a human who never fails, and a robot that follows it (see test_lab_abstract_env)
         env = make(env_id, human_epsilon=0.0)
         env.reset(seed=0, options={"task": 0, "robot_node": 0, "human_node": 0})
         actions = iter((3, 3, 0, 3, 3, 1, 3, 3))
@@ -105,7 +112,7 @@ def test_step_after_termination_raises(env_id):
     for _ in range(3):
         with pytest.raises(EpisodeOverError):
             env.step(0)
-    if core is not None:
+    if core is not None or env_id in POMDP_RULES:
         assert total == 1.0  # the grid pays once, at the end, and nothing for refused steps after it
     with pytest.raises(EpisodeOverError):  # the env itself, without gymnasium's wrappers
         env.unwrapped.step(0)
@@ -130,7 +137,7 @@ def test_unwrapped_env_refuses_step_before_reset(env_id):
     ],
 )
 def test_unknown_kwargs_are_refused(env_id, kwargs, match):
-    if env_id in LAB and "toroidl" in kwargs:
+    if (env_id in LAB or env_id in POMDP_RULES) and "toroidl" in kwargs:
         match = "unknown keyword 'toroidl'"
     with pytest.raises(ConfigError, match=match):
         make(env_id, **kwargs)
@@ -172,6 +179,8 @@ def test_wrongly_typed_reset_options_are_refused(env):
     good = {"task": np.int64(1), "robot_node": np.uint8(2)} if lab else {"task": np.int32(2), "team": "tau1"}
     if "Pair" in env_id:
         good["team"] = "greedy"
+    if env_id in POMDP_RULES:  # the task is the only option of both kinds (no teams: the library's teammate)
+        good = {"task": np.int32(2)}
     _, info = env.reset(seed=0, options=good)
     assert info["task"] == (1 if lab else 2)
 

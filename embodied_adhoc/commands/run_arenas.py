@@ -1,0 +1,121 @@
+"""``embodied-adhoc run pursuit`` (Fig. 7.12 on physics, recorded) and ``run foraging`` (the ATLPO agent's arena).
+
+Registered under ``run`` by :mod:`embodied_adhoc.commands.run` (one call, :func:`register_arena_runs`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from embodied_adhoc.commands.arguments import output_folder, seed
+from embodied_adhoc.gl import choose_gl_platform
+
+__all__ = ["ATLPO_TRAIN_COMMAND", "register_arena_runs"]
+
+PURSUIT_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa", "random")
+ATLPO_TRAIN_COMMAND = "embodied-adhoc train atlpo --domain foraging --set task --out DIR"
+EPILOG = """\
+examples:
+  embodied-adhoc run pursuit --agent hotspot --seed 0 --record runs/pursuit
+  embodied-adhoc run pursuit --agent atpo --task 3 --record runs/pursuit-atpo
+  rerun runs/pursuit/episode.rrd
+"""
+
+
+def register_arena_runs(domains: argparse._SubParsersAction) -> None:
+    pursuit = domains.add_parser(
+        "pursuit",
+        help="Fig. 7.12: a decision-layer agent (HOTSPOT, ATPO, ...) as a predator robot in the MuJoCo arena",
+        description="One episode of EmbodiedAdhoc/PursuitPairPomdp-v0: the agent's robot and a greedy teammate "
+        "robot must capture the prey robot at the task's pair of cells (N+S, W+E, SW+NE, NW+SE), which the agent "
+        "does not know. Episode 0 of 'trials pursuit --pairs --backend mujoco --seed S' for the same agent.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    pursuit.add_argument("--agent", choices=PURSUIT_AGENTS, default="hotspot", help="decision agent (hotspot)")
+    pursuit.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
+    pursuit.add_argument("--task", type=int, default=None, metavar="K",
+                         help="true task 1..4 (N+S, W+E, SW+NE, NW+SE; default: drawn)")
+    pursuit.add_argument("--max-steps", type=int, default=150, help="step cap (default 150, Fig. 7.12's)")
+    pursuit.add_argument("--record", type=output_folder, default=None, metavar="DIR",
+                         help="write episode.mp4/.rrd, metrics.json")
+    pursuit.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
+    pursuit.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
+    pursuit.add_argument("--size", type=int, default=480, help="video width and height in pixels, even (480)")
+    pursuit.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
+    pursuit.add_argument("--json", action="store_true", help="print the summary as JSON")
+    pursuit.add_argument("--no-progress", action="store_true", help="no progress bar")
+    pursuit.set_defaults(func=handle_pursuit)
+
+    foraging = domains.add_parser(
+        "foraging",
+        help="level-based foraging in the MuJoCo arena with the ATLPO agent (needs a pre-trained library)",
+        description="One episode of EmbodiedAdhoc/Foraging-v0 driven by the ATLPO agent of the ATLPO issue.",
+    )
+    foraging.add_argument("--seed", type=seed, default=0, help="seed of the episode (default 0)")
+    foraging.add_argument("--record", type=output_folder, default=None, metavar="DIR", help="recording folder")
+    foraging.set_defaults(func=handle_foraging)
+
+
+def handle_pursuit(args: argparse.Namespace) -> int:
+    choose_gl_platform()
+    from embodied_adhoc.experiments.recorded_pursuit import PursuitEpisodeConfig, run_pursuit_episode
+
+    config = PursuitEpisodeConfig(
+        agent=args.agent, seed=args.seed, task=args.task, max_steps=args.max_steps, record_dir=args.record,
+        video_fps=args.video_fps, video_speed=args.video_speed, size=args.size, video_overlay=not args.no_overlay,
+    )
+    bar = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=args.max_steps, desc=f"pursuit {args.agent}", unit="step", file=sys.stderr)
+
+    def progress(step: int, info: dict) -> None:
+        if bar is not None:
+            bar.set_postfix_str(f"sim {info['sim_time']:.0f}s")
+            bar.update(1)
+
+    try:
+        outcome = run_pursuit_episode(config, progress)
+        if bar is not None and outcome.metrics["success"]:
+            from embodied_adhoc.commands.run import finish_progress
+
+            finish_progress(bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = {k: v for k, v in outcome.metrics.items() if k != "per_step"}
+    summary["files"] = {name: str(path) for name, path in outcome.files.items()}
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    identify = summary["identify_step"]
+    entropy = summary["final_entropy"]
+    step_time = summary["macro_step_time_s"]["mean"]
+    lines = [
+        f"outcome:        {summary['outcome']} ({'prey captured' if summary['success'] else 'not captured'})",
+        f"steps:          {summary['steps']}",
+        f"identified:     {'never' if identify is None else f'at step {identify}'} (true task {summary['true_task']})",
+        f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised task-belief entropy)",
+        f"physics:        {summary['physics_mismatches']} step(s) where physics did not execute the drawn move",
+        f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated, "
+        f"{float('nan') if step_time is None else step_time:.2f} s wall per macro step",
+    ]
+    lines += [f"{name + ':':<16}{path}" for name, path in summary["files"].items()]
+    print("\n".join(lines))
+    return 0
+
+
+def handle_foraging(args: argparse.Namespace) -> int:
+    """Refused: the package ships no pre-trained ATLPO library (``assets/`` holds none) and the arena run of the
+    ATLPO agent is not built; the message names the command that trains a library."""
+    from embodied_adhoc.errors import ConfigError
+
+    raise ConfigError(
+        "run foraging drives the arena with the ATLPO agent, which needs a pre-trained policy library: none is "
+        f"shipped with this installation. Train one with `{ATLPO_TRAIN_COMMAND}` and evaluate it on the grid twin "
+        "with scripts/reproduce_atlpo.py (the physics run of ATLPO is not built yet)"
+    )

@@ -1,0 +1,219 @@
+"""One recorded Fig. 7.12 pursuit episode on physics: what ``embodied-adhoc run pursuit`` runs.
+
+Seeds, episode draw, agent and loop are the trial runner's (the ``pursuit --pairs`` POMDP domain of
+:mod:`embodied_adhoc.experiments.pursuit_pairs` and :func:`~embodied_adhoc.experiments.episode.run_episode_loop`),
+so ``run pursuit --seed S`` replays episode 0 of ``trials pursuit --pairs --backend mujoco --seed S`` for the same
+agent. With ``record_dir`` it writes ``episode.mp4`` (overhead view with step, action, observation and task
+posterior), ``episode.rrd`` (robot poses, posterior bars, entropy, observations, actions, overhead frames) and
+``metrics.json``. Recorders are closed in ``finally``: an interrupted run keeps what it finished.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord
+from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, play_recorded_episode
+
+__all__ = ["PursuitEpisodeConfig", "describe_pursuit_observation", "run_pursuit_episode"]
+
+ACTION_NAMES = ("up", "down", "left", "right", "stay")
+NEIGHBOUR_NAMES = ("NW", "N", "NE", "W", "here", "E", "SW", "S", "SE")
+ROBOT_LABELS = ("ad hoc", "teammate", "prey")
+ROBOT_COLOURS = ((240, 140, 20), (40, 90, 220), (220, 40, 40))
+
+
+@dataclass(frozen=True)
+class PursuitEpisodeConfig:
+    """What one ``run pursuit`` episode is (CLI flags map one to one)."""
+
+    agent: str = "hotspot"
+    seed: int = 0
+    task: int | None = None  # 1..4 (N+S, W+E, SW+NE, NW+SE); None: drawn
+    max_steps: int = 150
+    record_dir: Path | None = None
+    video_fps: float = 12.0
+    video_speed: float = 2.0  # simulated seconds per second of video
+    video_hold: float = 1.0
+    size: int = 480  # square video, pixels (even)
+    video_overlay: bool = True
+    rerun_camera_hz: float = 2.0
+
+
+def describe_pursuit_observation(observation_index: int) -> str:
+    """``z = 9 t + p`` in words: where the teammate and the prey were seen in the 3x3 neighbourhood."""
+    if observation_index < 0:
+        return "nothing yet"
+    mate, prey = divmod(int(observation_index), 9)
+
+    def seen(cell: int) -> str:
+        return "unseen" if cell == 4 else NEIGHBOUR_NAMES[cell]
+
+    return f"teammate {seen(mate)}, prey {seen(prey)}"
+
+
+class _Metrics(EpisodeObserver):
+    def __init__(self, metrics):
+        self.metrics = metrics
+
+    def episode_started(self, info: dict, task_posterior) -> None:
+        self.metrics.start_episode(task_posterior)
+
+    def step_started(self, step: int) -> None:
+        self.metrics.start_step()
+
+    def step_finished(self, record: StepRecord) -> None:
+        from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
+
+        posterior = record.task_posterior
+        entropy = None if posterior is None else max(0.0, float(normalised_entropy(posterior)))
+        self.metrics.end_step(record.action, describe_pursuit_observation(record.observation_index), record.reward,
+                              record.info["sim_time"], posterior, entropy)
+        self.metrics.per_step[-1].update(cells=record.info["cells"], state=int(record.info["state"]),
+                                         intended_state=int(record.info["intended_state"]))
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        self.metrics.finish(success=trace.success, truncated=trace.truncated)
+
+
+class _Recording(EpisodeObserver):
+    """Video (frames during motion at ``video_fps / video_speed`` per simulated second) and rerun."""
+
+    def __init__(self, config: PursuitEpisodeConfig, env, task_names, files: dict[str, Path]):
+        from embodied_adhoc.record.arena_recorder import ArenaRerunRecorder
+        from embodied_adhoc.record.video import VideoWriter
+
+        self.config, self.env, self.task_names = config, env, task_names
+        folder = Path(config.record_dir)
+        folder.mkdir(parents=True, exist_ok=True)
+        files["video"], files["rerun"] = folder / "episode.mp4", folder / "episode.rrd"
+        self.video = VideoWriter(files["video"], config.size, config.size, fps=config.video_fps)
+        self.rerun = ArenaRerunRecorder(files["rerun"], recording_name=f"pursuit {config.agent} seed {config.seed}")
+        self.arena = env.unwrapped.arena
+        layout = self.arena.backend.layout
+        self.rerun.log_cells(layout.rows, layout.cols, layout.cell)
+        self.hud: dict[str, str] = {}
+        self.step = 0
+        self._frame_period = config.video_speed / config.video_fps
+        self._camera_period = 1.0 / config.rerun_camera_hz if config.rerun_camera_hz > 0 else float("inf")
+        self._next_frame = self._next_camera = 0.0
+        self.arena.backend.on_tick = self._on_tick
+
+    def _overlay(self) -> list[str] | None:
+        if not self.config.video_overlay:
+            return None
+        return [self.hud[k] for k in ("action", "observed", "posterior") if k in self.hud] + [
+            f"t = {self.arena.sim_time:.1f} s"]
+
+    def _frame(self, force: bool = False, repeat: int = 1) -> None:
+        sim_time = self.arena.sim_time
+        if not force and sim_time + 1e-9 < self._next_frame:
+            return
+        self._next_frame = sim_time + self._frame_period
+        frame = self.arena.render_top(self.config.size)
+        self.video.write(frame, self._overlay(), repeat=repeat)
+        self.rerun.set_time(self.step, sim_time)
+        self.rerun.log_robots(self.arena.poses(), ROBOT_LABELS, ROBOT_COLOURS)
+        if force or sim_time + 1e-9 >= self._next_camera:
+            self.rerun.log_camera("overhead", frame)
+            self._next_camera = sim_time + self._camera_period
+
+    def _on_tick(self, _seconds_into_step: float) -> None:
+        self._frame()
+
+    def _posterior(self, posterior, info: dict) -> None:
+        from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
+
+        if posterior is None:
+            self.hud.pop("posterior", None)
+            return
+        names = [name.split(":")[-1] for name in self.task_names]
+        self.hud["posterior"] = "P(task): " + "  ".join(f"{n} {p:.2f}" for n, p in zip(names, posterior, strict=True))
+        self.rerun.log_belief(posterior, max(0.0, float(normalised_entropy(posterior))))
+
+    def episode_started(self, info: dict, task_posterior) -> None:
+        self.rerun.set_time(0, info["sim_time"])
+        self.hud["action"] = f"{self.config.agent} | true task {info['task_name'].split(':')[-1]} | step 0"
+        self._posterior(task_posterior, info)
+        self.rerun.log_text("events", f"start: cells (ad hoc, teammate, prey) {info['cells']}, true task "
+                                      f"{info['task_name']}, library {', '.join(self.task_names)}")
+        self._frame(force=True)
+
+    def action_chosen(self, step: int, action: int) -> None:
+        self.step = step
+        self.hud["action"] = f"{self.config.agent} | step {step}: {ACTION_NAMES[action]}"
+        self.rerun.set_time(step, self.arena.sim_time)
+        self.rerun.log_text("actions", f"step {step}: {ACTION_NAMES[action]}")
+
+    def step_finished(self, record: StepRecord) -> None:
+        description = describe_pursuit_observation(record.observation_index)
+        self.rerun.set_time(record.step, record.info["sim_time"])
+        self.rerun.log_text("observations", f"step {record.step}: z={record.observation_index} ({description})")
+        if record.info["state"] != record.info["intended_state"]:
+            self.rerun.log_text("events", f"step {record.step}: physics did not execute the drawn move "
+                                          f"(state {record.info['state']}, drawn {record.info['intended_state']})",
+                                level="WARN")
+        self.hud["observed"] = f"observed z={record.observation_index}: {description}"
+        self._posterior(record.task_posterior, record.info)
+        self._frame(force=True)
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        outcome = "captured" if trace.success else "not captured"
+        self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
+        self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
+        self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
+
+    def close(self) -> None:
+        self.arena.backend.on_tick = None
+        try:
+            self.video.close()
+        finally:
+            self.rerun.close()
+
+
+def run_pursuit_episode(config: PursuitEpisodeConfig,
+                        progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+    """Run (and, with ``config.record_dir``, record) one physics episode; ``progress(step, info)`` per step."""
+    import gymnasium
+
+    from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.pursuit_pairs import (
+        ENV_IDS,
+        POMDP_AGENTS,
+        PursuitPairsSession,
+        pomdp_options,
+    )
+    from embodied_adhoc.experiments.registry import get_trial_domain
+    from embodied_adhoc.experiments.stats import identify_step
+    from embodied_adhoc.record.metrics import EpisodeMetrics
+
+    if config.agent not in POMDP_AGENTS + ("random",):
+        raise ConfigError(f"--agent {config.agent}: choose from {', '.join(POMDP_AGENTS + ('random',))}")
+    if config.max_steps < 1:
+        raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
+    if not (config.video_fps > 0 and config.video_speed > 0 and config.size >= 16 and config.size % 2 == 0):
+        raise ConfigError(f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
+                          f"--size ({config.size}) even and >= 16")
+    options = pomdp_options(config.task)
+    spec = get_trial_domain("pursuit").episode_spec(options, seeding.episode_rng(config.seed, 0))
+    session = PursuitPairsSession("mujoco", options)
+    recording = config.record_dir is not None
+    env = gymnasium.make(ENV_IDS["mujoco"], max_episode_steps=int(config.max_steps), disable_env_checker=True,
+                         render_mode="rgb_array" if recording else None)
+    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
+    metrics = EpisodeMetrics(
+        config={"command": "run pursuit", "agent": config.agent, "seed": config.seed, "spec": spec,
+                "options": options, "max_steps": config.max_steps, "env": ENV_IDS["mujoco"]},
+        true_task=int(spec["task"]),
+        identify=identify_step,
+    )
+    outcome = play_recorded_episode(
+        env, agent, session, spec, config, metrics, [_Metrics(metrics)],
+        (lambda files: _Recording(config, env, session.task_names, files)) if recording else None, progress,
+    )
+    outcome.metrics["physics_mismatches"] = sum(r["state"] != r["intended_state"] for r in metrics.per_step)
+    return outcome
+

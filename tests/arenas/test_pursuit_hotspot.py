@@ -1,0 +1,143 @@
+"""Fig. 7.12 on both backends: the pursuit POMDP as the arena's rules, HOTSPOT driving a physics episode."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import gymnasium
+import numpy as np
+import pytest
+
+import embodied_adhoc.envs  # noqa: F401
+from embodied_adhoc.decision.agents.factory import make_agent
+from embodied_adhoc.envs.pursuit_pomdp import (
+    MOVES,
+    cells_of_state,
+    offset_index,
+    pursuit_pair_library,
+    state_index,
+)
+from embodied_adhoc.errors import ConfigError
+
+GRID, PHYSICS = "EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "EmbodiedAdhoc/PursuitPairPomdp-v0"
+
+
+def test_cells_and_states_agree_with_the_library():
+    """Every live library state maps to cells and back, from any agent cell; every transition of the library
+    moves the teammate and the prey by one of the five moves (the library's dynamics, read as robot moves)."""
+    library = pursuit_pair_library()
+    live = np.arange(library.absorbing_state)
+    rng = np.random.default_rng(0)
+    for x in live:
+        agent = rng.integers(5, size=2)
+        assert state_index(cells_of_state(x, agent)) == x
+    move_indices = {int(offset_index(m)) for m in MOVES}
+    for pomdp in library.pomdps:
+        for a in range(5):
+            matrix = pomdp.transitions[a].tocoo()
+            keep = (matrix.row < library.absorbing_state) & (matrix.col < library.absorbing_state)
+            for x, y in zip(matrix.row[keep][::7], matrix.col[keep][::7], strict=True):
+                before = cells_of_state(x, np.array([2, 2]))
+                after = cells_of_state(y, (np.array([2, 2]) + MOVES[a]) % 5)
+                for robot in (1, 2):
+                    assert int(offset_index(after[robot] - before[robot])) in move_indices
+
+
+@pytest.mark.parametrize("env_id", [GRID, PHYSICS])
+def test_observations_come_from_the_pomdps_observation_rows(env_id):
+    env = gymnasium.make(env_id)
+    library = env.unwrapped.library
+    _, info = env.reset(seed=4, options={"task": 2})
+    rng = np.random.default_rng(1)
+    for _ in range(8):
+        action = int(rng.integers(5))
+        z, _, terminated, truncated, info = env.step(action)
+        assert z == info["observation_index"]
+        assert library.pomdps[2].observations[action][info["state"], z] > 0.0
+        assert info["state"] == state_index(np.array(info["cells"]))
+        if terminated or truncated:
+            break
+    env.close()
+
+
+def test_noise_free_observation_is_the_neighbourhood():
+    env = gymnasium.make(GRID, noise=0.0)
+    env.reset(seed=0, options={"task": 0, "start": 0, "agent_cell": [2, 2]})
+    _, _, _, _, info = env.step(4)
+    cells = np.array(info["cells"])
+    expected = []
+    for robot in (1, 2):
+        d = (cells[robot] - cells[0] + 2) % 5 - 2
+        expected.append(3 * (d[0] + 1) + d[1] + 1 if np.abs(d).max() <= 1 and np.abs(d).sum() > 0 else 4)
+    assert info["observation_index"] == 9 * expected[0] + expected[1]
+
+
+def test_same_seed_same_episode_on_both_backends():
+    """Same draws on both backends: with physics executing every move, the state sequences are identical."""
+    histories = []
+    for env_id in (GRID, PHYSICS):
+        env = gymnasium.make(env_id)
+        _, info = env.reset(seed=11, options={"task": 1})
+        states = [info["state"]]
+        for action in (0, 3, 3, 1, 4, 2):
+            _, _, terminated, _, info = env.step(action)
+            states.append(info["state"])
+            if terminated:
+                break
+        histories.append(states)
+        env.close()
+    assert histories[0] == histories[1]
+
+
+def test_hotspot_captures_in_physics_and_its_posterior_concentrates_on_the_true_task():
+    env = gymnasium.make(PHYSICS)
+    library = env.unwrapped.library
+    agent = make_agent("hotspot", library)
+    true_task = 3
+    _, info = env.reset(seed=5, options={"task": true_task})
+    agent.reset(np.random.default_rng(5))
+    assert np.allclose(agent.task_posterior, 0.25)
+    terminated = False
+    for _ in range(150):
+        action = agent.act()
+        _, reward, terminated, truncated, info = env.step(action)
+        agent.observe(action, info["observation_index"])
+        assert info["state"] == info["intended_state"]  # physics executed the drawn move
+        if terminated or truncated:
+            break
+    env.close()
+    assert terminated and reward == 1.0
+    assert agent.task_posterior.argmax() == true_task
+    assert agent.task_posterior[true_task] > 0.9
+
+
+def test_bad_reset_options_and_kwargs_are_refused():
+    env = gymnasium.make(GRID)
+    with pytest.raises(ConfigError, match="start"):
+        env.reset(seed=0, options={"task": 0, "start": 625})  # the absorbing state
+    with pytest.raises(ConfigError, match="task"):
+        env.reset(seed=0, options={"task": 4})
+    with pytest.raises(ConfigError):
+        gymnasium.make(GRID, physics=object())
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", *args], capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_trials_pairs_with_decision_agents_and_refusals():
+    done = _cli("trials", "pursuit", "--pairs", "--agents", "hotspot,oracle", "--episodes", "2", "--json")
+    assert done.returncode == 0, done.stderr
+    assert '"hotspot"' in done.stdout and '"rules": "pomdp"' in done.stdout
+    mixed = _cli("trials", "pursuit", "--pairs", "--agents", "original,hotspot", "--episodes", "1")
+    assert mixed.returncode == 2 and "original" in mixed.stderr
+    unpaired = _cli("trials", "pursuit", "--agents", "hotspot", "--episodes", "1")
+    assert unpaired.returncode == 2 and "--pairs" in unpaired.stderr
+
+
+def test_run_foraging_is_refused_with_the_training_command():
+    done = _cli("run", "foraging")
+    assert done.returncode == 2
+    assert "embodied-adhoc train atlpo --domain foraging" in done.stderr
