@@ -3,6 +3,8 @@
 import gymnasium
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.vector_grid import GRID_IDS, GridVectorEnv
@@ -74,3 +76,18 @@ def test_vector_env_draws_listed_environments():
     assert pairs == {(2, "tau0"), (3, "tau2")}
     with pytest.raises(ConfigError, match="environments"):
         GridVectorEnv("foraging", 2, environments=[(5, "tau0")])
+
+
+@settings(max_examples=8, deadline=None)
+@given(domain=st.sampled_from(["foraging", "pursuit"]), rows=st.integers(5, 7), cols=st.integers(5, 7),
+       n_agents=st.integers(2, 4), toroidal=st.booleans(), seed=st.integers(0, 10**6))
+def test_vector_env_matches_the_single_env_on_random_configurations(domain, rows, cols, n_agents, toroidal, seed):
+    kwargs = {"rows": rows, "cols": cols, "n_agents": n_agents, "toroidal": toroidal}
+    fast = GridVectorEnv(domain, 4, max_episode_steps=15, **kwargs)
+    slow = reference_vector(domain, 4, 15, kwargs)
+    assert np.array_equal(fast.reset(seed=seed)[0], slow.reset(seed=seed)[0])
+    actions_rng = np.random.default_rng(seed)
+    for _ in range(40):
+        actions = actions_rng.integers(0, 5, 4)
+        for mine, theirs in zip(fast.step(actions)[:4], slow.step(actions)[:4], strict=True):
+            assert np.array_equal(mine, theirs)
