@@ -35,6 +35,7 @@ class CellBits:
         self.wrap_rows, self.wrap_cols = self.as_int(cfg.cols * (cfg.rows - 1)), self.as_int(cfg.cols - 1)
         self.one, self.width, self.zero = self.as_int(1), self.as_int(cfg.cols), self.as_int(0)
         self.neighbours = rules.neighbours  # (cells, 4) flat neighbour per move, -1 at a wall
+        self.neighbour_bits = self.of(self.neighbours)  # (cells, 4) their bits, empty at a wall
         xy = np.stack([row, col], axis=-1)
         self.distance = rules.distance(xy[:, None], xy[None, :])  # (cells, cells) Manhattan (wrapping)
         gap = np.abs(rules.delta(xy[:, None], xy[None, :]))
@@ -49,7 +50,7 @@ class CellBits:
 
     def of(self, flat: np.ndarray) -> np.ndarray:
         """Bits of flat cells (-1, a wall, gives the empty set)."""
-        return self.bit[np.where(flat < 0, self.cells, flat)]
+        return self.bit[flat]  # -1 indexes the last entry, the empty set
 
     def expand(self, bits: np.ndarray) -> np.ndarray:
         """Cells one move away from any cell of ``bits`` (through the wrap on a torus); may carry bits beyond
@@ -129,7 +130,7 @@ def navigate(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, static: np
     walker's habit (always doing so lets two greedy members mirror each other forever). ``uniforms`` (B, N, 3)
     in [0, 1): axis habit, choice among moves, unstick."""
     goal_bits = cellbits.of(goal)
-    neighbour_bits = cellbits.of(cellbits.neighbours[start])  # (B, N, 4), empty at walls
+    neighbour_bits = cellbits.neighbour_bits[start]  # (B, N, 4), empty at walls
     static = static[:, None]
     # a teammate standing on the goal may still leave it; a live target on it may not
     blocked = (static | obstacles) & (cellbits.full ^ goal_bits) | (static & goal_bits)

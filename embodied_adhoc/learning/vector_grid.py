@@ -80,6 +80,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.needs_reset = np.zeros(num_envs, bool)
         self.rngs: list[np.random.Generator] = []
         self.observers = np.zeros((num_envs, 1), np.int64)
+        self._episode_tables = None
         # optional (task, team) pairs drawn per episode instead of the product tasks x teams; one extra draw
         # from the sub-env's Generator before the single env's own (the step-for-step match holds without it)
         self.environments = None if environments is None else [(int(t), str(m)) for t, m in environments]
@@ -102,6 +103,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.team_index[index] = self.team_names.index(episode.team)
         self.steps[index] = 0
         self.needs_reset[index] = False
+        self._episode_tables = None  # the per-env task offsets and team parameters changed
 
     def _observations(self) -> np.ndarray:
         return egocentric_batch(self.rules, self.batch, self.observers, self.view)[:, 0]
@@ -153,9 +155,13 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         b = self.batch
         sub = b if full else GridBatch(b.agents[idx], b.agent_levels[idx], b.targets[idx], b.target_levels[idx],
                                        b.alive[idx])
-        offsets = self.offsets[self.task_index[idx]]
-        team = self.planner.actions(sub, offsets, self.interchangeable, self.team_table.take(self.team_index[idx]),
-                                    team_uniforms)
+        if full:
+            if self._episode_tables is None:
+                self._episode_tables = (self.offsets[self.task_index], self.team_table.take(self.team_index))
+            offsets, teams = self._episode_tables
+        else:
+            offsets, teams = self.offsets[self.task_index[idx]], self.team_table.take(self.team_index[idx])
+        team = self.planner.actions(sub, offsets, self.interchangeable, teams, team_uniforms)
         joint = np.concatenate([actions[:, None], team[:, 1:]], axis=1)
         plan = self.rules.plan_batch(sub, offsets, self.interchangeable, joint, prey_uniforms)
         b.agents[idx], b.targets[idx] = plan.agents, plan.targets
