@@ -146,3 +146,22 @@ def test_interrupted_sweep_leaves_no_worker_and_one_line(tmp_path, signal_number
     assert process.wait(timeout=120) == status, stderr
     assert stderr.strip().splitlines() == [f"embodied-adhoc: {message} (finished work was kept)"]
     assert _group_is_gone(process.pid), "a pool worker outlived the sweep"
+
+
+@pytest.mark.parametrize(
+    ("environment", "expected"),
+    [
+        ({}, "egl egl"),  # headless, nothing chosen: EGL
+        ({"MUJOCO_GL": "osmesa"}, "osmesa osmesa"),  # the user's choice wins
+        ({"DISPLAY": ":0"}, "None None"),  # a display: MuJoCo's own default (GLFW)
+    ],
+)
+def test_gl_platform_choice(environment, expected):
+    if not sys.platform.startswith("linux"):
+        pytest.skip("EGL is chosen on Linux only")
+    clean = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "MUJOCO_GL")}
+    code = "import os; from embodied_adhoc.gl import choose_gl_platform as c; print(c(), os.environ.get('MUJOCO_GL'))"
+    result = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env={**clean, **environment}, timeout=60
+    )
+    assert result.stdout.strip() == expected, result.stderr
