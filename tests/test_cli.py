@@ -90,6 +90,19 @@ def test_render_chooses_egl_without_a_display(tmp_path):
     assert "DISPLAY" not in result.stderr and "Traceback" not in result.stderr
 
 
+def test_mujoco_trials_without_a_display_print_no_glfw_warning():
+    environment = {
+        k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MUJOCO_GL", "PYOPENGL_PLATFORM")
+    }
+    result = subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", "trials", "foraging", "--backend", "mujoco", "--episodes", "1",
+         "--agents", "random", "--max-steps", "5"],
+        capture_output=True, text=True, timeout=300, env=environment,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert "DISPLAY" not in result.stderr and "GLFW" not in result.stderr, result.stderr
+
+
 def test_workers_are_capped_at_the_cpus_with_a_note():
     result = run_cli("trials", "toxic-waste", "--agents", "random", "--episodes", "2", "--workers", "1000")
     assert result.returncode == 0, result.stderr
