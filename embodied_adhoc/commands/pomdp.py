@@ -13,7 +13,31 @@ from pathlib import Path
 SOLVERS = ("perseus", "qmdp", "vi")
 
 
+def _bounded(kind: type, minimum: float, what: str):
+    """An argparse type: a finite ``kind`` (int or float) >= ``minimum``, else one line naming the fix."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not math.isfinite(value) or value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} is not {what}")
+        return value
+
+    parse.__name__ = what  # argparse names the type in its messages
+    return parse
+
+
+_POSITIVE_INT = _bounded(int, 1, "an integer >= 1")
+_COUNT = _bounded(int, 0, "an integer >= 0")
+_POSITIVE_SECONDS = _bounded(float, math.ulp(0.0), "a finite number of seconds > 0")
+_POSITIVE_FLOAT = _bounded(float, math.ulp(0.0), "a finite number > 0")
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
+    from embodied_adhoc.commands.arguments import output_file, seed
+
     group = subparsers.add_parser("pomdp", help="inspect and solve .pomdp files (Cassandra's format)")
     group.set_defaults(_parser=group)
     commands = group.add_subparsers(dest="pomdp_command", metavar="SUBCOMMAND")
@@ -26,10 +50,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     solve = commands.add_parser("solve", help="solve a .pomdp file and report V(b0)")
     _add_file(solve)
     solve.add_argument("--solver", choices=SOLVERS, default="perseus", help="default: perseus")
-    solve.add_argument("--beliefs", type=int, default=1000, help="Perseus belief-set size (default 1000)")
-    solve.add_argument("--time-limit", type=float, default=None, help="Perseus time limit in seconds")
     solve.add_argument(
-        "--tolerance", type=float, default=None, help="Perseus convergence tolerance (default 1e-3; see --stop)"
+        "--beliefs", type=_POSITIVE_INT, default=1000, help="Perseus belief-set size (default 1000)"
+    )
+    solve.add_argument(
+        "--time-limit", type=_POSITIVE_SECONDS, default=None, help="Perseus time limit in seconds (> 0)"
+    )
+    solve.add_argument(
+        "--tolerance",
+        type=_POSITIVE_FLOAT,
+        default=None,
+        help="Perseus convergence tolerance (default 1e-3; see --stop)",
     )
     solve.add_argument(
         "--stop",
@@ -40,7 +71,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     solve.add_argument(
         "--precision",
-        type=float,
+        type=_bounded(float, 0.0, "a finite number >= 0"),
         default=1e-3,
         help="Perseus: stop when upper - lower bound at b0 <= this (default 1e-3); only this sets 'converged'",
     )
@@ -51,20 +82,24 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--time-limit, --precision, or when an expansion round moves neither bound by --tolerance)",
     )
     solve.add_argument(
-        "--horizon", type=int, default=None, help="finite horizon (required when discount is 1.0)"
+        "--horizon", type=_POSITIVE_INT, default=None, help="finite horizon (required when discount is 1.0)"
     )
-    solve.add_argument("--seed", type=int, default=0, help="seed of belief collection and simulation")
+    solve.add_argument("--seed", type=seed, default=0, help="seed of belief collection and simulation (>= 0)")
     solve.add_argument(
-        "--simulate", type=int, default=0, metavar="N", help="evaluate with N simulated episodes"
+        "--simulate", type=_COUNT, default=0, metavar="N", help="evaluate with N simulated episodes"
     )
     solve.add_argument(
         "--sim-steps",
-        type=int,
+        type=_POSITIVE_INT,
         default=None,
         help="steps per simulated episode (default: horizon, or until gamma^t < 1e-3)",
     )
     solve.add_argument(
-        "--save-policy", type=Path, default=None, metavar="PATH", help="write the policy (.npz)"
+        "--save-policy",
+        type=output_file,
+        default=None,
+        metavar="PATH",
+        help="write the policy to exactly PATH (an .npz archive); checked before solving",
     )
     solve.add_argument("--json", action="store_true", help="stdout is one JSON object")
     solve.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -133,6 +168,10 @@ def _solve(args: argparse.Namespace) -> int:
     if args.simulate and args.solver == "vi":
         raise ConfigError(
             "--simulate needs a belief policy: use --solver perseus or qmdp (vi solves the MDP)"
+        )
+    if args.save_policy is not None and args.solver == "vi":
+        raise ConfigError(
+            "--save-policy needs an alpha-vector policy: use --solver perseus or qmdp (vi solves the MDP)"
         )
     pomdp = _load(args)
     start = time.perf_counter()

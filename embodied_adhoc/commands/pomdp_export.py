@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import argparse
 import json
-from pathlib import Path
 
 
 def register_export(commands) -> None:
     """Add the ``export`` subcommand to the ``pomdp`` command group."""
+    from embodied_adhoc.commands.arguments import output_folder
     from embodied_adhoc.domains.chapter5 import CHAPTER5_DOMAINS
     from embodied_adhoc.domains.chapter5.options import add_library_arguments
 
@@ -27,7 +27,13 @@ def register_export(commands) -> None:
     export.add_argument(
         "domain", choices=CHAPTER5_DOMAINS, metavar="DOMAIN", help=", ".join(CHAPTER5_DOMAINS)
     )
-    export.add_argument("--out", type=Path, required=True, metavar="DIR", help="output folder (created)")
+    export.add_argument(
+        "--out",
+        type=output_folder,
+        required=True,
+        metavar="DIR",
+        help="output folder (created; checked first)",
+    )
     export.add_argument("--json", action="store_true", help="print one JSON object")
     add_library_arguments(export)
     export.set_defaults(func=_export)

@@ -75,3 +75,93 @@ def test_malformed_file_and_missing_file_errors(tmp_path):
 def test_bare_group_prints_help():
     result = run()
     assert "info" in result.stdout and "solve" in result.stdout
+
+
+# ------------------------------------------------------------------ clean failure: exit 2, one line, no work lost
+def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) -> str:
+    assert result.returncode == 2, (result.returncode, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert all(fragment in lines[0] for fragment in fragments), lines[0]
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    ("flags", "fragments"),
+    [
+        (("--time-limit", "nan"), ("--time-limit", "nan is not a finite number of seconds > 0")),
+        (("--time-limit", "-3"), ("--time-limit", "-3 is not")),
+        (("--sim-steps", "0"), ("--sim-steps", "0 is not an integer >= 1")),
+        (("--beliefs", "0"), ("--beliefs",)),
+        (("--tolerance", "inf"), ("--tolerance", "inf is not a finite number > 0")),
+        (("--simulate", "-1"), ("--simulate",)),
+        (("--seed", "-1"), ("--seed", "negative")),
+        (("--precision", "nan"), ("--precision", "nan is not a finite number >= 0")),
+        (("--solver", "vi", "--save-policy", "vi.npz"), ("--save-policy needs an alpha-vector policy",)),
+    ],
+)
+def test_bad_solve_options_fail_before_any_work(flags, fragments):
+    assert_one_line_error(run("solve", "tiger.95.POMDP", *flags), *fragments)
+
+
+def test_save_policy_writes_exactly_the_path_asked_or_fails_before_solving(tmp_path):
+    """numpy used to append '.npz' to the temporary name: the solve crashed after its work and left
+    '.p.partial-PID.bin.npz' behind. Now PATH is written as given; a folder or a path under a file fails first."""
+    target = tmp_path / "p.bin"
+    ok = run("solve", "tiger.95.POMDP", "--solver", "qmdp", "--save-policy", str(target), "--json")
+    assert ok.returncode == 0, ok.stderr
+    assert json.loads(ok.stdout)["policy"] == str(target)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.bin"]
+    from embodied_adhoc.decision.policy import AlphaVectorPolicy
+
+    assert AlphaVectorPolicy.load(target).n_vectors == 3
+    folder = assert_one_line_error(
+        run("solve", "tiger.95.POMDP", "--save-policy", str(tmp_path)), "is a folder"
+    )
+    assert "iteration" not in folder
+    assert_one_line_error(
+        run("solve", "tiger.95.POMDP", "--save-policy", str(target / "policy.npz")), "is a file, not a folder"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["p.bin"]
+
+
+def test_export_onto_a_file_fails_before_building(tmp_path):
+    taken = tmp_path / "taken"
+    taken.write_text("")
+    assert_one_line_error(run("export", "gridworld", "--out", str(taken)), "--out", "is not a folder")
+
+
+HEADER = "discount: 0.95\nstates: {states}\nactions: 2\nobservations: 1\nstart: 0\n"
+
+
+@pytest.mark.parametrize(
+    ("body", "line", "fragments"),
+    [
+        ("T: * uniform\nO: * uniform\n", 6, ("'T: *' uniform writes", "dense")),
+        (
+            "T: * identity\nT: 1 : 0 : 1 -0.5\nO: * uniform\n",
+            7,
+            ("T entry", "start state 0, end state 1", "negative"),
+        ),
+        ("T: * identity\nO: * uniform\nR: 1 : 0 : * : * 1e999\n", 8, ("reward is too large for a float",)),
+    ],
+)
+def test_bad_model_files_are_one_line_naming_file_and_line(tmp_path, body, line, fragments):
+    model = tmp_path / "model.pomdp"
+    model.write_text(HEADER.format(states=200_000) + body)
+    message = assert_one_line_error(run("info", str(model)), *fragments)
+    assert f"{model}:{line}: " in message
+
+
+def test_a_model_too_large_for_dense_arrays_is_read_sparse(tmp_path):
+    """200,000 states with 'identity' used to need dense 200,000 x 200,000 arrays (MemoryError)."""
+    model = tmp_path / "big.pomdp"
+    model.write_text(HEADER.format(states=200_000) + "T: * identity\nO: * uniform\nR: * : 3 : * : * 1\n")
+    result = run("info", str(model), "--json")
+    assert result.returncode == 0, result.stderr
+    info = json.loads(result.stdout)
+    assert (info["states"], info["transition_nonzeros"], info["observation_nonzeros"]) == (
+        200_000,
+        400_000,
+        400_000,
+    )
