@@ -49,3 +49,15 @@ def asset(relative: str) -> Path:
     if not path.exists():
         raise FileNotFoundError(f"no asset '{relative}' in {assets_dir()}")
     return path
+
+
+def live_static(name: str | None = None) -> Path:
+    """Folder of the live mode's web page (``embodied_adhoc/live/static``, shipped as package data), or one
+    file in it by plain name (no folders: the server maps URLs to these names only)."""
+    folder = _PACKAGE / "live" / "static"
+    if name is None:
+        return folder
+    path = folder / name
+    if "/" in name or "\\" in name or name.startswith(".") or not path.is_file():
+        raise FileNotFoundError(f"no live page file '{name}' in {folder}")
+    return path

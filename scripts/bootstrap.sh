@@ -6,7 +6,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-APT_PACKAGES=(espeak-ng libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgles2)
+# chromium + chromium-driver: the live page's browser test (tests/live/test_live_browser.py) drives Debian's
+# headless Chromium through selenium; no browser build is downloaded
+APT_PACKAGES=(espeak-ng libegl1 libgl1 libegl-mesa0 libgl1-mesa-dri libgles2 chromium chromium-driver)
 PYTHON=${PYTHON:-python3.11}
 command -v "$PYTHON" >/dev/null 2>&1 || PYTHON=python3
 

@@ -1,0 +1,125 @@
+"""``embodied-adhoc live toxic-waste``: a person plays the human teammate in a browser, in real time.
+
+Serves the live page (``embodied_adhoc.live.server``) on 127.0.0.1 unless ``--host`` opens it (then with a token
+printed at start-up), runs the real-time lab with the participant as the human and the chosen agent as the robot,
+and writes the study log under ``--out`` (docs/live.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from embodied_adhoc.commands.arguments import output_folder, seed
+from embodied_adhoc.gl import choose_gl_platform
+
+AGENTS = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
+EPILOG = """\
+examples:
+  embodied-adhoc live toxic-waste                       # then open http://127.0.0.1:8000/
+  embodied-adhoc live toxic-waste --agent hotspot --seed 3 --out runs/study
+  embodied-adhoc live toxic-waste --host 0.0.0.0 --port 8000   # other machines, with the printed token
+"""
+
+
+def _port(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a port 0..65535") from None
+    if not 0 <= value <= 65535:
+        raise argparse.ArgumentTypeError(f"{value} is outside 0..65535 (0: any free port)")
+    return value
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number; give a number > 0") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"{value} must be > 0")
+    return value
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "live",
+        help="a person plays the human teammate in a browser, in real time (keyboard, typed or spoken replies)",
+        description="Serve the live page: the overhead view streamed, the keyboard walks the human, the robot's "
+        "agent decides in real time and asks 'Where are you?', the participant answers by typing or speaking.",
+    )
+    domains = parser.add_subparsers(dest="domain", metavar="DOMAIN")
+    toxic = domains.add_parser(
+        "toxic-waste",
+        help="the HOTSPOT lab with a participant as the human",
+        description="Real-time toxic-waste lab in the browser; writes the recording, metrics, inputs and reply "
+        "audio under --out/<participant>_<time>/.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    toxic.add_argument(
+        "--agent", choices=AGENTS, default="hotspot", help="the robot's agent (default hotspot)"
+    )
+    toxic.add_argument("--seed", type=seed, default=0, help="episode seed: task and start nodes (default 0)")
+    toxic.add_argument("--port", type=_port, default=8000, help="TCP port (default 8000; 0: any free port)")
+    toxic.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1: this machine only); any other needs the printed token",
+    )
+    toxic.add_argument(
+        "--out",
+        type=output_folder,
+        default=Path("runs/live"),
+        help="study folder of the run folders (runs/live)",
+    )
+    toxic.add_argument(
+        "--participant",
+        default=None,
+        metavar="ID",
+        help="anonymous participant code, 1-32 letters/digits/'-' (default: the next P### in --out)",
+    )
+    toxic.add_argument(
+        "--speed",
+        type=_positive,
+        default=1.0,
+        help="simulated seconds per wall second (default 1: real time)",
+    )
+    toxic.add_argument(
+        "--reply-timeout",
+        type=_positive,
+        default=30.0,
+        metavar="S",
+        help="seconds the robot waits for an answer before it hears none (default 30)",
+    )
+    toxic.add_argument("--max-steps", type=int, default=100, metavar="N", help="step cap (default 100)")
+    toxic.add_argument(
+        "--stream-fps", type=_positive, default=10.0, help="frames per second sent to the page (default 10)"
+    )
+    toxic.set_defaults(func=handle_toxic_waste)
+    parser.set_defaults(_parser=parser)
+
+
+def handle_toxic_waste(args: argparse.Namespace) -> int:
+    choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.live.server import serve
+    from embodied_adhoc.live.session import LiveSettings
+
+    if args.max_steps < 1:
+        raise ConfigError(f"--max-steps {args.max_steps}: give at least 1")
+    settings = LiveSettings(
+        agent=args.agent,
+        seed=args.seed,
+        out=args.out,
+        participant=args.participant,
+        speed=args.speed,
+        reply_timeout=args.reply_timeout,
+        max_steps=args.max_steps,
+        stream_fps=args.stream_fps,
+    )
+    server = serve(settings, args.host, args.port, announce=lambda line: print(line, flush=True))
+    session = server.session
+    print(f"live: session ended; files in {session.folder}", flush=True)
+    return 0

@@ -1,0 +1,334 @@
+"""The live mode's web server: a Starlette (ASGI) app on uvicorn, one WebSocket per participant.
+
+``GET /`` is the page (``live/static/index.html``), ``GET /static/live.js|live.css`` its script and style (a fixed
+list of names: no URL becomes a path), ``/ws`` the WebSocket. Nothing is loaded from another site; the page
+works offline. Protocol on ``/ws`` (JSON text messages unless said otherwise):
+
+| direction | message |
+|---|---|
+| page -> server | ``{"type": "start"}``; ``{"type": "keys", "held": ["up", "left"], "seq": n}`` (direction keys now held); ``{"type": "act", "seq": n}`` (pick up / drop); ``{"type": "reply", "text": "...", "seq": n}``; ``{"type": "ping", "t": ms}``; a binary message = a spoken reply as a WAV file |
+| server -> page | ``hello``; ``state`` (simulated time, human pose, balls, last input applied, notice, question open, posterior) followed by a binary ``b"F" + JPEG`` overhead frame, ``stream_fps`` times a second; ``question`` followed by ``b"A" + WAV`` (the robot's spoken question); ``heard`` (transcript and node of a reply); ``step``; ``done``; ``error``; ``pong`` |
+
+Safety: the server binds 127.0.0.1 unless ``--host`` says otherwise, and then the page and the WebSocket need the
+token printed at start-up (``?token=...``); a WebSocket whose ``Origin`` is another site is refused (no
+cross-site hijacking of a local session). Text messages are at most 4 KiB, audio at most
+``MAX_AUDIO_BYTES`` (uvicorn closes the connection on anything larger) and 15 s; control messages are limited to
+``CONTROL_RATE`` per second (bursts of ``CONTROL_BURST``) and spoken replies to one per ``AUDIO_INTERVAL`` s.
+Refused and rate-limited messages are answered with an ``error`` message and counted in ``session.json``; none
+reaches the simulation thread, which reads only validated inputs from a queue. One participant at a time.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import ipaddress
+import json
+import secrets
+import socket
+import time
+from collections.abc import Callable
+from urllib.parse import urlsplit
+
+from embodied_adhoc import paths
+from embodied_adhoc.errors import ConfigError, EmbodiedAdhocError
+from embodied_adhoc.live.humans import DIRECTIONS
+from embodied_adhoc.live.session import LiveSession, LiveSettings
+
+__all__ = ["LiveServer", "RateLimit", "is_loopback", "serve"]
+
+MAX_TEXT_BYTES = 4096
+MAX_AUDIO_BYTES = 1_000_000  # 15 s of 16 kHz 16-bit mono is 480 kB: room for 32 kHz, not for a file dump
+CONTROL_RATE, CONTROL_BURST = (
+    30.0,
+    60,
+)  # key changes are a few per second; auto-repeat is filtered by the page
+AUDIO_INTERVAL = 2.0
+STATIC_FILES = {"live.js": "text/javascript", "live.css": "text/css"}
+SECURITY_HEADERS = {
+    "Content-Security-Policy": "default-src 'self'; img-src 'self' blob:; media-src 'self' blob:; "
+    "connect-src 'self'; style-src 'self'; script-src 'self'",
+    "X-Content-Type-Options": "nosniff",
+    "Referrer-Policy": "no-referrer",
+    "Cache-Control": "no-store",
+}
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+class RateLimit:
+    """Token bucket: ``rate`` events per second on average, bursts of ``burst``."""
+
+    def __init__(self, rate: float, burst: float, clock: Callable[[], float] = time.monotonic):
+        self.rate, self.burst, self.clock = float(rate), float(burst), clock
+        self.tokens, self.last = float(burst), clock()
+
+    def allow(self) -> bool:
+        now = self.clock()
+        self.tokens = min(self.burst, self.tokens + (now - self.last) * self.rate)
+        self.last = now
+        if self.tokens >= 1.0:
+            self.tokens -= 1.0
+            return True
+        return False
+
+
+class LiveServer:
+    """The app around one :class:`LiveSession` (module docstring)."""
+
+    def __init__(self, settings: LiveSettings, host: str = "127.0.0.1"):
+        self.host = host
+        self.token = None if is_loopback(host) else secrets.token_urlsafe(18)  # a credential, not simulation
+        self.session = LiveSession(settings, publish=self._publish)
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self.outbox: asyncio.Queue | None = None  # the connected participant's queue of events
+        self._last_error_notice = 0.0
+
+    # ------------------------------------------------------------------ app
+    def app(self):
+        from starlette.applications import Starlette
+        from starlette.routing import Route, WebSocketRoute
+
+        @contextlib.asynccontextmanager
+        async def lifespan(app):
+            self.loop = asyncio.get_running_loop()
+            try:
+                yield
+            finally:
+                await asyncio.to_thread(self.session.close)
+
+        routes = [
+            Route("/", self._page),
+            Route("/static/{name}", self._static),
+            WebSocketRoute("/ws", self._websocket),
+        ]
+        return Starlette(routes=routes, lifespan=lifespan)
+
+    def _token_ok(self, query) -> bool:
+        if self.token is None:
+            return True
+        given = query.get("token", "")
+        return secrets.compare_digest(given.encode(), self.token.encode())
+
+    async def _page(self, request):
+        from starlette.responses import FileResponse, PlainTextResponse
+
+        if not self._token_ok(request.query_params):
+            return PlainTextResponse(
+                "token required: open the URL printed by `embodied-adhoc live` at start-up", status_code=403
+            )
+        return FileResponse(paths.live_static("index.html"), media_type="text/html", headers=SECURITY_HEADERS)
+
+    async def _static(self, request):
+        from starlette.responses import FileResponse, PlainTextResponse
+
+        name = request.path_params["name"]
+        if name not in STATIC_FILES:
+            return PlainTextResponse("not found", status_code=404)
+        return FileResponse(paths.live_static(name), media_type=STATIC_FILES[name], headers=SECURITY_HEADERS)
+
+    # ------------------------------------------------------------------ events from the simulation thread
+    def _publish(self, event: dict, binary: bytes | None) -> None:
+        loop, outbox = self.loop, self.outbox
+        if loop is None or outbox is None:
+            return
+        loop.call_soon_threadsafe(_offer, outbox, (event, binary))
+
+    # ------------------------------------------------------------------ websocket
+    async def _websocket(self, websocket):
+        from starlette.websockets import WebSocketDisconnect
+
+        origin = websocket.headers.get("origin")
+        if not self._token_ok(websocket.query_params) or (
+            origin is not None and urlsplit(origin).netloc != websocket.headers.get("host")
+        ):
+            await websocket.close(code=1008)
+            return
+        await websocket.accept()
+        if self.outbox is not None:
+            await websocket.send_json({"type": "error", "message": "another participant is connected"})
+            await websocket.close(code=1013)
+            return
+        outbox: asyncio.Queue = asyncio.Queue(maxsize=512)
+        self.outbox = outbox
+        session = self.session
+        await websocket.send_json(
+            {
+                "type": "hello",
+                "participant": session.participant_id,
+                "tasks": session.tasks,
+                "started": session.running,
+                "stream_fps": session.settings.stream_fps,
+                "keys": sorted(DIRECTIONS),
+                "limits": {
+                    "text_bytes": MAX_TEXT_BYTES,
+                    "audio_bytes": MAX_AUDIO_BYTES,
+                    "control_rate": CONTROL_RATE,
+                },
+            }
+        )
+        sender = asyncio.create_task(self._send_loop(websocket, outbox))
+        control = RateLimit(CONTROL_RATE, CONTROL_BURST)
+        audio = RateLimit(1.0 / AUDIO_INTERVAL, 1)
+        try:
+            while True:
+                message = await websocket.receive()
+                if message["type"] == "websocket.disconnect":
+                    break
+                session.counters["messages"] += 1
+                try:
+                    reply = await self._handle(message, control, audio)
+                except EmbodiedAdhocError as error:
+                    session.counters["refused"] += 1
+                    reply = {"type": "error", "message": str(error)}
+                except (ValueError, TypeError, KeyError) as error:  # malformed fields of a message
+                    session.counters["refused"] += 1
+                    reply = {
+                        "type": "error",
+                        "message": f"malformed message ({type(error).__name__}: {error})",
+                    }
+                if reply is not None:
+                    await websocket.send_json(reply)
+        except WebSocketDisconnect:
+            pass
+        finally:
+            sender.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await sender
+            if self.outbox is outbox:
+                self.outbox = None
+
+    async def _handle(self, message: dict, control: RateLimit, audio: RateLimit) -> dict | None:
+        session = self.session
+        data = message.get("bytes")
+        if data is not None:
+            if not audio.allow():
+                return self._limited(f"one spoken reply per {AUDIO_INTERVAL:g} s")
+            if not session.person.question_open:
+                raise ConfigError("the robot has not asked anything: no reply expected now")
+            detail = await asyncio.to_thread(session.reply_from_audio, data, 0, MAX_AUDIO_BYTES)
+            return {"type": "heard", **detail}
+        text = message.get("text") or ""
+        if len(text.encode()) > MAX_TEXT_BYTES:
+            raise ConfigError(f"message of {len(text.encode())} bytes exceeds {MAX_TEXT_BYTES}")
+        if not control.allow():
+            return self._limited(f"at most {CONTROL_RATE:g} messages per second")
+        try:
+            request = json.loads(text)
+        except json.JSONDecodeError as error:
+            raise ConfigError(f"message is not JSON ({error.msg} at column {error.colno})") from None
+        if not isinstance(request, dict) or not isinstance(request.get("type"), str):
+            raise ConfigError('message must be a JSON object with a "type" string')
+        kind = request["type"]
+        if kind == "ping":
+            return {"type": "pong", "t": float(request.get("t", 0.0))}
+        if kind == "start":
+            started = session.start()
+            return {
+                "type": "starting" if started else "error",
+                "message": "" if started else "already started",
+            }
+        seq = request.get("seq", 0)
+        if not isinstance(seq, int) or isinstance(seq, bool) or not 0 <= seq < 2**53:
+            raise ConfigError('"seq" must be a non-negative integer')
+        if kind == "keys":
+            held = request.get("held")
+            if (
+                not isinstance(held, list)
+                or len(held) > len(DIRECTIONS)
+                or not all(isinstance(k, str) for k in held)
+            ):
+                raise ConfigError(f'"held" must be a list of direction keys {sorted(DIRECTIONS)}')
+            session.person.keys(set(held), seq)
+            return None
+        if kind == "act":
+            session.person.act(seq)
+            return None
+        if kind == "reply":
+            if not session.person.question_open:
+                raise ConfigError("the robot has not asked anything: no reply expected now")
+            return {"type": "heard", **session.reply_from_text(request.get("text"), seq)}
+        raise ConfigError(f"unknown message type {kind!r}; use start, keys, act, reply or ping")
+
+    def _limited(self, what: str) -> dict | None:
+        self.session.counters["rate_limited"] += 1
+        now = time.monotonic()
+        if now - self._last_error_notice < 1.0:
+            return None  # one notice a second is enough; every drop is counted
+        self._last_error_notice = now
+        return {"type": "error", "message": f"rate limit: {what}; messages dropped"}
+
+    async def _send_loop(self, websocket, outbox: asyncio.Queue) -> None:
+        """Events as they come; the latest frame at a steady ``stream_fps``."""
+        session = self.session
+        loop = asyncio.get_running_loop()
+        period = 1.0 / session.settings.stream_fps
+        due, last_seq, last_sent = loop.time(), 0, None
+        while True:
+            while not outbox.empty():
+                event, binary = outbox.get_nowait()
+                await websocket.send_json(event)
+                if binary is not None:
+                    await websocket.send_bytes(b"A" + binary)
+            with session.frame_lock:
+                frame = session.frame
+            if frame is not None and frame[0] != last_seq:
+                last_seq, jpeg, state = frame
+                await websocket.send_json({"type": "state", **state})
+                await websocket.send_bytes(b"F" + jpeg)
+                now = time.perf_counter()
+                if last_sent is not None:
+                    session.frame_intervals.append(now - last_sent)
+                last_sent = now
+            due += period
+            await asyncio.sleep(max(0.0, due - loop.time()))
+            if loop.time() - due > 5 * period:  # the event loop was stalled: do not burst to catch up
+                due = loop.time()
+
+
+def _offer(outbox: asyncio.Queue, item) -> None:
+    if outbox.full():  # a page that stopped reading: drop its oldest event, never block the simulation
+        outbox.get_nowait()
+    outbox.put_nowait(item)
+
+
+def serve(
+    settings: LiveSettings, host: str, port: int, announce: Callable[[str], None] = print
+) -> LiveServer:
+    """Listen on ``host:port`` (0: a free port), announce the URL and serve until interrupted."""
+    import uvicorn
+
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    listener = socket.socket(family, socket.SOCK_STREAM)
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        listener.bind((host, port))
+    except OSError as error:
+        listener.close()
+        raise ConfigError(f"--host {host} --port {port}: cannot listen there ({error.strerror})") from None
+    server = LiveServer(settings, host)
+    bound = listener.getsockname()[1]
+    shown = f"[{host}]" if family == socket.AF_INET6 else host
+    url = f"http://{shown}:{bound}/" + (f"?token={server.token}" if server.token else "")
+    announce(f"live: participant {server.session.participant_id}, run folder {server.session.folder}")
+    announce(f"live: open {url}")
+    if server.token:
+        announce(
+            "live: the server is open beyond this machine; only the URL above (with its token) is accepted"
+        )
+    config = uvicorn.Config(
+        server.app(),
+        log_level="warning",
+        ws="websockets-sansio",
+        ws_max_size=MAX_AUDIO_BYTES + 1024,
+        lifespan="on",
+    )
+    uvicorn.Server(config).run(sockets=[listener])
+    return server

@@ -1,0 +1,172 @@
+"""The live page in Debian's headless Chromium (selenium + chromium-driver, installed by scripts/bootstrap.sh):
+the server is the real command (``embodied-adhoc live toxic-waste`` on a free loopback port), the page walks the
+human to a ball with the arrow keys, picks it up, answers the robot's "Where are you?" by typing, and the robot's
+task posterior moves; after the server stops, the run folder holds the recording, metrics and inputs.
+
+Seed 4: task [1, 2, 3], the human starts at the double workbench (area 4), ball 2 lies at the single workbench
+(area 3, through the passage 3-4), the robot starts there too; HOTSPOT drives to the open space (about 13 s) and
+then asks. Being at the single workbench then is likelier under task [1, 2, 3] (its nearest ball) than under
+[0, 1, 2], so the answer moves the task posterior. ``LIVE_SCREENSHOTS=DIR`` keeps the page's
+screenshots (docs/live.md's come from there). The page's latency figures are printed (``-s`` shows them).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.slow
+
+CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
+
+
+def _wait(condition, seconds: float, what: str):
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {seconds:g} s waiting for {what}")
+
+
+@pytest.fixture
+def live_server(tmp_path):
+    environment = {**os.environ, "MUJOCO_GL": "egl", "PYTHONUNBUFFERED": "1"}
+    command = [sys.executable, "-m", "embodied_adhoc.cli", "live", "toxic-waste", "--port", "0"]
+    command += ["--seed", "4", "--out", str(tmp_path), "--reply-timeout", "40"]
+    process = subprocess.Popen(
+        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=environment
+    )
+    lines = []
+    deadline = time.monotonic() + 45
+    url = None
+    while url is None and time.monotonic() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        found = re.search(r"live: open (http://127\.0\.0\.1:\d+/)", line)
+        url = found.group(1) if found else None
+    if url is None:
+        process.kill()
+        raise AssertionError("the server did not announce its URL:\n" + "".join(lines))
+    yield process, url, tmp_path
+    if process.poll() is None:
+        process.kill()
+
+
+@pytest.fixture
+def browser():
+    if not (Path(CHROMIUM).is_file() and Path(DRIVER).is_file()):
+        pytest.fail(
+            "Debian's chromium and chromium-driver are needed: run scripts/bootstrap.sh (it installs them)"
+        )
+    from selenium import webdriver
+    from selenium.webdriver.chrome.service import Service
+
+    options = webdriver.ChromeOptions()
+    options.binary_location = CHROMIUM
+    for argument in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1200,900"):
+        options.add_argument(argument)
+    options.add_argument("--autoplay-policy=no-user-gesture-required")
+    driver = webdriver.Chrome(options=options, service=Service(DRIVER))
+    yield driver
+    driver.quit()
+
+
+def test_a_participant_walks_picks_a_ball_and_answers_by_typing(live_server, browser):
+    from selenium.webdriver.common.action_chains import ActionChains
+    from selenium.webdriver.common.by import By
+    from selenium.webdriver.common.keys import Keys
+
+    process, url, study = live_server
+    shots = Path(os.environ["LIVE_SCREENSHOTS"]) if os.environ.get("LIVE_SCREENSHOTS") else None
+
+    def stats(expression: str):
+        return browser.execute_script(f"return window.liveStats.{expression};")
+
+    browser.get(url)
+    _wait(lambda: "P001" in browser.find_element(By.ID, "participant").text, 20, "the hello message")
+    browser.find_element(By.ID, "start").click()
+    _wait(lambda: stats("states") > 3, 20, "frames")
+    start = stats("lastState.human")
+    assert stats("lastState.human_node") == 4
+
+    # walk with the arrow keys: north into the passage's row, west through it to ball 2, then pick it up
+    ActionChains(browser).key_down(Keys.ARROW_UP).perform()
+    _wait(lambda: stats("lastState.human[1]") > 2.65, 15, "the human to walk north")
+    ActionChains(browser).key_up(Keys.ARROW_UP).key_down(Keys.ARROW_LEFT).perform()
+    _wait(lambda: stats("lastState.human[0]") < -3.2, 20, "the human to walk west through the passage")
+    ActionChains(browser).key_up(Keys.ARROW_LEFT).perform()
+    walked = stats("lastState")
+    assert walked["human_node"] == 3 and walked["human"][0] < start[0] - 6
+    if shots:
+        shots.mkdir(parents=True, exist_ok=True)
+        browser.save_screenshot(str(shots / "live_walking.png"))
+    ActionChains(browser).send_keys("e").perform()
+    _wait(lambda: stats("lastState.holding") == 2, 20, "the human to hold ball 2")
+
+    # the robot asks; answer by typing
+    _wait(lambda: stats("questions") >= 1, 45, "the robot's question")
+    prior = stats("posterior")
+    assert browser.find_element(By.ID, "question").text == "Where are you?"
+    assert not browser.find_element(By.ID, "reply-text").get_attribute("disabled")
+    if shots:
+        browser.save_screenshot(str(shots / "live_question.png"))
+    field = browser.find_element(By.ID, "reply-text")
+    field.send_keys("I'm at the single workbench")
+    browser.find_element(By.ID, "reply-send").click()
+    heard = _wait(lambda: stats("heard")[0] if stats("heard") else None, 10, "the reply to be heard")
+    assert heard["reply"] == "typed" and heard["node"] == 3
+    answered = _wait(
+        lambda: [s for s in stats("steps") if any("participant typed" in u for u in s["utterances"])],
+        15,
+        "the step that observed the answer",
+    )[0]
+    assert "human at 3 single workbench" in answered["observation"]
+    posterior = answered["posterior"]
+    assert max(abs(a - b) for a, b in zip(posterior, prior, strict=True)) > 0.01, (prior, posterior)
+    if shots:
+        time.sleep(0.5)
+        browser.save_screenshot(str(shots / "live_answered.png"))
+
+    frame_intervals = stats("frameIntervals")
+    key_to_motion = stats("keyToMotion")
+    assert len(frame_intervals) > 20 and len(key_to_motion) >= 1
+    print(
+        f"\nframe interval ms: {sorted(frame_intervals)[len(frame_intervals) // 2]:.0f} median, n={len(frame_intervals)}"
+    )
+    print(f"key to motion ms: {key_to_motion}")
+
+    # stop the server: the episode ends as interrupted and its files are written
+    process.send_signal(signal.SIGINT)
+    process.wait(40)
+    folders = list(study.glob("P001_*"))
+    assert len(folders) == 1
+    folder = folders[0]
+    metrics = json.loads((folder / "metrics.json").read_text())
+    assert metrics["outcome"] == "interrupted" and metrics["steps"] >= 2
+    assert any(
+        'participant typed: "I\'m at the single workbench"' in u
+        for s in metrics["per_step"]
+        for u in s.get("utterances", [])
+    )
+    assert (folder / "episode.rrd").stat().st_size > 10_000
+    inputs = [json.loads(line) for line in (folder / "inputs.jsonl").read_text().splitlines()]
+    kinds = [entry["kind"] for entry in inputs]
+    assert {"keys", "act", "question", "reply"} <= set(kinds)
+    assert next(e for e in inputs if e["kind"] == "act")["result"] == "picking up ball 2"
+    session = json.loads((folder / "session.json").read_text())
+    assert session["participant"] == "P001" and session["latency"]["frame_interval_sent_ms"]["n"] > 20
+    if shots:
+        shutil.copy(folder / "session.json", shots / "live_session.json")

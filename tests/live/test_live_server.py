@@ -1,0 +1,199 @@
+"""The live server over a loopback WebSocket: frames stream, inputs reach the simulation, a hostile client is
+refused or rate-limited without hurting the simulation, the token and the origin are enforced, no URL becomes a
+path, and a spoken reply goes through the offline recogniser into the run folder."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import socket
+import threading
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+import websockets
+
+from embodied_adhoc.live.server import MAX_AUDIO_BYTES, LiveServer, RateLimit
+from embodied_adhoc.live.session import LiveSession, LiveSettings, next_participant_id
+
+
+class _Served:
+    """A LiveServer's app on a free loopback port, in a thread (stopped by ``close``)."""
+
+    def __init__(self, tmp: Path, host_label: str = "127.0.0.1"):
+        import uvicorn
+
+        self.live = LiveServer(LiveSettings(seed=9, out=tmp, stream_fps=10.0), host_label)
+        self.socket = socket.socket()
+        self.socket.bind(("127.0.0.1", 0))
+        self.port = self.socket.getsockname()[1]
+        config = uvicorn.Config(
+            self.live.app(), log_level="warning", ws="websockets-sansio", ws_max_size=MAX_AUDIO_BYTES + 1024
+        )
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(target=self.server.run, kwargs={"sockets": [self.socket]}, daemon=True)
+        self.thread.start()
+        deadline = time.monotonic() + 30
+        while not self.server.started:
+            assert time.monotonic() < deadline, "server did not start"
+            time.sleep(0.05)
+
+    def url(self, path: str = "/") -> str:
+        return f"http://127.0.0.1:{self.port}{path}"
+
+    def close(self) -> None:
+        self.server.should_exit = True
+        self.thread.join(40)
+
+
+@pytest.fixture
+def served(tmp_path):
+    served = _Served(tmp_path)
+    yield served
+    served.close()
+
+
+async def _drain(ws, seconds: float) -> tuple[list[dict], int]:
+    """Messages for ``seconds``: the JSON events and the number of frames."""
+    events, frames, end = [], 0, time.monotonic() + seconds
+    while (left := end - time.monotonic()) > 0:
+        try:
+            message = await asyncio.wait_for(ws.recv(), left)
+        except TimeoutError:
+            break
+        if isinstance(message, bytes):
+            frames += message[:1] == b"F"
+        else:
+            events.append(json.loads(message))
+    return events, frames
+
+
+def test_hostile_messages_are_refused_and_the_simulation_runs_on(served):
+    async def scenario():
+        uri = f"ws://127.0.0.1:{served.port}/ws"
+        async with websockets.connect(uri, max_size=None) as ws:
+            hello = json.loads(await ws.recv())
+            assert hello["type"] == "hello" and hello["participant"] == "P001"
+            await ws.send(json.dumps({"type": "start"}))
+            await ws.send(json.dumps({"type": "keys", "held": ["right"], "seq": 1}))
+            events, frames = await _drain(ws, 3.0)
+            states = [e for e in events if e["type"] == "state"]
+            assert frames >= 5 and states[-1]["ack"] == 1
+            assert states[-1]["human"][0] > states[0]["human"][0]  # walking east
+            for junk in (
+                "not json",
+                json.dumps([1, 2]),
+                json.dumps({"type": "fly"}),
+                json.dumps({"type": "keys", "held": ["up", "jump"], "seq": 2}),
+                json.dumps({"type": "keys", "held": "up", "seq": 3}),
+                json.dumps({"type": "act", "seq": -1}),
+                json.dumps({"type": "reply", "text": "at the door", "seq": 4}),  # no question asked yet
+                "x" * 5000,
+            ):
+                await ws.send(junk)
+            await ws.send(b"RIFF this is no wav")
+            for _ in range(200):  # a flood of key messages
+                await ws.send(json.dumps({"type": "keys", "held": [], "seq": 5}))
+            events, frames = await _drain(ws, 2.0)
+            errors = [e["message"] for e in events if e["type"] == "error"]
+            assert any("not JSON" in m for m in errors) and any("unknown message type" in m for m in errors)
+            assert any("unknown direction" in m for m in errors) and any("exceeds 4096" in m for m in errors)
+            assert any("no reply expected" in m for m in errors) and any("rate limit" in m for m in errors)
+            assert frames >= 5  # the simulation kept streaming
+        # an audio message over the size limit closes that connection; a new one is served
+        async with websockets.connect(uri, max_size=None) as ws:
+            await ws.recv()
+            await ws.send(b"\0" * (MAX_AUDIO_BYTES + 4096))
+            with pytest.raises(websockets.ConnectionClosed):
+                await _drain(ws, 5.0)
+                await ws.recv()
+        async with websockets.connect(uri, max_size=None) as ws:
+            assert json.loads(await ws.recv())["started"] is True
+            _, frames = await _drain(ws, 1.5)
+            assert frames >= 3
+        # a page from another site may not drive a local session
+        with pytest.raises(websockets.InvalidStatus):
+            async with websockets.connect(uri, origin="http://evil.example"):
+                pass
+
+    asyncio.run(scenario())
+    assert served.live.session.running
+    counters = served.live.session.counters
+    assert counters["rate_limited"] > 0 and counters["refused"] >= 8
+
+
+def test_no_url_becomes_a_path(served):
+    assert b"live.js" in urllib.request.urlopen(served.url("/")).read()
+    assert urllib.request.urlopen(served.url("/static/live.js")).status == 200
+    for path in (
+        "/static/../../etc/passwd",
+        "/static/%2e%2e%2fserver.py",
+        "/static/index.html",
+        "/etc/passwd",
+    ):
+        with pytest.raises(urllib.error.HTTPError) as error:
+            urllib.request.urlopen(served.url(path))
+        assert error.value.code == 404, path
+
+
+def test_an_open_server_needs_the_printed_token(tmp_path):
+    served = _Served(
+        tmp_path, host_label="192.0.2.10"
+    )  # a non-loopback --host (the app's rules; bound on loopback)
+    try:
+        token = served.live.token
+        assert token and len(token) >= 20
+        with pytest.raises(urllib.error.HTTPError) as error:
+            urllib.request.urlopen(served.url("/"))
+        assert error.value.code == 403
+        assert urllib.request.urlopen(served.url(f"/?token={token}")).status == 200
+
+        async def scenario():
+            with pytest.raises(websockets.InvalidStatus):
+                async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws?token=wrong"):
+                    pass
+            async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws?token={token}") as ws:
+                assert json.loads(await ws.recv())["type"] == "hello"
+
+        asyncio.run(scenario())
+    finally:
+        served.close()
+
+
+def test_spoken_reply_is_recognised_saved_and_reaches_the_robot(tmp_path):
+    from embodied_adhoc.comms.synthesis import SAMPLE_RATE, Voice, synthesize
+    from embodied_adhoc.live.session import wav_bytes
+
+    session = LiveSession(LiveSettings(seed=9, out=tmp_path))
+    try:
+        session.person.question_open = True  # as the env sets it when the robot asks
+        data = wav_bytes(synthesize("I am at the robot station", Voice("en-us")), SAMPLE_RATE)
+        detail = session.reply_from_audio(data, 0, MAX_AUDIO_BYTES)
+        assert detail["node"] == 2 and "robot station" in detail["transcript"]
+        saved = session.folder / detail["file"]
+        assert saved.read_bytes() == data and saved.parent == session.folder / "replies"
+        with pytest.raises(Exception, match="exceeds"):
+            session.reply_from_audio(data, 0, len(data) - 1)
+    finally:
+        session.close()
+    assert json.loads((session.folder / "session.json").read_text())["replies"][0]["node"] == 2
+
+
+def test_participant_ids_are_sequential_and_anonymous(tmp_path):
+    assert next_participant_id(tmp_path) == "P001"
+    (tmp_path / "P007_20260101T000000Z").mkdir()
+    (tmp_path / "notes").mkdir()
+    assert next_participant_id(tmp_path) == "P008"
+    with pytest.raises(Exception, match="participant"):
+        LiveSession(LiveSettings(out=tmp_path, participant="../escape"))
+
+
+def test_rate_limit_bucket():
+    now = [0.0]
+    bucket = RateLimit(rate=2.0, burst=3, clock=lambda: now[0])
+    assert [bucket.allow() for _ in range(4)] == [True, True, True, False]
+    now[0] += 0.5
+    assert bucket.allow() and not bucket.allow()
