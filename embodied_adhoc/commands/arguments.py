@@ -4,6 +4,7 @@ A bad value makes argparse exit with status 2 and one line ``embodied-adhoc ...:
 wrong and what to give instead`` (the one-line parser is :class:`embodied_adhoc.cli.OneLineParser`).
 
 * :func:`seed`: a non-negative integer (numpy's ``SeedSequence`` and Gymnasium's ``reset(seed=)`` refuse negatives).
+* :func:`bounded`: a type for a finite int or float at least some minimum (``nan`` and ``inf`` refused).
 * :func:`output_folder` / :func:`output_file`: a path the command can create and write, probed without leaving
   anything behind: not an existing file where a folder is wanted (or the reverse), no file among its parents, and
   a writable nearest existing folder (tested by creating and removing a temporary folder there, which also catches
@@ -13,6 +14,7 @@ wrong and what to give instead`` (the one-line parser is :class:`embodied_adhoc.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import tempfile
 from pathlib import Path
@@ -27,6 +29,23 @@ def seed(text: str) -> int:
     if value < 0:
         raise argparse.ArgumentTypeError(f"{value} is negative; give a seed >= 0")
     return value
+
+
+def bounded(kind: type, minimum: float, what: str):
+    """An argparse type: a finite ``kind`` (int or float) >= ``minimum``; ``what`` names what to give
+    (e.g. ``bounded(float, math.ulp(0.0), "a finite number of seconds > 0")``)."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not math.isfinite(value) or value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} is not {what}")
+        return value
+
+    parse.__name__ = what  # argparse names the type in its messages
+    return parse
 
 
 def _nearest_existing(path: Path) -> Path:

@@ -10,34 +10,18 @@ import sys
 import time
 from pathlib import Path
 
+from embodied_adhoc.commands.arguments import bounded, output_file, seed
+
 SOLVERS = ("perseus", "qmdp", "vi")
 
 
-def _bounded(kind: type, minimum: float, what: str):
-    """An argparse type: a finite ``kind`` (int or float) >= ``minimum``, else one line naming the fix."""
-
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
-        if not math.isfinite(value) or value < minimum:
-            raise argparse.ArgumentTypeError(f"{text} is not {what}")
-        return value
-
-    parse.__name__ = what  # argparse names the type in its messages
-    return parse
-
-
-_POSITIVE_INT = _bounded(int, 1, "an integer >= 1")
-_COUNT = _bounded(int, 0, "an integer >= 0")
-_POSITIVE_SECONDS = _bounded(float, math.ulp(0.0), "a finite number of seconds > 0")
-_POSITIVE_FLOAT = _bounded(float, math.ulp(0.0), "a finite number > 0")
+_POSITIVE_INT = bounded(int, 1, "an integer >= 1")
+_COUNT = bounded(int, 0, "an integer >= 0")
+_POSITIVE_SECONDS = bounded(float, math.ulp(0.0), "a finite number of seconds > 0")
+_POSITIVE_FLOAT = bounded(float, math.ulp(0.0), "a finite number > 0")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from embodied_adhoc.commands.arguments import output_file, seed
-
     group = subparsers.add_parser("pomdp", help="inspect and solve .pomdp files (Cassandra's format)")
     group.set_defaults(_parser=group)
     commands = group.add_subparsers(dest="pomdp_command", metavar="SUBCOMMAND")
@@ -71,7 +55,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     solve.add_argument(
         "--precision",
-        type=_bounded(float, 0.0, "a finite number >= 0"),
+        type=bounded(float, 0.0, "a finite number >= 0"),
         default=1e-3,
         help="Perseus: stop when upper - lower bound at b0 <= this (default 1e-3); only this sets 'converged'",
     )
