@@ -15,6 +15,8 @@ import json
 import shlex
 import sys
 
+from embodied_adhoc.commands.arguments import seed
+
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
@@ -47,7 +49,7 @@ def register(subparsers) -> None:
     )
     evaluate.add_argument("--phrases", type=int, default=60, help="phrases per voice (default 60)")
     evaluate.add_argument(
-        "--seed", type=int, default=0, help="seed of phrases, speeds, pitches and noise (default 0)"
+        "--seed", type=seed, default=0, help="seed of phrases, speeds, pitches and noise, >= 0 (default 0)"
     )
     evaluate.add_argument(
         "--noise", choices=("babble", "white"), default="babble", help="noise kind (default babble)"
@@ -83,7 +85,7 @@ def register(subparsers) -> None:
     attempt.add_argument(
         "--noise", choices=("babble", "white"), default="babble", help="noise kind (default babble)"
     )
-    attempt.add_argument("--seed", type=int, default=0, help="seed of the noise (default 0)")
+    attempt.add_argument("--seed", type=seed, default=0, help="seed of the noise, >= 0 (default 0)")
     attempt.add_argument(
         "--wav", default=None, metavar="PATH", help="also write the heard audio as a WAV file"
     )
@@ -113,7 +115,7 @@ def register(subparsers) -> None:
     )
     adapt.add_argument("--voices", default=None, metavar="V,V,...", help="espeak-ng voices (default: the six)")
     adapt.add_argument("--phrases", type=int, default=60, help="synthesised phrases per voice (default 60)")
-    adapt.add_argument("--seed", type=int, default=2, help="seed of the synthesised phrases (default 2)")
+    adapt.add_argument("--seed", type=seed, default=2, help="seed of synthesised phrases, >= 0 (default 2)")
     adapt.add_argument(
         "--snr",
         default="none,20,10",
