@@ -39,6 +39,7 @@ BAD_INPUT = [
     (["run", "toxic-waste", "--seed", "-1"], "--seed"),
     (["render", "lab", "--seed", "-1", "--out", "{tmp}/x.png"], "--seed"),
     (["speech", "eval", "--seed", "-1"], "--seed"),
+    (["render", "lab", "--width", "0", "--out", "{tmp}/x.png"], "--width"),  # was a silent 640-pixel default
     (["run", "toxic-waste", "--record", "{file}"], "--record"),  # an existing file
     (["run", "toxic-waste", "--record", "{file}/sub"], "--record"),  # under a file
     (["run", "toxic-waste", "--record", "/proc/embodied-adhoc/run"], "--record"),  # not writable

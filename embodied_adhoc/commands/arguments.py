@@ -4,6 +4,7 @@ A bad value makes argparse exit with status 2 and one line ``embodied-adhoc ...:
 wrong and what to give instead`` (the one-line parser is :class:`embodied_adhoc.cli.OneLineParser`).
 
 * :func:`seed`: a non-negative integer (numpy's ``SeedSequence`` and Gymnasium's ``reset(seed=)`` refuse negatives).
+* :func:`positive_int`: an integer >= 1 (sizes and counts).
 * :func:`bounded`: a type for a finite int or float at least some minimum (``nan`` and ``inf`` refused).
 * :func:`output_folder` / :func:`output_file`: a path the command can create and write, probed without leaving
   anything behind: not an existing file where a folder is wanted (or the reverse), no file among its parents, and
@@ -46,6 +47,17 @@ def bounded(kind: type, minimum: float, what: str):
 
     parse.__name__ = what  # argparse names the type in its messages
     return parse
+
+
+def positive_int(text: str) -> int:
+    """A count or size: an integer >= 1 (e.g. ``--width``: 0 would silently fall back to a default size)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give an integer >= 1") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value}: give an integer >= 1")
+    return value
 
 
 def _nearest_existing(path: Path) -> Path:

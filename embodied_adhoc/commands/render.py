@@ -10,7 +10,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from embodied_adhoc.commands.arguments import output_file, seed
+from embodied_adhoc.commands.arguments import output_file, positive_int, seed
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.gl import choose_gl_platform
 
@@ -86,8 +86,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     lab.add_argument(
         "--pick", type=int, choices=range(3), default=None, help="the human first picks this ball"
     )
-    lab.add_argument("--width", type=int, default=1280, help="image width in pixels (default 1280)")
-    lab.add_argument("--height", type=int, default=1024, help="image height in pixels (default 1024)")
+    lab.add_argument("--width", type=positive_int, default=1280, help="image width in pixels (default 1280)")
+    lab.add_argument(
+        "--height", type=positive_int, default=1024, help="image height in pixels (default 1024)"
+    )
     lab.add_argument(
         "--fast",
         action="store_true",
