@@ -9,6 +9,7 @@ Perseus' belief set. Deterministic (no random draw), so the solve stays seeded b
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 
 import numpy as np
@@ -22,12 +23,15 @@ def sample_path(
     start: np.ndarray,
     precision: float,
     max_depth: int,
+    deadline: float | None = None,
 ) -> list[np.ndarray]:
     """Beliefs of one excess-gap path from ``start`` (the upper bound is updated along it); ``lower`` maps beliefs
-    (n, S) to the lower bound's values."""
+    (n, S) to the lower bound's values. At ``deadline`` (perf_counter seconds) the path ends where it is."""
     gamma = upper.pomdp.discount
     belief, path = start, []
     for depth in range(max_depth):
+        if deadline is not None and time.perf_counter() > deadline:
+            break
         successors = upper.successors(belief)
         q_upper = upper.q_values(belief, successors)
         gap = min(float(upper.values(belief)[0]), float(q_upper.max())) - float(lower(belief[None, :])[0])

@@ -56,9 +56,10 @@ class PerseusConfig:
     epsilon: float = 0.5  # exploration: probability of a random action (else greedy on the MDP's Q*)
     batch_size: int = 256  # beliefs backed up together in one vectorised call
     blas_threads: int | None = 1  # BLAS threads during the solve (None: library default); see _blas_threads
-    # Anytime expansion: once the backups converge on B, add the beliefs of excess-gap paths (belief_expansion.py)
-    # and continue, until the time limit, a gap <= precision at b0, max_beliefs (None: 10 x n_beliefs), or a
-    # round that moves neither bound by more than the tolerance. False: the fixed belief set of Perseus.
+    # Anytime expansion: once the backups converge on B (and periodically), add beliefs sampled as B was and
+    # continue, until the time limit, a gap <= precision at b0, max_beliefs (None: 10 x n_beliefs with a time
+    # limit, 3 x without), or a round that moves neither bound by more than the tolerance. False: the fixed
+    # belief set of Perseus.
     expand: bool = False
     precision: float = 1e-3  # stop when upper - lower at b0 <= precision (the only rule that sets converged)
     max_beliefs: int | None = None
@@ -156,7 +157,7 @@ def _infinite_horizon(
     gamma = pomdp.discount
     bound = config.stop == "bound" and gamma > 0
     threshold = config.tolerance * (1.0 - gamma) / gamma if bound else config.tolerance
-    max_beliefs = config.max_beliefs or 10 * config.n_beliefs
+    max_beliefs = config.max_beliefs or (10 if deadline is not None else 3) * config.n_beliefs
     round_start, last_round, last_round_time = bounds, 0, time.perf_counter()
     for iteration in range(1, config.max_iterations + 1):
         stage = _perseus_iteration(operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline)
@@ -221,8 +222,19 @@ def _infinite_horizon(
             )
         if bounds.gap <= config.precision:
             break
+        if on_beliefs and config.expand and not new:
+            # B is exhausted and converged: only the upper bound can still move; tighten it while it does (until
+            # the deadline, else for at most a quarter of the time spent so far).
+            last = deadline or time.perf_counter() + max(1.0, 0.25 * (time.perf_counter() - start))
+            while bounds.gap > config.precision and time.perf_counter() < last:
+                _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline))
+                moved = bounds.upper - float(upper.values(b0)[0])
+                bounds = _Bounds(bounds.lower, bounds.upper - moved)
+                if deadline is None and moved <= 0.1 * config.tolerance:
+                    break  # without a time limit: stop once a round barely moves it
+            break
         if on_beliefs:
-            if not config.expand or not new:
+            if not config.expand:
                 break
             if deadline is None and round_start.lower + config.tolerance >= bounds.lower and (
                 round_start.upper - config.tolerance <= bounds.upper
@@ -283,9 +295,13 @@ def _explore(
 ) -> None:
     """Excess-gap paths from b0, each backing up the upper bound along it, for ``budget`` seconds."""
     end = time.perf_counter() + budget
-    max_depth = int(np.clip(1.0 / (1.0 - upper.pomdp.discount), 20, 200))
+    # Beyond this depth any gap at b0's scale is within precision / gamma^depth, so paths end there anyway.
+    gamma, scale = upper.pomdp.discount, float(upper.values(b0)[0] - lower(b0[None, :])[0])
+    max_depth = int(np.clip(np.log(max(precision, 1e-9) / max(scale, 1e-9)) / np.log(gamma), 20, 1000))
     while time.perf_counter() < end:
-        if not sample_path(upper, lower, b0, precision, max_depth):
+        # Paths aim at half the precision: they stop where the gap is within their target, and the lower bound
+        # is not backed up along them, so aiming at the precision itself leaves a gap at b0 just above it.
+        if not sample_path(upper, lower, b0, precision / 2, max_depth, end):
             break  # the gap at b0 is within precision
 
 
