@@ -7,7 +7,7 @@ works offline. Protocol on ``/ws`` (JSON text messages unless said otherwise):
 | direction | message |
 |---|---|
 | page -> server | ``{"type": "start"}``; ``{"type": "keys", "held": ["up", "left"], "seq": n}`` (direction keys now held); ``{"type": "act", "seq": n}`` (pick up / drop); ``{"type": "reply", "text": "...", "seq": n}``; ``{"type": "ping", "t": ms}``; a binary message = a spoken reply as a WAV file |
-| server -> page | ``hello``; ``state`` (simulated time, human pose, balls, last input applied, notice, question open, posterior) followed by a binary ``b"F" + JPEG`` overhead frame, ``stream_fps`` times a second; ``question`` followed by ``b"A" + WAV`` (the robot's spoken question); ``heard`` (transcript and node of a reply); ``step``; ``done``; ``error``; ``pong`` |
+| server -> page | ``hello``; ``state`` (simulated time, human pose, balls, last input applied, notice, question open, posterior) followed by a binary ``b"F" + JPEG`` overhead frame, ``stream_fps`` times a second, as soon as the simulation thread rendered it; ``question`` followed by ``b"A" + WAV`` (the robot's spoken question); ``heard`` (transcript and node of a reply); ``step``; ``done``; ``error``; ``pong`` |
 
 Safety: the server binds 127.0.0.1 unless ``--host`` says otherwise, and then the page and the WebSocket need the
 token printed at start-up (``?token=...``); a WebSocket whose ``Origin`` is another site is refused (no
@@ -33,7 +33,7 @@ from urllib.parse import urlsplit
 from embodied_adhoc import paths
 from embodied_adhoc.errors import ConfigError, EmbodiedAdhocError
 from embodied_adhoc.live.humans import DIRECTIONS
-from embodied_adhoc.live.session import LiveSession, LiveSettings
+from embodied_adhoc.live.session import FRAME_READY, LiveSession, LiveSettings
 
 __all__ = ["LiveServer", "RateLimit", "is_loopback", "serve"]
 
@@ -199,6 +199,9 @@ class LiveServer:
         except WebSocketDisconnect:
             pass
         finally:
+            session.person.keys(
+                set(), session.person.last_seq
+            )  # a dropped page must not leave the human walking
             sender.cancel()
             with contextlib.suppress(asyncio.CancelledError, Exception):
                 await sender
@@ -266,20 +269,17 @@ class LiveServer:
         return {"type": "error", "message": f"rate limit: {what}; messages dropped"}
 
     async def _send_loop(self, websocket, outbox: asyncio.Queue) -> None:
-        """Events as they come; the latest frame at a steady ``stream_fps``."""
+        """Events in order; on each FRAME_READY the latest state and frame (rendered by the simulation thread at
+        ``stream_fps`` wall frames per second, so the page's rate is the renderer's, with no second timer)."""
         session = self.session
-        loop = asyncio.get_running_loop()
-        period = 1.0 / session.settings.stream_fps
-        due, last_seq, last_sent = loop.time(), 0, None
+        last_seq, last_sent = 0, None
         while True:
-            while not outbox.empty():
-                event, binary = outbox.get_nowait()
-                await websocket.send_json(event)
-                if binary is not None:
-                    await websocket.send_bytes(b"A" + binary)
-            with session.frame_lock:
-                frame = session.frame
-            if frame is not None and frame[0] != last_seq:
+            event, binary = await outbox.get()
+            if event is FRAME_READY:
+                with session.frame_lock:
+                    frame = session.frame
+                if frame is None or frame[0] == last_seq:
+                    continue
                 last_seq, jpeg, state = frame
                 await websocket.send_json({"type": "state", **state})
                 await websocket.send_bytes(b"F" + jpeg)
@@ -287,10 +287,10 @@ class LiveServer:
                 if last_sent is not None:
                     session.frame_intervals.append(now - last_sent)
                 last_sent = now
-            due += period
-            await asyncio.sleep(max(0.0, due - loop.time()))
-            if loop.time() - due > 5 * period:  # the event loop was stalled: do not burst to catch up
-                due = loop.time()
+                continue
+            await websocket.send_json(event)
+            if binary is not None:
+                await websocket.send_bytes(b"A" + binary)
 
 
 def _offer(outbox: asyncio.Queue, item) -> None:

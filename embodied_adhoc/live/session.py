@@ -36,12 +36,14 @@ from embodied_adhoc.experiments.episode import EpisodeObserver, StepRecord
 from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, action_label, describe_observation
 from embodied_adhoc.live.humans import Participant, Reply, heard_line
 
-__all__ = ["LiveSession", "LiveSettings", "next_participant_id"]
+__all__ = ["FRAME_READY", "LiveSession", "LiveSettings", "next_participant_id"]
 
 PARTICIPANT_PATTERN = re.compile(r"^P(\d{3,})_")
 SAMPLE_RATE = 16_000  # the recogniser's rate (comms.recognition)
 MAX_REPLY_SECONDS = 15.0
 MAX_TEXT = 200
+FRAME_READY = {"type": "frame"}
+"""Published (not sent) when a new frame is ready: the server then sends the latest state and frame."""
 
 
 @dataclass(frozen=True)
@@ -250,6 +252,7 @@ class LiveSession:
         with self.frame_lock:
             self._frame_seq += 1
             self.frame = (self._frame_seq, buffer.getvalue(), state)
+        self.publish(FRAME_READY)  # the page gets it now, not at the next tick of a timer of its own
 
     # ------------------------------------------------------------------ replies (server threads)
     def reply_from_text(self, text: str, seq: int) -> dict:

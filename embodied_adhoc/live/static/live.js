@@ -14,7 +14,7 @@ window.liveStats = stats;
 const $ = (id) => document.getElementById(id);
 const held = new Set();
 let socket = null, seq = 0, tasks = [], lastFrameAt = null, frameUrl = null;
-let pendingMotion = null, motionSeen = false, recorder = null;
+let pendingMotion = null, motionSeen = false, recorder = null, questionStep = null;
 
 function token() { return new URLSearchParams(location.search).get("token") || ""; }
 
@@ -92,6 +92,7 @@ function onEvent(event) {
     case "started": showBelief(event.posterior); break;
     case "question":
       stats.questions += 1;
+      questionStep = event.step;
       $("question").textContent = event.text;
       $("question-panel").className = "asking";
       for (const id of ["reply-text", "reply-send", "mic"]) $(id).disabled = false;
@@ -105,6 +106,7 @@ function onEvent(event) {
       break;
     case "step":
       stats.steps.push(event);
+      if (event.step === questionStep) closeQuestion();  // answered, or the robot stopped waiting
       showBelief(event.posterior);
       log(`step ${event.step}: ${event.action}; ${event.observation}`);
       break;
@@ -136,7 +138,6 @@ function onState(state) {
   $("balls").textContent = state.balls.map((s, i) => `${i}: ${names[s]}`).join(", ");
   $("robot").textContent = state.action ? `step ${state.step}: ${state.action}` : "—";
   if (state.notice) $("notice").textContent = state.notice;
-  if (!state.question_open && $("question-panel").className === "asking") closeQuestion();
   if (state.posterior) showBelief(state.posterior);
 }
 
