@@ -228,7 +228,7 @@ def figure_5_9(args: Args, reference: SweepResult) -> tuple[str, Path | None]:
         result = sweep(args, "gridworld", {"n_models": size}, ("atpo",), f"fig5_9-{size}")
         scores[size] = normalised(result, "atpo", low, high)
     rows = [[str(size), f"{100 * score:.1f} %"] for size, score in scores.items()]
-    table = format_table(("|M|", "ATPO normalised (thesis: > 70 %)"), rows, args.markdown)
+    table = format_table(("library size", "ATPO normalised (thesis: > 70 %)"), rows, args.markdown)
     from embodied_adhoc.experiments.plots import _pyplot, _save
 
     plt = _pyplot()
