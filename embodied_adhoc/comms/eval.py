@@ -149,18 +149,30 @@ def run_eval(config: EvalConfig, progress: bool = False) -> list[UtteranceResult
     else:
         import multiprocessing
 
-        pool = multiprocessing.get_context("spawn").Pool(config.workers)
+        pool = multiprocessing.get_context("spawn").Pool(config.workers, initializer=_ignore_interrupts)
         iterator = pool.imap(_decode_one, tasks, chunksize=8)
     if progress:
         from tqdm import tqdm
 
         iterator = tqdm(iterator, total=len(tasks), desc="speech eval", unit="utt")
+    finished = False
     try:
-        return list(iterator)
+        results = list(iterator)
+        finished = True
+        return results
     finally:
         if pool is not None:
-            pool.close()
+            # Stopped early (Ctrl-C, SIGTERM under the CLI, an error): kill the workers now rather than let them
+            # decode every queued utterance first.
+            (pool.close if finished else pool.terminate)()
             pool.join()
+
+
+def _ignore_interrupts() -> None:
+    """Pool initializer: Ctrl-C reaches the whole process group, but only the parent should react to it."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def condition_metrics(results: Sequence[UtteranceResult], snr_db: float | None) -> dict:
