@@ -10,7 +10,9 @@ robot-node readings that were unknown or wrong. Episodes are those of ``trials t
 With ``--confusion-out PATH`` it also writes the localiser's measured robot-node confusion (true area x reported
 area + unknown, pooled over the rows with the localiser on, smoothed with ``--floor``) with its provenance (the
 counts per fault setting, seeds, episodes, commit), in the schema of ``domains.confusion``; the lab model reads it
-with ``--localisation-model PATH`` (``measured`` = ``assets/data/localisation_confusion_measured.json``).
+with ``--localisation-model PATH`` (``measured`` = ``assets/data/localisation_confusion_measured.json``). HOTSPOT's
+episodes rarely take the robot to every area, so the readings also include ``--tours`` scripted tours per fault
+setting (every edge of the lab both ways from the door, a reading after each macro step), which visit all five.
 
 Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py [--episodes 16] [--seed 0] [--max-steps 100]
        [--workers 1] [--rows defaults encoder_noise=0.05 ...] [--confusion-out PATH] [--cost-seconds 60]
@@ -62,6 +64,8 @@ class Args:
     """write the measured robot-node confusion (JSON) here"""
     floor: float = 0.01
     """smoothing floor of the measured confusion"""
+    tours: int = 4
+    """scripted tours per fault setting added to the measured confusion (seeds 0..N-1)"""
     cost_seconds: float = 60.0
     """simulated seconds of driving for the cost measurement (0: skip)"""
 
@@ -75,7 +79,9 @@ def parse_row(text: str) -> dict[str, float]:
     for part in text.split(","):
         name, _, value = part.partition("=")
         if name not in FAULTS or not value:
-            raise ConfigError(f"--rows '{text}': use name=value with names {', '.join(FAULTS)}, or 'defaults'")
+            raise ConfigError(
+                f"--rows '{text}': use name=value with names {', '.join(FAULTS)}, or 'defaults'"
+            )
         faults[name] = float(value)
     return faults
 
@@ -146,6 +152,42 @@ def run_one(task: tuple[str, bool, int, int, int]) -> dict:
     }
 
 
+TOUR = (1, 2, 1, 3, 4, 3, 1, 0)  # from the door, every edge both ways
+
+
+def tour_readings(row: str, seed: int) -> list[tuple[int, int | None]]:
+    """(true area, reading) after each macro step of one scripted tour under the row's faults (localiser on)."""
+    from embodied_adhoc.envs.toxic_waste_world import make_world
+    from embodied_adhoc.experiments.toxic_waste import fault_env_kwargs
+    from embodied_adhoc.sim.lab_world import HumanCommand
+
+    kwargs = fault_env_kwargs({"faults": parse_row(row)})
+    world = make_world(
+        kwargs.get("encoder_noise"),
+        kwargs.get("wheel_slip"),
+        0.0,
+        60.0,
+        15.0,
+        64,
+        64,
+        localisation=True,
+        lidar_noise=kwargs.get("lidar_noise"),
+        lidar_dropout=kwargs.get("lidar_dropout"),
+    )
+    world.reset(seed=seed, robot_node=0, human_node=4, ball_nodes=(0, 1, 2))
+    readings = [(0, world.robot_node_reading())]
+    for target in TOUR:
+        result = world.step_macro(target, HumanCommand.stay())
+        true = (
+            result.true_robot_node
+            if result.true_robot_node is not None
+            else world.layout.nearest_node(world.true_robot_pose()[:2])
+        )
+        readings.append((true, result.robot_node_reading))
+    world.close()
+    return readings
+
+
 def localiser_cost(seconds: float) -> dict[str, float]:
     """Wall time per control step of: the physics (its substeps), the localiser (lidar scan + filter), and the
     physics step of the same scene without the lidar's rangefinders; one scripted tour, this process."""
@@ -164,7 +206,9 @@ def localiser_cost(seconds: float) -> dict[str, float]:
         if tick % 200 == 150:  # keep clear of the walls: back to the open space now and then
             q = world.ids.root_qpos
             world.data.qpos[q : q + 2] = (0.5, -0.5)
-            world.localiser.reset(world.localiser.rng, world.odometry.pose, world.true_robot_pose(), time=world.data.time)
+            world.localiser.reset(
+                world.localiser.rng, world.odometry.pose, world.true_robot_pose(), time=world.data.time
+            )
         start = time.perf_counter()
         world._physics(world.substeps)
         middle = time.perf_counter()
@@ -215,9 +259,16 @@ def write_confusion(path: Path, results: list[dict], args: Args) -> None:
         counts = per_row.setdefault(result["row"], np.zeros((n, n + 1), dtype=np.int64))
         for true, reading in result["readings"]:
             counts[true, n if reading is None else reading] += 1
+    for row in list(per_row):
+        for seed in range(args.tours):
+            for true, reading in tour_readings(row, seed):
+                per_row[row][true, n if reading is None else reading] += 1
     if not per_row:
         raise ConfigError("--confusion-out needs rows run with the localiser on")
     pooled = sum(per_row.values())
+    empty = [LAB_LAYOUT.node_names[i] for i in np.flatnonzero(pooled.sum(axis=1) == 0)]
+    if empty:
+        raise ConfigError(f"--confusion-out: no reading in area(s) {empty}; raise --tours or --episodes")
     try:
         commit = subprocess.run(
             ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
@@ -226,8 +277,9 @@ def write_confusion(path: Path, results: list[dict], args: Args) -> None:
         commit = "unknown"
     provenance = {
         "source": "scripts/bench_faults.py: robot-node readings of the physics lab's Monte Carlo localiser "
-        "(sim/localisation.py) after every reset and macro step of HOTSPOT episodes; rows = true area, "
-        "columns = reported area, last = unknown",
+        "(sim/localisation.py) after every reset and macro step of HOTSPOT episodes and of scripted tours "
+        "(every edge both ways from the door); rows = true area, columns = reported area, last = unknown",
+        "tours_per_row": args.tours,
         "columns_note": "the last column (named 'failed' by the shared schema) is 'unknown'",
         "agent": AGENT,
         "episodes_per_row": args.episodes,
@@ -238,7 +290,9 @@ def write_confusion(path: Path, results: list[dict], args: Args) -> None:
         "commit": commit,
         "date": datetime.date.today().isoformat(),
     }
-    matrix = ConfusionMatrix(LAB_LAYOUT.node_names, smooth_confusion(pooled, args.floor), args.floor, provenance)
+    matrix = ConfusionMatrix(
+        LAB_LAYOUT.node_names, smooth_confusion(pooled, args.floor), args.floor, provenance
+    )
     save_confusion(matrix, path)
     print(f"wrote {path} (pooled over {len(per_row)} fault settings, {int(pooled.sum())} readings)")
 
@@ -286,7 +340,10 @@ def main() -> None:
             done = list(pool.map(run_one, tasks)) if pool is not None else [run_one(task) for task in tasks]
             results.extend(done)
             for localisation in (True, False):
-                print(table_line(row, localisation, [r for r in done if r["localisation"] == localisation]), flush=True)
+                print(
+                    table_line(row, localisation, [r for r in done if r["localisation"] == localisation]),
+                    flush=True,
+                )
     finally:
         if pool is not None:
             pool.shutdown()

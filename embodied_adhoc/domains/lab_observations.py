@@ -35,7 +35,7 @@ __all__ = [
 ]
 
 MEASURED_LOCALISATION = "data/localisation_confusion_measured.json"
-"""The robot-node confusion of the physics lab's localiser, measured by ``scripts/measure_localisation.py``
+"""The robot-node confusion of the physics lab's localiser, measured by ``scripts/bench_faults.py --confusion-out``
 (schema of ``domains.confusion``; the last column is "unknown")."""
 
 
@@ -49,7 +49,8 @@ def load_localisation_model(source: str) -> ConfusionMatrix:
         except FileNotFoundError:
             raise ConfigError(
                 f"localisation_model='measured': {MEASURED_LOCALISATION} is missing; run "
-                "scripts/measure_localisation.py or pass a JSON path"
+                "scripts/bench_faults.py --confusion-out assets/data/localisation_confusion_measured.json or "
+                "pass a JSON path"
             ) from None
     return load_confusion(source)
 

@@ -103,7 +103,9 @@ class Lidar:
             mujoco.mju_quat2Mat(rotations[row], model.site_quat[site])
         z_axes = rotations.reshape(-1, 3, 3)[:, :, 2]
         if np.any(np.abs(z_axes[:, 2]) > 1e-6):
-            raise SceneError("the lidar's beams must lie in the body's horizontal plane (site z axes with z = 0)")
+            raise SceneError(
+                "the lidar's beams must lie in the body's horizontal plane (site z axes with z = 0)"
+            )
         self.angles = np.arctan2(z_axes[:, 1], z_axes[:, 0])
         origin = model.site_pos[sites[0]]
         self.origin = (float(origin[0]), float(origin[1]))

@@ -39,7 +39,14 @@ from embodied_adhoc.control.reference import wrap_angle
 from embodied_adhoc.errors import SceneError
 from embodied_adhoc.sim.lidar import LidarScan
 
-__all__ = ["LikelihoodField", "LocalisationConfig", "LocaliserStatus", "MonteCarloLocaliser", "compose", "relative"]
+__all__ = [
+    "LikelihoodField",
+    "LocalisationConfig",
+    "LocaliserStatus",
+    "MonteCarloLocaliser",
+    "compose",
+    "relative",
+]
 
 
 @dataclass(frozen=True)
@@ -197,7 +204,9 @@ class LikelihoodField:
             if kind == mujoco.mjtGeom.mjGEOM_BOX:
                 half = size
             elif kind in (mujoco.mjtGeom.mjGEOM_CYLINDER, mujoco.mjtGeom.mjGEOM_CAPSULE):
-                half = np.array([size[0], size[0], size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0)])
+                half = np.array(
+                    [size[0], size[0], size[1] + (size[0] if kind == mujoco.mjtGeom.mjGEOM_CAPSULE else 0)]
+                )
             elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
                 half = np.full(3, size[0])
             else:

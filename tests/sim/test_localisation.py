@@ -123,7 +123,9 @@ def test_same_seed_same_particles():
 
 
 def test_wheel_slip_is_corrected_and_a_blocked_step_says_so():
-    lab = LabWorld(LabWorldConfig(odometry=OdometryConfig(wheel_slip=0.02, encoder_noise=0.05), stall_seconds=3.0))
+    lab = LabWorld(
+        LabWorldConfig(odometry=OdometryConfig(wheel_slip=0.02, encoder_noise=0.05), stall_seconds=3.0)
+    )
     lab.reset(seed=3, robot_node=1, human_node=4, ball_nodes=(0, 1, 2))
     for target in (3, 4):
         result = lab.step_macro(target, HumanCommand.stay())

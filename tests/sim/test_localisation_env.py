@@ -98,12 +98,36 @@ def test_measured_localisation_model_is_the_robot_factor(tmp_path):
 
 def test_localisation_summary_reports_every_failure():
     steps = [
-        {"step": 1, "pose_error_m": 0.05, "odometry_error_m": 0.3, "localisation_mode": "lidar",
-         "robot_node_reading": 1, "true_robot_node": 1, "blocked": False, "kidnaps": 0},
-        {"step": 2, "pose_error_m": 0.9, "odometry_error_m": 1.2, "localisation_mode": "lidar",
-         "robot_node_reading": None, "true_robot_node": 3, "blocked": True, "kidnaps": 1},
-        {"step": 3, "pose_error_m": 0.1, "odometry_error_m": 1.3, "localisation_mode": "odometry",
-         "robot_node_reading": 2, "true_robot_node": 3, "blocked": False, "kidnaps": 0},
+        {
+            "step": 1,
+            "pose_error_m": 0.05,
+            "odometry_error_m": 0.3,
+            "localisation_mode": "lidar",
+            "robot_node_reading": 1,
+            "true_robot_node": 1,
+            "blocked": False,
+            "kidnaps": 0,
+        },
+        {
+            "step": 2,
+            "pose_error_m": 0.9,
+            "odometry_error_m": 1.2,
+            "localisation_mode": "lidar",
+            "robot_node_reading": None,
+            "true_robot_node": 3,
+            "blocked": True,
+            "kidnaps": 1,
+        },
+        {
+            "step": 3,
+            "pose_error_m": 0.1,
+            "odometry_error_m": 1.3,
+            "localisation_mode": "odometry",
+            "robot_node_reading": 2,
+            "true_robot_node": 3,
+            "blocked": False,
+            "kidnaps": 0,
+        },
     ]
     summary = _localisation_summary(steps)
     assert summary["blocked_steps"] == [2] and summary["kidnaps"] == 1
@@ -119,3 +143,16 @@ def test_cli_refuses_bad_fault_options(capsys):
     code = main(["trials", "toxic-waste", "--backend", "abstract", "--wheel-slip", "0.01", "--episodes", "1"])
     assert code == 2
     assert "use --backend mujoco" in capsys.readouterr().err
+
+
+def test_shipped_measured_localisation_model_has_provenance():
+    from embodied_adhoc.domains.lab_observations import load_localisation_model
+
+    model = load_localisation_model("measured")
+    assert model.nodes == ("door", "open space", "robot station", "single workbench", "double workbench")
+    np.testing.assert_allclose(model.matrix.sum(axis=1), 1.0)
+    counts = np.array(model.provenance["pooled_counts"])
+    assert (counts.sum(axis=1) > 0).all()  # every area was measured (no row is the smoothing's uniform guess)
+    assert "scripts/bench_faults.py" in model.provenance["source"] and model.provenance["rows"]
+    library = build_lab_library(localisation_model="measured")
+    np.testing.assert_allclose(library.observation_model.robot(4), model.matrix[4])
