@@ -8,6 +8,7 @@ never serves an old answer). Policies are ``AlphaVectorPolicy`` ``.npz`` files (
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -48,7 +49,10 @@ def model_digest(pomdp) -> str:
     return digest.hexdigest()
 
 
+@functools.lru_cache(maxsize=1)
 def _solver_digest() -> str:
+    """Digest of the solver's source files, read once per process: the code this process runs (a file edited
+    after the solver was imported must not label policies the old code solved)."""
     import embodied_adhoc.decision as decision
 
     digest = hashlib.sha256()
@@ -67,6 +71,7 @@ def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object,
     from embodied_adhoc.decision.perseus import PerseusConfig, perseus
     from embodied_adhoc.decision.policy import AlphaVectorPolicy
 
+    _solver_digest()  # fixed now, as the solver modules were just imported
     if not use_cache:
         return perseus(pomdp, PerseusConfig(**settings)), False
     key = hashlib.sha256(
