@@ -167,6 +167,7 @@ def hotspot_pursuit_overhead(args: Args) -> None:
     import gymnasium
     import mujoco
 
+    import embodied_adhoc.envs  # noqa: F401
     from embodied_adhoc.decision.agents.factory import make_agent
 
     env = gymnasium.make("EmbodiedAdhoc/PursuitPairPomdp-v0", max_episode_steps=10**6).unwrapped

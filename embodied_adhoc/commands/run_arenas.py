@@ -14,7 +14,7 @@ from embodied_adhoc.gl import choose_gl_platform
 
 __all__ = ["ATLPO_TRAIN_COMMAND", "register_arena_runs"]
 
-PURSUIT_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa", "random")
+PURSUIT_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa", "perseus", "random")
 ATLPO_TRAIN_COMMAND = "embodied-adhoc train atlpo --domain foraging --set task --out DIR"
 EPILOG = """\
 examples:

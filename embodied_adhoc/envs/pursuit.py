@@ -3,6 +3,8 @@ and the two-predator variant of Fig. 7.12 (``EmbodiedAdhoc/PursuitPairGrid-v0``,
 
 from __future__ import annotations
 
+import numpy as np
+
 from embodied_adhoc import checks
 from embodied_adhoc.domains.pursuit import pursuit_config, pursuit_tasks, two_predator_config
 from embodied_adhoc.envs import contract
@@ -50,11 +52,21 @@ class PursuitEnv(AdhocGridEnv):
     ## Arguments
     ``gymnasium.make("EmbodiedAdhoc/PursuitGrid-v0", tasks=None, teams=None, rows=5, cols=5, n_agents=4,
     n_prey=1, pairs=False, toroidal=False, prey_stay_probability=0.2, view=5, backend="abstract",
-    obs_mode="grid", image_size=64, render_mode=None, physics=None)``; ``reset(options={"task", "team", "state"})``.
+    obs_mode="grid", image_size=64, render_mode=None, physics=None, observation_noise=0.2)``
+    (``observation_noise``: eps of ``info["observation_index"]``, pairs only; 0.2 as pursuit-task, Table 5.2); ``reset(options={"task", "team", "state"})``.
 
     ## Info
     ``task`` (1-based), ``task_name``, ``team``, ``state`` (ground truth, evaluation only), ``steps``,
-    ``remaining``; after a step ``completed`` and ``teammate_actions``.
+    ``remaining``; after a step ``completed`` and ``teammate_actions``. With ``pairs=True`` also
+    ``observation_index``: the flat observation ``z = 9 t + p`` of the two-predator pursuit POMDP (thesis 5.2.5;
+    :func:`~embodied_adhoc.domains.chapter5.pursuit.observation_distribution`, the function its ``O`` is built
+    from): the teammate's (t) and the prey's (p) cell in the ad hoc robot's 3x3 neighbourhood, each seen with
+    probability ``1 - observation_noise``, else 4; 40 (nothing seen) at reset. It is drawn from a generator spawned
+    from the episode's, so it leaves every other draw of the env unchanged. Any agent of
+    :mod:`embodied_adhoc.decision.agents` over a pursuit library can act on it; note that these envs keep the
+    arena's rules (walls, collisions, the greedy/aware teams of ``grid_rules_team``), so for a planner they are
+    a model mismatch; ``EmbodiedAdhoc/PursuitPairPomdpGrid-v0`` / ``PursuitPairPomdp-v0`` run the POMDP's own
+    rules.
 
     ## Version history
     v0: initial release.
@@ -64,7 +76,8 @@ class PursuitEnv(AdhocGridEnv):
     def __init__(self, tasks=None, teams=None, rows: int = 5, cols: int = 5, n_agents: int | None = None,
                  n_prey: int = 1, pairs: bool = False, toroidal: bool = False, prey_stay_probability: float = 0.2,
                  view: int = 5, backend: str = "abstract", obs_mode: str = "grid", image_size: int = 64,
-                 render_mode: str | None = None, physics=None):
+                 render_mode: str | None = None, physics=None, observation_noise: float = 0.2):
+        self.observation_noise = checks.number("observation_noise", observation_noise, 0.0, 1.0)
         common = dict(toroidal=checks.flag("toroidal", toroidal),
                       prey_stay_probability=checks.number("prey_stay_probability", prey_stay_probability, 0.0, 1.0),
                       **grid_sizes(rows=rows, cols=cols, n_targets=n_prey))
@@ -78,3 +91,33 @@ class PursuitEnv(AdhocGridEnv):
             library, teams_lib = pursuit_tasks(n_agents), FOUR_PREDATOR_TEAMS
         super().__init__(config, library, teams_lib, tasks, teams, view, backend, obs_mode, image_size,
                          render_mode, physics)
+
+    @property
+    def pairs(self) -> bool:
+        """The two-predator variant of Fig. 7.12 (capture without an action)."""
+        return not self.core.config.interact_required
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        observation, info = super().reset(seed=seed, options=options)
+        if self.pairs:
+            self._observation_rng = self.np_random.spawn(1)[0]
+            info["observation_index"] = 9 * 4 + 4  # nothing seen before the first step
+        return observation, info
+
+    def step(self, action):
+        observation, reward, terminated, truncated, info = super().step(action)
+        if self.pairs:
+            info["observation_index"] = self._pair_observation()
+        return observation, reward, terminated, truncated, info
+
+    def _pair_observation(self) -> int:
+        """Draw ``z`` of the pursuit POMDP from the teammate's and the prey's offsets (wrapped on a torus)."""
+        from embodied_adhoc.domains.chapter5.pursuit import observation_distribution
+
+        config, state = self.core.config, self.core.episode.state
+        offsets = np.vstack([state.agents[1], state.targets[0]]) - state.agents[0]
+        if config.toroidal:
+            size = np.array([config.rows, config.cols])
+            offsets = (offsets + size // 2) % size - size // 2
+        distribution = observation_distribution(offsets[:1], offsets[1:], self.observation_noise)[0]
+        return int(self._observation_rng.choice(distribution.size, p=distribution))

@@ -11,9 +11,10 @@ Episode spec (drawn once per episode from ``(seed, episode)``, shared by every a
 ``agent_row`` / ``agent_col`` (the ad hoc robot's cell). The observation index is ``info["observation_index"]``.
 
 Agents: ``hotspot`` (TEBOPA), ``known-task`` (HOTSPOT told the task), ``oracle`` (value iteration on the true
-task's MDP, sees the state), ``atpo`` (ATPO with the chapter-5 Perseus policies, solved once and cached on disk by
-:mod:`embodied_adhoc.experiments.policy_cache` with the pursuit-task settings of Table 5.2/5.4), ``bopa`` (sees
-the state), ``random``.
+task's MDP, sees the state), ``atpo`` (ATPO with Perseus policies, solved once and cached on disk by
+:mod:`embodied_adhoc.experiments.policy_cache`; settings :data:`ATPO_SOLVER`), ``bopa`` (sees
+the state), ``random``, and ``perseus``: the true task's Perseus policy on its belief (ATPO told the task), the
+thesis's own "known task, acting optimally under partial observability" of Fig. 7.12.
 
 The plug-in for ``trials pursuit`` is :data:`DOMAIN` (the grid-arena domain, extended): with ``--pairs`` and any
 of these agents (or ``--rules pomdp``) the sweep runs here; ``--pairs`` with the arena's own agents
@@ -31,11 +32,15 @@ from embodied_adhoc.experiments.foraging import GridTrialDomain
 
 __all__ = ["DOMAIN", "POMDP_AGENTS", "PursuitPairsSession", "PursuitTrialDomain", "pomdp_options"]
 
-POMDP_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa")
+POMDP_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa", "perseus")
 """Agents that plan with the pursuit library (``random`` runs in either rule set)."""
-AGENTS_GIVEN_THE_TASK = ("known-task", "oracle")
+AGENTS_GIVEN_THE_TASK = ("known-task", "oracle", "perseus")
 ENV_IDS = {"abstract": "EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "mujoco": "EmbodiedAdhoc/PursuitPairPomdp-v0"}
-ATPO_SOLVER = {"tolerance": 0.01, "time_limit": 30.0, "seed": 0}  # Table 5.4; n_beliefs from the library (5000)
+ATPO_SOLVER = {"tolerance": 0.01, "stop": "gain", "time_limit": None, "max_iterations": 1000, "seed": 0}
+"""Perseus for ATPO / perseus: Table 5.4's tolerance 0.01 with Perseus's own stopping rule (the largest gain of a
+backup), 5000 beliefs (Table 5.2, the library's), no time limit, so the policies, and every trial, do not depend on
+the machine's load (a time-limited solve did: two sessions of one sweep solved different policies). The first
+solve takes about 45 s of CPU per task; the policies are then cached on disk."""
 
 
 class PursuitPairsSession:
@@ -65,7 +70,7 @@ class PursuitPairsSession:
                 "agent_cell": [int(spec["agent_row"]), int(spec["agent_col"])]}
 
     def atpo_policies(self) -> tuple:
-        """ATPO's Perseus policies of the four tasks (disk cache shared with ``trials pursuit-task``)."""
+        """ATPO's Perseus policies of the four tasks (:data:`ATPO_SOLVER`; cached on disk)."""
         if self._policies is None:
             from embodied_adhoc.experiments.policy_cache import solve_cached
 
@@ -78,8 +83,9 @@ class PursuitPairsSession:
         from embodied_adhoc.decision.agents.atpo import AtpoAgent
         from embodied_adhoc.decision.agents.factory import hotspot_plan, make_agent
 
-        if name == "atpo":
-            agent = AtpoAgent(hotspot_plan(self.library).kernels, self.atpo_policies(), name=name)
+        if name in ("atpo", "perseus"):
+            prior = np.eye(self.library.n_models)[int(spec["task"])] if name == "perseus" else None
+            agent = AtpoAgent(hotspot_plan(self.library).kernels, self.atpo_policies(), prior=prior, name=name)
             agent.rng = np.random.default_rng(seed)
             return agent
         true_task = int(spec["task"]) if name in AGENTS_GIVEN_THE_TASK else None
@@ -116,7 +122,7 @@ class PursuitTrialDomain(GridTrialDomain):
         group.add_argument(
             "--rules", choices=("auto", "pomdp", "grid"), default="auto",
             help="--pairs only: 'pomdp' runs the pursuit-task POMDP as the world (torus, no collisions, greedy "
-                 "teammate; agents hotspot, known-task, oracle, atpo, bopa, random); 'grid' the arena's own rules "
+                 "teammate; agents hotspot, known-task, oracle, atpo, bopa, perseus, random); 'grid' the arena's own rules "
                  "(agents original, random); 'auto' (default) picks pomdp when a decision-layer agent is asked for")
         group.add_argument("--no-cache", action="store_true",
                            help="--rules pomdp: solve ATPO's policies again (do not read or write the policy cache)")

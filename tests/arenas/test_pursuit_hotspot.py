@@ -137,7 +137,32 @@ def test_trials_pairs_with_decision_agents_and_refusals():
     assert unpaired.returncode == 2 and "--pairs" in unpaired.stderr
 
 
-def test_run_foraging_is_refused_with_the_training_command():
-    done = _cli("run", "foraging")
+def test_run_foraging_without_a_library_is_refused_with_the_training_command(tmp_path):
+    done = _cli("run", "foraging", "--library", str(tmp_path))
     assert done.returncode == 2
     assert "embodied-adhoc train atlpo --domain foraging" in done.stderr
+
+
+@pytest.mark.parametrize("env_id", ["EmbodiedAdhoc/PursuitPairGrid-v0", "EmbodiedAdhoc/PursuitPair-v0"])
+def test_the_rule_based_pair_envs_expose_the_pomdps_observation_index(env_id):
+    """Same observation function as the library (noise 0: the neighbourhood itself), and the other draws of the
+    env are unchanged by it (the teammate's actions do not depend on the noise level)."""
+    runs = {}
+    for noise in (0.0, 0.5):
+        env = gymnasium.make(env_id, observation_noise=noise)
+        _, info = env.reset(seed=3, options={"task": 1, "team": "greedy"})
+        assert info["observation_index"] == 40
+        trace = []
+        for action in (0, 3, 1, 2, 4, 0):
+            _, _, terminated, _, info = env.step(action)
+            state = info["state"]
+            offsets = np.array([state["agents"][1], state["targets"][0]]) - np.array(state["agents"][0])
+            expected = [3 * (d[0] + 1) + d[1] + 1 if np.abs(d).max() <= 1 and np.abs(d).sum() else 4 for d in offsets]
+            if noise == 0.0:
+                assert info["observation_index"] == 9 * expected[0] + expected[1]
+            trace.append((info["teammate_actions"], state["targets"]))
+            if terminated:
+                break
+        runs[noise] = trace
+        env.close()
+    assert runs[0.0] == runs[0.5]

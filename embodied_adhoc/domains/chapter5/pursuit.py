@@ -39,7 +39,7 @@ from embodied_adhoc.domains.chapter5.library import (
 from embodied_adhoc.domains.grid_rules import pair_tasks
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["PURSUIT_VARIANTS", "TEAMMATES", "build_pursuit"]
+__all__ = ["PURSUIT_VARIANTS", "TEAMMATES", "build_pursuit", "observation_distribution"]
 
 ACTION_NAMES = ("up", "down", "left", "right", "stay")
 DELTAS = np.array([(-1, 0), (1, 0), (0, -1), (0, 1), (0, 0)])  # (row, column) per action
@@ -218,17 +218,28 @@ def _joint(teammate, prey, goal, absorbing, n_states, size, index_of) -> list[li
     return joint
 
 
-def _observations(teammate: np.ndarray, prey: np.ndarray, noise: float) -> sp.csr_matrix:
+def observation_distribution(teammate: np.ndarray, prey: np.ndarray, noise: float) -> np.ndarray:
+    """``P(z | offsets)``, (N, 81), of the observation of section 5.2.5 (the module docstring): the teammate's and
+    the prey's (row, column) offsets from the agent, each seen in its cell of the agent's 3x3 neighbourhood with
+    probability ``1 - noise``; a miss, or an offset outside the neighbourhood, reads 4. The library's ``O`` and the
+    arenas' ``info["observation_index"]`` both come from here."""
+
     def cell_distribution(offsets: np.ndarray) -> np.ndarray:
-        distribution = np.zeros((len(offsets) + 1, 9))
+        offsets = np.asarray(offsets).reshape(-1, 2)
+        distribution = np.zeros((len(offsets), 9))
         visible = (np.abs(offsets) <= 1).all(axis=1) & (np.abs(offsets).sum(axis=1) > 0)
         cell = 3 * (offsets[:, 0] + 1) + offsets[:, 1] + 1
         rows = np.flatnonzero(visible)
         distribution[rows, cell[visible]] = 1.0 - noise
         distribution[rows, 4] += noise
         distribution[np.flatnonzero(~visible), 4] = 1.0
-        distribution[-1, 4] = 1.0  # the absorbing state
         return distribution
 
     mate, seen_prey = cell_distribution(teammate), cell_distribution(prey)
-    return sp.csr_matrix(np.einsum("st,sp->stp", mate, seen_prey).reshape(len(mate), 81))
+    return np.einsum("st,sp->stp", mate, seen_prey).reshape(len(mate), 81)
+
+
+def _observations(teammate: np.ndarray, prey: np.ndarray, noise: float) -> sp.csr_matrix:
+    absorbing = np.zeros((1, 81))
+    absorbing[0, 9 * 4 + 4] = 1.0  # nothing seen
+    return sp.csr_matrix(np.vstack([observation_distribution(teammate, prey, noise), absorbing]))
