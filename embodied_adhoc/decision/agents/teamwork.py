@@ -1,0 +1,152 @@
+"""Chapter-4 ad hoc agents over fully observed states with the teammates' actions visible (Algorithm 1).
+
+The chapter-4 setting extends the project's :class:`~embodied_adhoc.decision.agents.base.Agent` protocol: the
+agent is given the state ``X_t`` (an integer array) when it acts, and after the step it observes the
+teammates' actions ``A_t^{-alpha}``, the reward ``R_{t+1}`` and ``X_{t+1}`` (:class:`TeamworkAgent`). One
+interaction with a team spans many episodes: :meth:`TeamworkAgent.start_team` begins it (Algorithm 1, lines
+1-4), ``act``/``observe`` are lines 6-12.
+
+Models are duck-typed so that this module stays free of torch and of any domain:
+
+* a *team model* has ``probs(states (B, S)) -> (B, N, A)``, the teammates' individual action distributions
+  ``pi^n(a | x)`` (Eq. 4.2's factors); a learnable one also ``update(state, teammate_actions)`` and ``reset()``;
+* an *environment model* has ``step(states, joint_actions (B, N + 1), rng) -> (next, reward, terminal)``; a
+  learnable one also ``update(state, joint_action, reward, next_state, terminal)``.
+
+:class:`ModelBasedAgent` is TEAMSTER, PLASTIC-Model, Learns Team and Learns Environment: they differ only in
+which of those models are exact and which are learned (built in ``learning/teamster_agents.py``).
+"""
+
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from embodied_adhoc.decision.uct import BatchedUct, UctConfig, update_team_belief
+
+
+class TeamworkAgent(Protocol):
+    name: str
+
+    def start_team(self, rng: np.random.Generator) -> None:
+        """Begin the interaction with a (possibly new) team: a fresh online team model, a uniform belief."""
+
+    def act(self, state: np.ndarray) -> int:
+        """The ad hoc agent's action in the observed state."""
+
+    def observe(self, state: np.ndarray, joint_action: np.ndarray, reward: float, next_state: np.ndarray,
+                terminal: bool) -> None:
+        """The step's outcome: all agents' actions (the ad hoc agent's first), reward and next state."""
+
+    def set_learning(self, learning: bool) -> None:
+        """Pause (evaluation) or resume learning; beliefs keep tracking the team either way."""
+
+    def finish_team(self) -> None:
+        """Store what was learned about the current team in the library (protocol step 4)."""
+
+
+def joint_likelihood(probs: np.ndarray, teammate_actions: np.ndarray) -> np.ndarray:
+    """Eq. 4.2: ``pi(A^{-alpha} | x) = prod_n pi^n(a^n | x)`` for each model, from ``probs`` (K, N, A)."""
+    picked = np.take_along_axis(probs, teammate_actions[None, :, None], axis=2)[..., 0]
+    return picked.prod(axis=1)
+
+
+class ModelBasedAgent:
+    """Algorithm 1: UCT over an environment model with the most likely team model of the library (augmented
+    with the team model learned online, when there is one), the belief updated by Algorithm 2."""
+
+    def __init__(self, name: str, environment, library: list, online=None, uct: UctConfig | None = None,
+                 eta: float = 0.1, rule: str = "plastic") -> None:
+        self.name, self.environment, self.library, self.online = name, environment, list(library), online
+        self.planner = BatchedUct(uct or UctConfig())
+        self.eta, self.rule = eta, rule
+        self.learning = True
+        self.belief = np.ones(1)
+        self.rng = np.random.default_rng(0)
+
+    @property
+    def models(self) -> list:
+        return self.library + ([self.online] if self.online is not None else [])
+
+    def start_team(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        if self.online is not None:
+            self.online.reset()
+        self.belief = np.full(len(self.models), 1.0 / len(self.models))
+
+    def set_learning(self, learning: bool) -> None:
+        self.learning = learning
+
+    def team_model(self):
+        """Line 7: the argmax of the belief (the first on ties)."""
+        return self.models[int(np.argmax(self.belief))]
+
+    def act(self, state: np.ndarray) -> int:
+        team = self.team_model()
+        environment = self.environment
+
+        def simulate(states, actions, rng):
+            mates = sample_rows(team.probs(states), rng)
+            return environment.step(states, np.concatenate([actions[:, None], mates], axis=1), rng)
+
+        return int(self.planner.plan(np.asarray(state), simulate, self.rng))
+
+    def observe(self, state, joint_action, reward, next_state, terminal) -> None:
+        state, joint_action = np.asarray(state), np.asarray(joint_action)
+        mates = joint_action[1:]
+        probs = np.stack([model.probs(state[None])[0] for model in self.models])
+        self.belief = update_team_belief(self.belief, joint_likelihood(probs, mates), self.eta, self.rule)
+        if self.learning:
+            if hasattr(self.environment, "update"):
+                self.environment.update(state, joint_action, reward, next_state, terminal)
+            if self.online is not None:
+                self.online.update(state, mates)
+
+    def finish_team(self) -> None:
+        """Protocol step 4: the online model joins the library (frozen); a fresh one is started next team."""
+        if self.online is not None and hasattr(self.online, "frozen_copy"):
+            self.library.append(self.online.frozen_copy())
+
+
+def sample_rows(probs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One draw per row of ``probs`` (..., A) by inverse CDF, one uniform each."""
+    cdf = np.cumsum(probs, axis=-1)
+    u = rng.random(probs.shape[:-1])[..., None] * cdf[..., -1:]
+    return np.minimum((u >= cdf).sum(-1), probs.shape[-1] - 1)
+
+
+class RandomAgent:
+    """The lower bound of section 4.1.2: uniform actions."""
+
+    def __init__(self, actions: int = 5, name: str = "random") -> None:
+        self.name, self.actions, self.rng = name, actions, np.random.default_rng(0)
+
+    def start_team(self, rng):
+        self.rng = rng
+
+    def act(self, state):
+        return int(self.rng.integers(self.actions))
+
+    def observe(self, *args) -> None:
+        pass
+
+    def set_learning(self, learning):
+        pass
+
+    def finish_team(self):
+        pass
+
+
+class OriginalTeammate(RandomAgent):
+    """The team's own policy in the ad hoc seat (``policy(states) -> (B, A)`` for seat 0), re-bound per team."""
+
+    def __init__(self, policies: dict, name: str = "original") -> None:
+        super().__init__(name=name)
+        self.policies, self.policy = policies, None
+
+    def bind(self, team: str) -> None:
+        self.policy = self.policies[team]
+
+    def act(self, state):
+        return int(sample_rows(self.policy(np.asarray(state)[None]), self.rng)[0])
