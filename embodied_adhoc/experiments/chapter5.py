@@ -230,9 +230,10 @@ class Chapter5Domain:
             group.add_argument(
                 "--teammate",
                 default=None,
-                metavar="MODULE:CALLABLE",
-                help="the world's teammate instead of the library's: CALLABLE(library, model) returns its policy, "
-                "an (S x B) array over its B actions (the agents keep their library: a model-mismatch test)",
+                metavar="NAME|MODULE:CALLABLE",
+                help="the world's teammate instead of the library's (the agents keep their library: a "
+                "model-mismatch test): optimal (the MMDP's), random, or CALLABLE(library, model) returning its "
+                "policy, an (S x B) array over its B actions",
             )
         group.add_argument(
             "--beliefs", type=int, default=None, help="Perseus belief-set size (default: Table 5.2's)"
@@ -329,22 +330,46 @@ def __getattr__(attribute: str):
     raise AttributeError(attribute)
 
 
+NAMED_TEAMMATES = ("optimal", "random")
+"""World teammates by name: ``optimal`` (the MMDP's optimal marginal, ``library.optimal_teammate_policy``) and
+``random`` (uniform over its actions)."""
+
+
+def _named_teammate(name: str):
+    from embodied_adhoc.domains.chapter5.library import optimal_teammate_policy
+
+    def policy(library, model: int) -> np.ndarray:
+        mmdp = library.mmdps[model]
+        n_teammate = mmdp.n_actions // library.n_actions
+        if name == "random":
+            return np.full((mmdp.n_states, n_teammate), 1.0 / n_teammate)
+        return optimal_teammate_policy(mmdp, library.n_actions)
+
+    return policy
+
+
 def world_with_teammate(library, reference: str) -> tuple:
-    """The library's models with the teammate replaced by ``reference`` (``module:callable``): for each model
-    ``m``, ``CALLABLE(library, m)`` gives ``pi(b | x)`` (S x B), which Fig. 5.2's reduction turns into the world's
-    transitions (same rewards, observations and start)."""
+    """The library's models with the teammate replaced by ``reference``: a name of ``NAMED_TEAMMATES`` or
+    ``module:callable``, where ``CALLABLE(library, m)`` gives ``pi(b | x)`` (S x B) for model ``m``. Fig. 5.2's
+    reduction turns it into the world's transitions (same rewards, observations and start)."""
     import importlib
 
     from embodied_adhoc.decision.models import POMDP
     from embodied_adhoc.domains.chapter5.library import reduce_joint
 
     module_name, _, attribute = reference.partition(":")
-    if not module_name or not attribute:
-        raise ConfigError(f"--teammate {reference!r}: expected MODULE:CALLABLE, e.g. my_teammates:cautious")
-    try:
-        factory = getattr(importlib.import_module(module_name), attribute)
-    except (ImportError, AttributeError) as error:
-        raise ConfigError(f"--teammate {reference!r}: cannot import it ({error})") from None
+    if reference in NAMED_TEAMMATES:
+        factory = _named_teammate(reference)
+    elif not module_name or not attribute:
+        raise ConfigError(
+            f"--teammate {reference!r}: give {' or '.join(NAMED_TEAMMATES)}, or MODULE:CALLABLE "
+            "(e.g. my_teammates:cautious)"
+        )
+    else:
+        try:
+            factory = getattr(importlib.import_module(module_name), attribute)
+        except (ImportError, AttributeError) as error:
+            raise ConfigError(f"--teammate {reference!r}: cannot import it ({error})") from None
     world = []
     for m, pomdp in enumerate(library.pomdps):
         mmdp = library.mmdps[m]

@@ -135,8 +135,13 @@ def test_a_users_teammate_replaces_the_worlds(tmp_path, monkeypatch):
         assert all(names[y].endswith("-tr4c4") for y in row.indices)  # the teammate never moves
     with pytest.raises(ConfigError, match=r"my_teammates:broken: returned shape \(3, 5\)"):
         world_with_teammate(library, "my_teammates:broken")
-    with pytest.raises(ConfigError, match="expected MODULE:CALLABLE"):
+    with pytest.raises(ConfigError, match="give optimal or random, or MODULE:CALLABLE"):
         world_with_teammate(library, "frozen")
+    # named teammates: the optimal one is the library's own (maps), the random one moves uniformly
+    optimal = world_with_teammate(library, "optimal")
+    assert (optimal[0].transitions[0] != library.pomdps[0].transitions[0]).nnz == 0
+    random_world = world_with_teammate(library, "random")
+    assert len(random_world[0].transitions[4][x].indices) > 1
     options = {**_options(), "teammate": "my_teammates:frozen"}
     config = SweepConfig("ntu", "abstract", options, ("value-iteration",), episodes=2, seed=1, max_steps=20)
     assert len(run_sweep(config).records) == 2
