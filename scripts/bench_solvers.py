@@ -8,6 +8,11 @@ Prints three tables:
    2-core machine), and the time Perseus needed to reach SARSOP's lb (its policy value at b0).
 3. A generated sparse POMDP the size of the thesis's pursuit model (626 states, 5 actions, 81 observations),
    solved with 5,000 beliefs until convergence (the thesis: 2.5 h).
+4. Time to value: the lower and upper bounds at b0 of the anytime solver (the CLI's defaults: 1,000 beliefs,
+   expansion) at 1, 5, 20 and 60 s, next to SARSOP's at the same times: measured in the same run when a
+   ``pomdpsol`` binary is on the PATH (optional, never a dependency), else the recorded figures.
+
+    .venv/bin/python scripts/bench_solvers.py --only-anytime --problems sarsop-TagAvoid.pomdp hallway2.POMDP
 
     .venv/bin/python scripts/bench_solvers.py                     # everything (about 10 minutes)
     .venv/bin/python scripts/bench_solvers.py --problems tiger.95.POMDP hallway.POMDP --time-limit 20
@@ -15,6 +20,11 @@ Prints three tables:
 
 from __future__ import annotations
 
+import math
+import re
+import shutil
+import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,6 +78,10 @@ class Args:
     naive_beliefs: int = 3
     """beliefs backed up by the naive reference (seconds each on Tag-size models)"""
     skip_generated: bool = False
+    checkpoints: tuple[float, ...] = (1.0, 5.0, 20.0, 60.0)
+    """seconds at which the time-to-value table reads both solvers' bounds"""
+    only_anytime: bool = False
+    """print only the time-to-value table"""
 
 
 def parse_args() -> Args:
@@ -204,8 +218,79 @@ def corpus_row(name: str, args: Args) -> None:
     )
 
 
+# SARSOP's lower bound over time where it was recorded (../shared/pomdp/README.md, 2-core machine, undated):
+# (seconds, lb). Other files: only the 20 s figures of SARSOP above.
+SARSOP_TRACES = {
+    "sarsop-TagAvoid.pomdp": [(0.17, -9.71), (0.48, -6.76), (0.75, -6.53), (1.4, -6.43), (2.1, -6.37), (7.0, -6.33),
+                              (20.0, -6.32), (120.0, -6.18)],
+}
+
+
+def _at(trace: list[tuple[float, float, float]], seconds: float) -> tuple[float, float] | None:
+    """(lower, upper) of the last trace point at or before ``seconds``."""
+    before = [point for point in trace if point[0] <= seconds]
+    return (before[-1][1], before[-1][2]) if before else None
+
+
+def sarsop_trace(path: Path, seconds: float) -> list[tuple[float, float, float]] | None:
+    """Run ``pomdpsol`` for ``seconds`` and parse its progress table (time, #trial, #backup, lb, ub, ...)."""
+    binary = shutil.which("pomdpsol")
+    if binary is None:
+        return None
+    with tempfile.TemporaryDirectory() as folder:
+        result = subprocess.run(
+            [binary, str(path), "--timeout", f"{seconds:g}", "--output", str(Path(folder) / "out.policy")],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+    trace = []
+    for line in result.stdout.splitlines():
+        fields = line.split()
+        if len(fields) >= 5 and all(re.fullmatch(r"-?[0-9.]+(e[-+]?[0-9]+)?", f) for f in fields[:5]):
+            trace.append((float(fields[0]), float(fields[3]), float(fields[4])))
+    return trace
+
+
+def anytime_row(name: str, args: Args) -> None:
+    pomdp = read_pomdp(args.corpus / name)
+    horizon = max(args.checkpoints)
+    # SARSOP first, then Perseus, one after the other in the same run: same machine, same load (roughly).
+    measured = sarsop_trace(args.corpus / name, horizon)
+    points: list[tuple[float, float, float]] = []
+    config = PerseusConfig(n_beliefs=1000, time_limit=horizon, seed=args.seed, expand=True)
+    perseus(pomdp, config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0)))
+    cells = []
+    for seconds in args.checkpoints:
+        ours = _at(points, seconds)
+        cells.append("-" if ours is None else f"{ours[0]:.4f} / {ours[1]:.4f}")
+        if measured is not None:
+            theirs = _at(measured, seconds)
+            cells.append("-" if theirs is None else f"{theirs[0]:.4f} / {theirs[1]:.4f}")
+        elif name in SARSOP_TRACES:
+            theirs = _at([(t, lb, math.nan) for t, lb in SARSOP_TRACES[name]], seconds)
+            cells.append("-" if theirs is None else f"{theirs[0]:.4f} (recorded)")
+        else:
+            lb, _, sarsop_seconds = SARSOP.get(name, (math.nan, math.nan, math.nan))
+            cells.append(f"{lb:g} at {sarsop_seconds:g} s (recorded)" if seconds == 20.0 else "-")
+    print(f"| {name} | {pomdp.n_states} | " + " | ".join(cells) + " |", flush=True)
+
+
+def anytime_table(args: Args) -> None:
+    source = "measured in this run" if shutil.which("pomdpsol") else "recorded (../shared/pomdp/README.md, undated)"
+    print(f"\n## Time to value: lower / upper bound at b0, Perseus (CLI defaults) vs SARSOP ({source})\n")
+    header = " | ".join(f"Perseus {t:g} s | SARSOP {t:g} s" for t in args.checkpoints)
+    print(f"| file | S | {header} |")
+    print("|---|---|" + "---|" * (2 * len(args.checkpoints)))
+    for name in args.problems:
+        anytime_row(name, args)
+
+
 def main() -> None:
     args = parse_args()
+    if args.only_anytime:
+        anytime_table(args)
+        return
     print("## Backup speed: vectorised vs naive reference (ms per belief, same run)\n")
     print("| problem | S | vectors | naive ms | vectorised ms | speed-up |")
     print("|---|---|---|---|---|---|")
@@ -229,7 +314,7 @@ def main() -> None:
             f"\n## Generated 626-state, 5-action, 81-observation sparse POMDP, {args.generated_beliefs} beliefs\n"
         )
         print(
-            "| stop rule | beliefs | tolerance | converged | seconds | iterations | vectors | V(b0) | residual | "
+            "| stop rule | beliefs | tolerance | converged on B | seconds | iterations | vectors | V(b0) | residual | "
             "thesis |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|")
@@ -245,11 +330,12 @@ def main() -> None:
             policy = perseus(generated, config)
             stats = policy.stats
             print(
-                f"| {stop} | {stats.n_beliefs} | {args.generated_tolerance:g} | {stats.converged} | "
+                f"| {stop} | {stats.n_beliefs} | {args.generated_tolerance:g} | {stats.converged_on_beliefs} | "
                 f"{stats.seconds:.1f} | {stats.iterations} | {policy.n_vectors} | "
                 f"{policy.value(generated.initial_belief):.4f} | {stats.residual:.2e} | 2.5 h |",
                 flush=True,
             )
+    anytime_table(args)
 
 
 if __name__ == "__main__":

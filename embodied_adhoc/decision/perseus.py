@@ -230,6 +230,13 @@ def _infinite_horizon(
                 _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline))
                 moved = bounds.upper - float(upper.values(b0)[0])
                 bounds = _Bounds(bounds.lower, bounds.upper - moved)
+                if progress is not None:
+                    progress(
+                        SolverProgress(
+                            iteration, time.perf_counter() - start, bounds.lower, len(graph), improvement,
+                            bounds.upper, len(beliefs),
+                        )
+                    )
                 if deadline is None and moved <= 0.1 * config.tolerance:
                     break  # without a time limit: stop once a round barely moves it
             break
@@ -247,6 +254,13 @@ def _infinite_horizon(
             rows = _belief_rows(beliefs)
             values = np.concatenate([values, (added @ alphas.T).max(axis=1)])
             on_beliefs = False
+    if progress is not None:  # the bounds as returned (a last upper-bound round may have moved them)
+        progress(
+            SolverProgress(
+                iteration, time.perf_counter() - start, bounds.lower, len(graph), improvement, bounds.upper,
+                len(beliefs),
+            )
+        )
     stats = SolverStats(
         "perseus",
         iteration,
@@ -261,6 +275,7 @@ def _infinite_horizon(
         n_stage_vectors=len(current),
     )
     # The policy is the whole graph: V_n and every continuation its plans use (plan_graph.py: why).
+    graph.keep_closure(current, force=True)
     return AlphaVectorPolicy(graph.vectors, graph.actions, stats=stats)
 
 
@@ -364,7 +379,7 @@ def _record(graph: PlanGraph, current: np.ndarray, stage: _Stage, rows: np.ndarr
             first = np.argmax(dominates[found], axis=1)
             replacement = np.arange(len(graph))
             replacement[dropped[found]] = new_rows[candidates[found, first]]
-            graph.children = replacement[graph.children]
+            graph.redirect(replacement)
     return graph.keep_closure(new_rows)
 
 

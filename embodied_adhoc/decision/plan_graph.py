@@ -19,12 +19,17 @@ import numpy as np
 
 
 class PlanGraph:
-    """Vectors (M, S), their first actions (M,) and continuation rows (M, Z) into the same arrays."""
+    """Vectors (M, S), their first actions (M,) and continuation rows (M, Z) into the same arrays.
+
+    Stored in buffers that grow by doubling, and compacted only when a quarter of the rows became unreachable
+    (copying the whole graph at every Perseus stage took 9 % of a Tag solve).
+    """
 
     def __init__(self, vectors: np.ndarray, actions: np.ndarray, children: np.ndarray) -> None:
-        self.vectors = np.ascontiguousarray(vectors, dtype=np.float64)
-        self.actions = np.asarray(actions, dtype=np.int64)
-        self.children = np.asarray(children, dtype=np.int64)
+        self._vectors = np.ascontiguousarray(vectors, dtype=np.float64)
+        self._actions = np.asarray(actions, dtype=np.int64)
+        self._children = np.asarray(children, dtype=np.int64)
+        self._size = self._vectors.shape[0]
 
     @classmethod
     def of_blind_policies(cls, vectors: np.ndarray, n_observations: int) -> PlanGraph:
@@ -32,35 +37,66 @@ class PlanGraph:
         count = vectors.shape[0]
         return cls(vectors, np.arange(count), np.repeat(np.arange(count)[:, None], n_observations, axis=1))
 
+    @property
+    def vectors(self) -> np.ndarray:
+        return self._vectors[: self._size]
+
+    @property
+    def actions(self) -> np.ndarray:
+        return self._actions[: self._size]
+
+    @property
+    def children(self) -> np.ndarray:
+        return self._children[: self._size]
+
     def __len__(self) -> int:
-        return self.vectors.shape[0]
+        return self._size
 
     def add(self, vectors: np.ndarray, actions: np.ndarray, children: np.ndarray) -> np.ndarray:
         """Append plans whose ``children`` are rows of this graph; returns their rows."""
-        first = len(self)
-        self.vectors = np.vstack([self.vectors, vectors])
-        self.actions = np.concatenate([self.actions, np.asarray(actions, dtype=np.int64)])
-        self.children = np.vstack([self.children, np.asarray(children, dtype=np.int64)])
-        return np.arange(first, len(self))
+        first, count = self._size, len(vectors)
+        if first + count > self._vectors.shape[0]:
+            capacity = max(2 * self._vectors.shape[0], first + count)
+            self._vectors = _grown(self._vectors, capacity)
+            self._actions = _grown(self._actions, capacity)
+            self._children = _grown(self._children, capacity)
+        self._vectors[first : first + count] = vectors
+        self._actions[first : first + count] = actions
+        self._children[first : first + count] = children
+        self._size += count
+        return np.arange(first, self._size)
+
+    def redirect(self, replacement: np.ndarray) -> None:
+        """Continue with ``replacement[row]`` wherever a plan continued with ``row`` (a dominating vector)."""
+        self._children[: self._size] = replacement[self.children]
 
     def closure(self, roots: np.ndarray) -> np.ndarray:
         """Sorted rows reachable from ``roots`` through continuations (the roots included)."""
         reached = np.zeros(len(self), dtype=bool)
         frontier = np.unique(roots)
+        children = self.children
         while frontier.size:
             reached[frontier] = True
-            following = np.unique(self.children[frontier])
+            following = np.unique(children[frontier])
             frontier = following[~reached[following]]
         return np.flatnonzero(reached)
 
-    def keep_closure(self, roots: np.ndarray) -> np.ndarray:
-        """Drop every plan not reachable from ``roots``; returns the new rows of ``roots``."""
+    def keep_closure(self, roots: np.ndarray, force: bool = False) -> np.ndarray:
+        """Drop the plans not reachable from ``roots`` (once they are a quarter of the graph, or when ``force``d:
+        until then they stay, unused but still exact); returns the rows of ``roots`` afterwards."""
         keep = self.closure(roots)
-        if keep.size == len(self):
+        if keep.size == len(self) or (not force and keep.size > 0.75 * len(self)):
             return np.asarray(roots)
         renumber = np.full(len(self), -1, dtype=np.int64)
         renumber[keep] = np.arange(keep.size)
-        self.vectors = self.vectors[keep]
-        self.actions = self.actions[keep]
-        self.children = renumber[self.children[keep]]
+        self._vectors = self.vectors[keep]
+        self._actions = self.actions[keep]
+        self._children = renumber[self.children[keep]]
+        self._size = keep.size
         return renumber[roots]
+
+
+def _grown(array: np.ndarray, capacity: int) -> np.ndarray:
+    grown = np.empty((capacity,) + array.shape[1:], dtype=array.dtype)
+    grown[: len(array)] = array
+    return grown

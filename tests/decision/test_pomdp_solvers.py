@@ -123,7 +123,8 @@ def test_perseus_iteration_limit_and_progress(tiger):
         tiger, PerseusConfig(n_beliefs=50, tolerance=0.0, max_iterations=25), progress=reports.append
     )
     assert not policy.stats.converged and policy.stats.iterations == 25
-    assert [r.iteration for r in reports] == list(range(26))  # iteration 0: the bounds before any backup
+    # iteration 0: the bounds before any backup; the last report repeats the bounds as returned
+    assert [r.iteration for r in reports] == [*range(26), 25]
     assert reports[0].value_b0 == policy.stats.trace[0][1] and reports[0].upper_b0 >= reports[-1].value_b0
     values = [value for _, value in policy.stats.trace]
     assert all(b >= a - 1e-9 for a, b in zip(values, values[1:], strict=False))  # monotone at b0
