@@ -353,7 +353,8 @@ class ToxicWasteEnv(gymnasium.Env):
             "human_position": truth.human_pose[:2],
             "ball_positions": np.array(truth.ball_positions),
         }
-        self._frame_sink(self.render_camera(), snapshot)
+        frame = self.world.render("overhead", self.width, self.height, markers=True)  # the belief drawn too
+        self._frame_sink(frame, snapshot)
 
 
 def _human_command(status, planned, handed_over: bool, human_node: int, next_human: int):

@@ -402,9 +402,17 @@ class LabWorld:
 
     # ------------------------------------------------------------------------------------------ rendering
     def render(
-        self, camera: str = "overhead", width: int | None = None, height: int | None = None
+        self,
+        camera: str = "overhead",
+        width: int | None = None,
+        height: int | None = None,
+        markers: bool = False,
     ) -> np.ndarray:
-        """An RGB image (uint8, H x W x 3) from a named camera ("overhead", "perspective", "robot")."""
+        """An RGB image (uint8, H x W x 3) from a named camera ("overhead", "perspective", "robot").
+
+        ``markers`` (overhead camera only): draw what the robot believes above it, beside the true robot: the
+        localiser's particles (blue dots), its estimate (blue square with a heading bar) and the odometry pose
+        (orange square with a heading bar); flat boxes, the cheapest geoms for software rendering."""
         width = width or self.config.render_width
         height = height or self.config.render_height
         name = CAMERA_ALIASES.get(camera, camera)
@@ -428,7 +436,37 @@ class LabWorld:
         renderer.update_scene(self.data, camera=name, scene_option=self._scene_option)
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
         renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
+        if markers and name == "overhead":
+            self._draw_markers(renderer.scene)
         return renderer.render()
+
+    def _draw_markers(self, scene: mujoco.MjvScene, height: float = 1.3, max_particles: int = 50) -> None:
+        """Append the belief markers of :meth:`render` to ``scene`` as decor geoms (drawn, never simulated)."""
+        identity = np.eye(3).ravel()
+
+        def add(kind: int, size, pos, rgba, mat=identity) -> None:
+            if scene.ngeom >= scene.maxgeom:
+                return  # the scene is full: the markers are decoration, the image stays valid without them
+            mujoco.mjv_initGeom(
+                scene.geoms[scene.ngeom], kind, np.asarray(size, float), np.asarray(pos, float),
+                np.asarray(mat, float), np.asarray(rgba, np.float32),
+            )
+            scene.ngeom += 1
+
+        def pose_marker(pose, rgba, z) -> None:
+            x, y, yaw = pose
+            c, s = np.cos(yaw), np.sin(yaw)
+            rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).ravel()
+            add(mujoco.mjtGeom.mjGEOM_BOX, (0.08, 0.08, 0.005), (x, y, z), rgba, rotation)
+            add(mujoco.mjtGeom.mjGEOM_BOX, (0.12, 0.02, 0.006), (x + 0.16 * c, y + 0.16 * s, z), rgba, rotation)
+
+        if self.localiser is not None:
+            particles = self.localiser.particles
+            stride = max(1, len(particles) // max_particles)
+            for x, y in particles[::stride, :2]:
+                add(mujoco.mjtGeom.mjGEOM_BOX, (0.02, 0.02, 0.004), (x, y, height), (0.35, 0.6, 1.0, 0.9))
+            pose_marker(self.localiser.pose, (0.1, 0.35, 1.0, 1.0), height + 0.02)
+        pose_marker(self.odometry_pose(), (1.0, 0.55, 0.0, 1.0), height + 0.04)
 
     def close(self) -> None:
         """Release the offscreen renderers (their GL contexts)."""

@@ -144,3 +144,12 @@ def test_localisation_config_refuses_bad_values():
         LocalisationConfig(particles=3)
     with pytest.raises(SceneError, match="z_hit"):
         LocalisationConfig(z_hit=0.5, z_rand=0.1)
+
+
+def test_overhead_render_can_draw_the_belief(world):
+    world.reset(seed=6, robot_node=1, human_node=4, ball_nodes=(0, 1, 2))
+    plain = world.render("overhead", 320, 256)
+    marked = world.render("overhead", 320, 256, markers=True)
+    assert (plain != marked).any(axis=2).sum() > 30  # particles, estimate and odometry drawn above the robot
+    robot_view = world.render("robot", 64, 48)
+    np.testing.assert_array_equal(robot_view, world.render("robot", 64, 48, markers=True))  # overhead only
