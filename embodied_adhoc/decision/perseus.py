@@ -151,8 +151,13 @@ def _infinite_horizon(
     known = {_belief_key(b) for b in beliefs}
     trace = [(time.perf_counter() - start, float((alphas @ b0).max()))]
     bounds = _Bounds(trace[-1][1], float(upper.values(b0)[0]))
-    if progress is not None:  # the bounds from the first instant: blind policies and the fast informed bound
-        progress(SolverProgress(0, trace[-1][0], bounds.lower, len(graph), np.inf, bounds.upper, len(beliefs)))
+
+    def report(at_iteration: int, gain: float, n_beliefs: int | None = None) -> None:
+        if progress is not None:
+            seconds, count = time.perf_counter() - start, len(beliefs) if n_beliefs is None else n_beliefs
+            progress(SolverProgress(at_iteration, seconds, bounds.lower, len(graph), gain, bounds.upper, count))
+
+    report(0, np.inf)  # the bounds from the first instant: blind policies and the fast informed bound
     improvement, on_beliefs, iteration = np.inf, False, 0
     gamma = pomdp.discount
     bound = config.stop == "bound" and gamma > 0
@@ -173,12 +178,7 @@ def _infinite_horizon(
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
         bounds = _Bounds(float((alphas @ b0).max()), bounds.upper)
         trace.append((time.perf_counter() - start, bounds.lower))
-        if progress is not None:
-            progress(
-                SolverProgress(
-                    iteration, trace[-1][0], bounds.lower, len(graph), improvement, bounds.upper, len(beliefs)
-                )
-            )
+        report(iteration, improvement)
         if stage.timed_out or bounds.gap <= config.precision:
             break
         # Expansion also runs periodically: with a time limit once the backups since the last round took a
@@ -213,13 +213,7 @@ def _infinite_horizon(
         last_round, last_round_time = iteration, time.perf_counter()
         bounds = _Bounds(bounds.lower, float(upper.values(b0)[0]))
         new = new[: max(0, max_beliefs - len(beliefs))]
-        if progress is not None:
-            progress(
-                SolverProgress(
-                    iteration, time.perf_counter() - start, bounds.lower, len(graph), improvement, bounds.upper,
-                    len(beliefs) + len(new),
-                )
-            )
+        report(iteration, improvement, len(beliefs) + len(new))
         if bounds.gap <= config.precision:
             break
         if on_beliefs and config.expand and not new:
@@ -230,13 +224,7 @@ def _infinite_horizon(
                 _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline))
                 moved = bounds.upper - float(upper.values(b0)[0])
                 bounds = _Bounds(bounds.lower, bounds.upper - moved)
-                if progress is not None:
-                    progress(
-                        SolverProgress(
-                            iteration, time.perf_counter() - start, bounds.lower, len(graph), improvement,
-                            bounds.upper, len(beliefs),
-                        )
-                    )
+                report(iteration, improvement)
                 if deadline is None and moved <= 0.1 * config.tolerance:
                     break  # without a time limit: stop once a round barely moves it
             break
@@ -254,13 +242,7 @@ def _infinite_horizon(
             rows = _belief_rows(beliefs)
             values = np.concatenate([values, (added @ alphas.T).max(axis=1)])
             on_beliefs = False
-    if progress is not None:  # the bounds as returned (a last upper-bound round may have moved them)
-        progress(
-            SolverProgress(
-                iteration, time.perf_counter() - start, bounds.lower, len(graph), improvement, bounds.upper,
-                len(beliefs),
-            )
-        )
+    report(iteration, improvement)  # the bounds as returned (a last upper-bound round may have moved them)
     stats = SolverStats(
         "perseus",
         iteration,
