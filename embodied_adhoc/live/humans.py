@@ -195,6 +195,8 @@ class Participant:
         walker = env.world.human
         if not walker.finished:  # a pick or drop motion script is playing: keys wait for it
             env.tick_walker(dt)
+            if walker.finished:
+                self.notice = walker.status  # "picked ball 2", or why a drop failed
             return
         direction = np.zeros(2)
         for key in self.held:

@@ -93,6 +93,7 @@ function onEvent(event) {
     case "question":
       stats.questions += 1;
       questionStep = event.step;
+      $("heard").textContent = "";
       $("question").textContent = event.text;
       $("question-panel").className = "asking";
       for (const id of ["reply-text", "reply-send", "mic"]) $(id).disabled = false;
