@@ -142,7 +142,7 @@ def test_a_participant_walks_picks_a_ball_and_answers_by_typing(live_server, bro
 
     # walk with the arrow keys: north into the passage's row, west through it to ball 2, then pick it up
     ActionChains(browser).key_down(Keys.ARROW_UP).perform()
-    _wait(lambda: stats("lastState.human[1]") > 2.65, 15, "the human to walk north")
+    _wait(lambda: stats("lastState.human[1]") > 2.35, 15, "the human to walk north")  # passage: y 2.15..2.85
     ActionChains(browser).key_up(Keys.ARROW_UP).key_down(Keys.ARROW_LEFT).perform()
     _wait(lambda: stats("lastState.human[0]") < -3.2, 20, "the human to walk west through the passage")
     ActionChains(browser).key_up(Keys.ARROW_LEFT).perform()
@@ -153,6 +153,7 @@ def test_a_participant_walks_picks_a_ball_and_answers_by_typing(live_server, bro
         browser.save_screenshot(str(shots / "live_walking.png"))
     ActionChains(browser).send_keys("e").perform()
     _wait(lambda: stats("lastState.holding") == 2, 20, "the human to hold ball 2")
+    _wait(lambda: stats("lastState.notice") == "picked ball 2", 10, "the pick-up motion to finish")
 
     # the robot asks; answer by typing
     _wait(lambda: stats("questions") >= 1, 45, "the robot's question")
@@ -237,6 +238,8 @@ def test_a_participant_answers_by_speaking_into_the_microphone(live_server, brow
     assert heard["reply"] == "spoken" and heard["node"] == 4, heard
     assert "double workbench" in heard["transcript"]
     assert "heard: node 4" in browser.find_element(By.ID, "heard").text
+    if os.environ.get("LIVE_SCREENSHOTS"):
+        browser.save_screenshot(str(Path(os.environ["LIVE_SCREENSHOTS"]) / "live_spoken.png"))
     answered = _wait(
         lambda: [s for s in stats("steps") if any("participant spoke" in u for u in s["utterances"])],
         15,
