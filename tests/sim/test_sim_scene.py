@@ -30,7 +30,7 @@ def _distance_to_box(points: np.ndarray, centre: np.ndarray, half: np.ndarray) -
 def test_lab_scene_counts_are_pinned():
     model = load_lab_model()
     counts = (model.nbody, model.ngeom, model.njnt, model.nu, model.nsensor, model.nsite, model.ncam)
-    assert counts == (12, 83, 6, 2, 5, 4, 3)
+    assert counts == (12, 84, 6, 2, 77, 76, 3)  # the robot's lidar: 72 rangefinders on 72 sites, 1 visual geom
     assert model.nmocap == 2 and model.neq == 3
 
 
@@ -49,7 +49,7 @@ def test_every_scene_steps_two_seconds_of_random_controls_without_warnings(scene
 
 def test_robot_file_compiles_alone_and_follows_conventions():
     model = mujoco.MjModel.from_xml_path(str(paths.asset("robots/container_robot/container_robot.xml")))
-    assert model.nu == 2 and model.nsensor == 5
+    assert model.nu == 2 and model.nsensor == 5 + 72  # wheel encoders and speeds, gyro; the lidar's 72 beams
     unnamed = [g for g in range(model.ngeom) if not mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g)]
     assert unnamed == []
     assert mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, "rfid") >= 0
