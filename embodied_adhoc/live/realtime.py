@@ -94,7 +94,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
 
     Extra ``info`` keys: ``realtime_slip_s`` (wall seconds the clock skipped, 0 when it kept up),
     ``reply_wait_s`` (simulated seconds the robot waited for an answer), ``decision_wait_s`` (simulated seconds
-    that passed while the agent decided, robot idle).
+    that passed while the agent decided, robot idle), ``mujoco_warnings`` (raised since the previous decision).
     """
 
     def __init__(
@@ -117,6 +117,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         self._wall_contact = False
         self._ticks = 0
         self._next_record_frame = 0.0
+        self._warnings_mark = 0
 
     # ------------------------------------------------------------------ what the human drivers read
     @property
@@ -149,6 +150,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         self.current_action, self.question_open = None, False
         self._events, self._wall_contact, self._ticks = [], False, 0
         self._next_record_frame = self.world.data.time
+        self._warnings_mark = _warnings(self.world.data)
         self.human_driver.reset(self)
         self.clock.start(self.world.data.time)
         return observation, info
@@ -241,6 +243,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         self._events.extend(world.rfid.poll(data))
         wall_contact = self._wall_contact or _wall_contact(world)
         events, self._events, self._wall_contact = tuple(self._events), [], False
+        warnings_mark, self._warnings_mark = self._warnings_mark, _warnings(data)
         truth = world.ground_truth()
         reading = world.robot_node_reading()
         if reading is not None:
@@ -278,7 +281,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
             human_status=world.human.status,
             timed_out=not controller.finished,
             odometry_error=world.odometry_error(),
-            mujoco_warnings=0,
+            mujoco_warnings=self._warnings_mark - warnings_mark,  # since the previous decision
             robot_node_reading=reading,
             blocked=target is not None and not controller.arrived,
             pose_error=float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
@@ -290,7 +293,13 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         info["realtime_slip_s"] = round(self.clock.slipped, 3)
         info["reply_wait_s"] = round(float(data.time - start), 3) if asking else 0.0
         info["decision_wait_s"] = round(float(decision_wait), 3)
+        info["mujoco_warnings"] = result.mujoco_warnings
         return observation.to_vector(), reward, terminated, False, info
+
+
+def _warnings(data) -> int:
+    """MuJoCo warnings raised so far (0 in a healthy run)."""
+    return int(sum(w.number for w in data.warning))
 
 
 def _wall_contact(world) -> bool:

@@ -24,12 +24,14 @@ class _Trace(EpisodeObserver):
         self.steps.append(
             (record.action, record.observation_index, round(info["sim_time"], 6), info["ball_status"])
         )
+        self.warnings = getattr(self, "warnings", 0) + info["mujoco_warnings"]
 
 
 def _run(seed: int, max_steps: int, **kwargs):
     trace = _Trace()
     episode = open_realtime_episode(EpisodeConfig(seed=seed, max_steps=max_steps), **kwargs)
     outcome = run_realtime_episode(episode, [trace])
+    assert trace.warnings == 0  # MuJoCo raised no warning
     return outcome, trace.steps
 
 
@@ -82,6 +84,22 @@ def test_the_participant_walks_with_held_keys_and_a_wall_stops_them():
         assert env.world.ground_truth().human_node == 1
         with pytest.raises(Exception, match="unknown direction"):
             person.keys({"jump"}, seq=3)
+    finally:
+        env.close()
+
+
+def test_walking_into_a_wall_beside_a_passage_slides_through_it():
+    person = Participant()
+    env = _env(person)
+    try:
+        env.world.human.xy = np.array(
+            [1.5, 1.95]
+        )  # double workbench, 0.55 m south of the 3-4 passage's centre line
+        env.world.human.node = 4
+        person.keys({"left"}, seq=1)
+        for _ in range(200):  # four simulated seconds
+            env._tick(None)
+        assert env.world.human.xy[0] < -0.5 and env.world.ground_truth().human_node == 3
     finally:
         env.close()
 
