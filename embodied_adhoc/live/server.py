@@ -313,7 +313,11 @@ def serve(
     except OSError as error:
         listener.close()
         raise ConfigError(f"--host {host} --port {port}: cannot listen there ({error.strerror})") from None
-    server = LiveServer(settings, host)
+    try:
+        server = LiveServer(settings, host)
+    except BaseException:
+        listener.close()
+        raise
     bound = listener.getsockname()[1]
     shown = f"[{host}]" if family == socket.AF_INET6 else host
     url = f"http://{shown}:{bound}/" + (f"?token={server.token}" if server.token else "")

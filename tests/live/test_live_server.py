@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import socket
 import threading
 import time
@@ -199,3 +200,38 @@ def test_rate_limit_bucket():
     assert [bucket.allow() for _ in range(4)] == [True, True, True, False]
     now[0] += 0.5
     assert bucket.allow() and not bucket.allow()
+
+
+def _live_cli(*args: str, tmp: Path):
+    import subprocess
+    import sys
+
+    command = [sys.executable, "-m", "embodied_adhoc.cli", "live", "toxic-waste", "--out", str(tmp), *args]
+    return subprocess.run(
+        command, capture_output=True, text=True, timeout=120, env={**os.environ, "MUJOCO_GL": "egl"}
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (("--port", "70000"), "--port"),
+        (("--speed", "0"), "--speed"),
+        (("--participant", "../escape"), "--participant"),
+        (("--max-steps", "0"), "--max-steps"),
+    ],
+)
+def test_bad_live_flags_are_one_line_and_status_2(tmp_path, args, named):
+    result = _live_cli(*args, tmp=tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and named in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_a_busy_port_is_one_line_and_status_2(tmp_path):
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        result = _live_cli("--port", str(busy.getsockname()[1]), tmp=tmp_path)
+    assert result.returncode == 2 and "cannot listen there" in result.stderr, result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
