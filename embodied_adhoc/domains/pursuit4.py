@@ -51,10 +51,13 @@ class Pursuit4:
     """Geometry of one toroidal ``size x size`` world, with lookup tables for batched rules."""
 
     size: int = 5
+    slip: float = 0.0  # the changed environment: each predator's move fails (it stays) with this probability
 
     def __post_init__(self) -> None:
         if not isinstance(self.size, int) or self.size < 3:
             raise ConfigError(f"pursuit size={self.size!r}: give an integer >= 3 (the thesis's world is 5)")
+        if not 0.0 <= self.slip < 1.0:
+            raise ConfigError(f"pursuit slip={self.slip!r}: give a probability in [0, 1)")
         m = self.size
         cells = np.arange(m * m)
         row, col = np.divmod(cells, m)
@@ -94,10 +97,13 @@ class Pursuit4:
     # --- the exact environment model ---------------------------------------------------------------------
     def step(self, states: np.ndarray, predator_actions: np.ndarray,
              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(next states, rewards, terminal) of the true dynamics; draws the prey's move and the move order."""
+        """(next states, rewards, terminal) of the true dynamics; draws the prey's move, the move order (and
+        the slips, when ``slip`` > 0)."""
         count = states.shape[0]
         actions = np.empty((count, N_AGENTS), dtype=np.int64)
         actions[:, :N_PREDATORS] = predator_actions
+        if self.slip > 0:
+            actions[:, :N_PREDATORS][rng.random((count, N_PREDATORS)) < self.slip] = STAY
         actions[:, PREY] = rng.integers(0, 4, size=count)
         order = np.argsort(rng.random((count, N_AGENTS)), axis=1)
         nxt = states.copy()

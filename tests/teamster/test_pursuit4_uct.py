@@ -83,10 +83,30 @@ def test_team_belief_moves_to_the_observed_team(observed):
         update_team_belief(belief, np.ones(3), rule="vote")
 
 
+class _Fixed:
+    """A stand-in online team model (the learned one lives in learning/): fixed, never updated."""
+
+    def __init__(self, team):
+        self.team = team
+
+    def reset(self):
+        pass
+
+    def probs(self, states):
+        return self.team.probs(states)
+
+    def update(self, state, mates):
+        pass
+
+
 def test_same_seed_same_decisions():
     def decisions(seed):
-        agent = ModelBasedAgent("plastic-model", ExactEnvironment(WORLD), [ExactTeam(WORLD, t) for t in TEAMS])
+        exact = {t: ExactTeam(WORLD, t) for t in TEAMS}
+        agent = ModelBasedAgent("plastic-model", ExactEnvironment(WORLD), _Fixed(exact["greedy"]), exact)
+        for team in TEAMS:
+            agent.finish_team(team)
         agent.start_team(np.random.default_rng(seed))
+        assert agent.belief.shape == (4,)
         rng = np.random.default_rng(seed + 100)
         out = []
         for state in WORLD.sample_states(rng, 5):

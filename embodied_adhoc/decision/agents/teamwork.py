@@ -39,11 +39,12 @@ class TeamworkAgent(Protocol):
                 terminal: bool) -> None:
         """The step's outcome: all agents' actions (the ad hoc agent's first), reward and next state."""
 
-    def set_learning(self, learning: bool) -> None:
-        """Pause (evaluation) or resume learning; beliefs keep tracking the team either way."""
+    def set_evaluation(self, evaluating: bool) -> None:
+        """Start (True) or end (False) an evaluation: learning paused and the team belief restarted uniform,
+        then learning resumed and the interaction's belief restored (section 4.1.4, steps 3 and 5)."""
 
-    def finish_team(self) -> None:
-        """Store what was learned about the current team in the library (protocol step 4)."""
+    def finish_team(self, team: str) -> None:
+        """Store what was learned about ``team`` in the library (section 4.1.4, step 4)."""
 
 
 def joint_likelihood(probs: np.ndarray, teammate_actions: np.ndarray) -> np.ndarray:
@@ -56,27 +57,33 @@ class ModelBasedAgent:
     """Algorithm 1: UCT over an environment model with the most likely team model of the library (augmented
     with the team model learned online, when there is one), the belief updated by Algorithm 2."""
 
-    def __init__(self, name: str, environment, library: list, online=None, uct: UctConfig | None = None,
-                 eta: float = 0.1, rule: str = "plastic") -> None:
-        self.name, self.environment, self.library, self.online = name, environment, list(library), online
+    def __init__(self, name: str, environment, online, exact_teams: dict | None = None,
+                 uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic") -> None:
+        self.name, self.environment, self.online, self.exact_teams = name, environment, online, exact_teams
+        self.library: list = []
         self.planner = BatchedUct(uct or UctConfig())
         self.eta, self.rule = eta, rule
         self.learning = True
         self.belief = np.ones(1)
+        self.saved_belief = self.belief
         self.rng = np.random.default_rng(0)
 
     @property
     def models(self) -> list:
-        return self.library + ([self.online] if self.online is not None else [])
+        return self.library + [self.online]
 
     def start_team(self, rng: np.random.Generator) -> None:
         self.rng = rng
-        if self.online is not None:
-            self.online.reset()
+        self.online.reset()
         self.belief = np.full(len(self.models), 1.0 / len(self.models))
 
-    def set_learning(self, learning: bool) -> None:
-        self.learning = learning
+    def set_evaluation(self, evaluating: bool) -> None:
+        self.learning = not evaluating
+        if evaluating:
+            self.saved_belief = self.belief
+            self.belief = np.full(len(self.models), 1.0 / len(self.models))
+        else:
+            self.belief = self.saved_belief
 
     def team_model(self):
         """Line 7: the argmax of the belief (the first on ties)."""
@@ -100,13 +107,14 @@ class ModelBasedAgent:
         if self.learning:
             if hasattr(self.environment, "update"):
                 self.environment.update(state, joint_action, reward, next_state, terminal)
-            if self.online is not None:
-                self.online.update(state, mates)
+            self.online.update(state, mates)
 
-    def finish_team(self) -> None:
-        """Protocol step 4: the online model joins the library (frozen); a fresh one is started next team."""
-        if self.online is not None and hasattr(self.online, "frozen_copy"):
-            self.library.append(self.online.frozen_copy())
+    def finish_team(self, team: str) -> None:
+        """Section 4.1.4 step 4: the team joins the library, as its exact model when the designer provides
+        them (PLASTIC-Model, Learns Environment), else as the frozen online model (TEAMSTER, Learns Team); the
+        online model starts afresh with the next team."""
+        self.library.append(self.exact_teams[team] if self.exact_teams is not None
+                            else self.online.frozen_copy(name=team))
 
 
 def sample_rows(probs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -131,22 +139,26 @@ class RandomAgent:
     def observe(self, *args) -> None:
         pass
 
-    def set_learning(self, learning):
+    def set_evaluation(self, evaluating):
         pass
 
-    def finish_team(self):
+    def finish_team(self, team):
         pass
 
 
 class OriginalTeammate(RandomAgent):
-    """The team's own policy in the ad hoc seat (``policy(states) -> (B, A)`` for seat 0), re-bound per team."""
+    """A scripted policy in the ad hoc seat (``policies[team](states) -> (B, A)`` for seat 0): ``original`` is
+    re-bound to the team it plays with (:meth:`bind`); a fixed type (``fixed``) always plays that team's
+    policy (the teammate-aware / greedy / probabilistic-destinations rows of the PLASTIC reference)."""
 
-    def __init__(self, policies: dict, name: str = "original") -> None:
+    def __init__(self, policies: dict, name: str = "original", fixed: str | None = None) -> None:
         super().__init__(name=name)
-        self.policies, self.policy = policies, None
+        self.policies, self.fixed = policies, fixed
+        self.policy = policies[fixed] if fixed is not None else None
 
     def bind(self, team: str) -> None:
-        self.policy = self.policies[team]
+        if self.fixed is None:
+            self.policy = self.policies[team]
 
     def act(self, state):
         return int(sample_rows(self.policy(np.asarray(state)[None]), self.rng)[0])

@@ -1,0 +1,194 @@
+"""TEAMSTER's learned models (thesis sections 4.0.1-4.0.2 and 4.1.3) on chapter-4 pursuit.
+
+* :class:`LearnedTeam`, a team model ``pi^{-alpha}(A | x) = prod_n pi^n(a^n | x)`` (Eq. 4.2) trained by
+  maximum likelihood (Eq. 4.1) on the observed (state, teammates' actions): one Adam step on a minibatch of its
+  replay buffer per observed step (the *online* team model, line 12 of Algorithm 1); :meth:`frozen_copy` is
+  the library entry stored after the interaction. One network serves the three teammates, told apart by a
+  one-hot of the seat (the thesis draws one network per teammate, Fig. 4.6(a); same inputs otherwise).
+* :class:`LearnedEnvironment`, the environment model: the factored transition network of Eq. 4.3 (one
+  categorical over the five moves per agent, ``P(x' | x, a) = prod_n p_n(s_n' | x, a)``, input the agent's
+  one-hot index, its offsets to the other agents and the predators' actions, plus its own action in front)
+  and the reward network (offsets prey->predators, sigmoid output ``P(capture)``, evaluated on the next state).
+  Table 4.2: transition 2 x 256 ReLU, Adam 0.001; reward 2 x 64 ReLU, Adam 0.01; team 2 x 48 ReLU, Adam 0.001;
+  replay buffers of 15,000 samples, minibatches of 32.
+
+Models are evaluated in batches (all leaves of a UCT wave at once) with ``torch.no_grad``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from embodied_adhoc.domains.pursuit4 import N_ACTIONS, N_AGENTS, N_PREDATORS, PREY, Pursuit4
+from embodied_adhoc.learning.blocks import ReplayBuffer, adam_step, mlp, seeded_module
+from embodied_adhoc.learning.weights import load_into, save_weights
+
+CAPACITY = 15_000
+BATCH = 32
+_OTHERS = np.array([[m for m in range(N_AGENTS) if m != n] for n in range(N_AGENTS)])  # (5, 4)
+
+
+class Features:
+    """One-hot encodings of chapter-4 pursuit states for the networks (batched numpy)."""
+
+    def __init__(self, world: Pursuit4) -> None:
+        self.world, self.size = world, world.size
+        self.offset_width = 4 * 2 * world.size
+        half = world.size // 2
+        # (C, C, 2 * size) one-hot of the toroidal offset (rows then columns) from one cell to another
+        eye = np.eye(world.size, dtype=np.float32)
+        self.offset_code = np.concatenate([eye[world.delta[..., 0] + half], eye[world.delta[..., 1] + half]], -1)
+        cells = np.arange(world.cells)
+        moves = np.full((world.cells, world.cells), -1, dtype=np.int64)
+        for k in range(N_ACTIONS):
+            moves[cells, world.neighbours[:, k]] = k
+        self.move_of = moves  # (C, C): the move class taking a cell to another (-1: not one step)
+
+    def offsets(self, states: np.ndarray) -> np.ndarray:
+        """(B, 5, 40) each agent's one-hot offsets to the other four (in index order)."""
+        others = states[:, _OTHERS]  # (B, 5, 4)
+        code = self.offset_code[states[:, :, None], others]  # (B, 5, 4, 2 size)
+        return code.reshape(states.shape[0], N_AGENTS, -1)
+
+    def transition(self, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """(B * 5, 70) Eq. 4.3's inputs: agent one-hot, offsets, own action (zeros for the prey), predators'
+        actions."""
+        count = states.shape[0]
+        eye = np.eye(N_ACTIONS, dtype=np.float32)
+        agent = np.broadcast_to(np.eye(N_AGENTS, dtype=np.float32), (count, N_AGENTS, N_AGENTS))
+        own = np.concatenate([eye[actions], np.zeros((count, 1, N_ACTIONS), np.float32)], axis=1)
+        joint = np.broadcast_to(eye[actions].reshape(count, 1, -1), (count, N_AGENTS, N_PREDATORS * N_ACTIONS))
+        rows = np.concatenate([agent, self.offsets(states), own, joint], axis=-1)
+        return rows.reshape(count * N_AGENTS, -1)
+
+    def reward(self, states: np.ndarray) -> np.ndarray:
+        """(B, 40) offsets from the prey to the four predators."""
+        return self.offset_code[states[:, PREY][:, None], states[:, :N_PREDATORS]].reshape(states.shape[0], -1)
+
+    def team(self, states: np.ndarray) -> np.ndarray:
+        """(B * 3, 43) per teammate: seat one-hot and its offsets."""
+        count = states.shape[0]
+        seat = np.broadcast_to(np.eye(3, dtype=np.float32), (count, 3, 3))
+        rows = np.concatenate([seat, self.offsets(states)[:, 1:N_PREDATORS]], axis=-1)
+        return rows.reshape(count * 3, -1)
+
+    def agent(self, states: np.ndarray) -> np.ndarray:
+        """(B, 40) the ad hoc agent's offsets to everyone (the DQN's input)."""
+        return self.offsets(states)[:, 0]
+
+
+class LearnedTeam:
+    """A team model learned online by Eq. 4.1 (negative log-likelihood of the observed teammates' actions)."""
+
+    def __init__(self, world: Pursuit4, rng: np.random.Generator, hidden: int = 48, lr: float = 1e-3,
+                 name: str = "online") -> None:
+        self.features, self.rng, self.hidden, self.lr, self.name = Features(world), rng, hidden, lr, name
+        self.frozen = False
+        self.reset()
+
+    def _network(self) -> nn.Module:
+        return mlp(3 + self.features.offset_width, self.hidden, 2, N_ACTIONS)
+
+    def reset(self) -> None:
+        self.net = seeded_module(self._network, self.rng)
+        self.optimiser = torch.optim.Adam(self.net.parameters(), lr=self.lr)
+        self.buffer = ReplayBuffer(CAPACITY, {"state": ((N_AGENTS,), np.int64), "mates": ((3,), np.int64)})
+        self.steps = 0
+
+    def probs(self, states: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            logits = self.net(torch.from_numpy(self.features.team(states)))
+        return torch.softmax(logits, -1).numpy().astype(np.float64).reshape(states.shape[0], 3, N_ACTIONS)
+
+    def update(self, state: np.ndarray, mates: np.ndarray) -> float | None:
+        """Line 12 of Algorithm 1: store the sample, one Adam step of Eq. 4.1 on a minibatch."""
+        if self.frozen:
+            return None
+        self.buffer.add(state=state, mates=mates)
+        self.steps += 1
+        batch = self.buffer.sample(BATCH, self.rng)
+        logits = self.net(torch.from_numpy(self.features.team(batch["state"])))
+        loss = F.cross_entropy(logits, torch.from_numpy(batch["mates"].reshape(-1)))
+        return adam_step(self.optimiser, loss)
+
+    def frozen_copy(self, name: str | None = None) -> LearnedTeam:
+        copy = LearnedTeam.__new__(LearnedTeam)
+        copy.features, copy.rng, copy.hidden, copy.lr = self.features, self.rng, self.hidden, self.lr
+        copy.name, copy.frozen, copy.steps = name or self.name, True, self.steps
+        copy.net = self._network()
+        copy.net.load_state_dict(self.net.state_dict())
+        copy.buffer, copy.optimiser = None, None
+        return copy
+
+    def save(self, path: str | Path) -> Path:
+        return save_weights(path, self.net, {"kind": "teamster-team", "hidden": self.hidden, "name": self.name,
+                                             "size": self.features.size, "steps": self.steps})
+
+    def load(self, path: str | Path) -> dict:
+        return load_into(self.net, path)
+
+
+class LearnedEnvironment:
+    """TEAMSTER's environment model: factored transition network (Eq. 4.3) and reward network."""
+
+    def __init__(self, world: Pursuit4, rng: np.random.Generator, transition_hidden: int = 256,
+                 reward_hidden: int = 64) -> None:
+        self.world, self.rng, self.features = world, rng, Features(world)
+        inputs = N_AGENTS + self.features.offset_width + N_ACTIONS + N_PREDATORS * N_ACTIONS
+        self.transition_net = seeded_module(lambda: mlp(inputs, transition_hidden, 2, N_ACTIONS), rng)
+        self.reward_net = seeded_module(lambda: mlp(self.features.offset_width, reward_hidden, 2, 1), rng)
+        self.transition_opt = torch.optim.Adam(self.transition_net.parameters(), lr=1e-3)
+        self.reward_opt = torch.optim.Adam(self.reward_net.parameters(), lr=1e-2)
+        self.buffer = ReplayBuffer(CAPACITY, {"state": ((N_AGENTS,), np.int64), "action": ((N_PREDATORS,), np.int64),
+                                              "next": ((N_AGENTS,), np.int64), "reward": ((), np.float32)})
+        self.steps = 0
+
+    def transition_probs(self, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
+        """(B, 5, 5) ``p_n(move | x, a)`` for every agent n (each row sums to 1: Eq. 4.3's factors)."""
+        with torch.no_grad():
+            logits = self.transition_net(torch.from_numpy(self.features.transition(states, actions)))
+        return torch.softmax(logits.double(), -1).numpy().reshape(states.shape[0], N_AGENTS, N_ACTIONS)
+
+    def capture_probability(self, states: np.ndarray) -> np.ndarray:
+        with torch.no_grad():
+            return torch.sigmoid(self.reward_net(torch.from_numpy(self.features.reward(states)))).numpy()[:, 0]
+
+    def step(self, states: np.ndarray, joint_actions: np.ndarray, rng: np.random.Generator):
+        """Sample each agent's move from its factor, then the predicted reward ``P(capture | x')`` (terminal
+        above 1/2)."""
+        probs = self.transition_probs(states, joint_actions)
+        cdf = np.cumsum(probs, -1)
+        moves = np.minimum((rng.random(probs.shape[:-1])[..., None] * cdf[..., -1:] >= cdf).sum(-1), N_ACTIONS - 1)
+        nxt = self.world.neighbours[states, moves]
+        reward = self.capture_probability(nxt).astype(np.float64)
+        return nxt, reward, reward > 0.5
+
+    def update(self, state, joint_action, reward, next_state, terminal) -> tuple[float, float] | None:
+        """Line 11 of Algorithm 1: store the transition, one Adam step of each network on a minibatch."""
+        if (self.features.move_of[state, next_state] < 0).any():
+            return None  # not one step apart (cannot happen on the true rules; kept out of the data if fed)
+        self.buffer.add(state=state, action=joint_action, next=next_state, reward=reward)
+        self.steps += 1
+        batch = self.buffer.sample(BATCH, self.rng)
+        target = torch.from_numpy(self.features.move_of[batch["state"], batch["next"]].reshape(-1))
+        logits = self.transition_net(torch.from_numpy(self.features.transition(batch["state"], batch["action"])))
+        transition_loss = adam_step(self.transition_opt, F.cross_entropy(logits, target))
+        predicted = self.reward_net(torch.from_numpy(self.features.reward(batch["next"])))[:, 0]
+        reward_loss = adam_step(self.reward_opt, F.binary_cross_entropy_with_logits(
+            predicted, torch.from_numpy(batch["reward"])))
+        return transition_loss, reward_loss
+
+    def save(self, folder: str | Path) -> list[Path]:
+        folder = Path(folder)
+        meta = {"kind": "teamster-environment", "size": self.world.size, "steps": self.steps}
+        return [save_weights(folder / "transition.safetensors", self.transition_net, meta),
+                save_weights(folder / "reward.safetensors", self.reward_net, meta)]
+
+    def load(self, folder: str | Path) -> None:
+        load_into(self.transition_net, Path(folder) / "transition.safetensors")
+        load_into(self.reward_net, Path(folder) / "reward.safetensors")

@@ -1,0 +1,116 @@
+"""The seven chapter-4 ad hoc agents on pursuit (thesis section 4.1.2), built by name.
+
+=====================  ===============================  ==========================================
+name                   environment model                team library (plus one online team model)
+=====================  ===============================  ==========================================
+``teamster``           learned (Eq. 4.3 + reward net)   learned (Eq. 4.1), frozen online models
+``plastic-model``      exact rules                      exact team models of the teams met
+``learns-team``        exact rules                      learned
+``learns-environment`` learned                          exact
+``plastic-policy``     none: one DQN per team (Table 4.3), chosen by the belief over learned team models
+``random``             uniform actions
+``original``           the current team's own policy in the ad hoc seat
+=====================  ===============================  ==========================================
+
+plus the scripted types ``teammate-aware``, ``greedy`` and ``probabilistic-destinations`` in the ad hoc seat
+(the rows of the PLASTIC reference). Every model-based agent plans with the same batched UCT (Table 4.1) and
+tracks the team with the same belief update (Algorithm 2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from embodied_adhoc.decision.agents.teamwork import (
+    ModelBasedAgent,
+    OriginalTeammate,
+    RandomAgent,
+    joint_likelihood,
+)
+from embodied_adhoc.decision.uct import UctConfig, update_team_belief
+from embodied_adhoc.domains.pursuit4 import N_ACTIONS, TEAMS, ExactEnvironment, ExactTeam, Pursuit4
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.dqn import Dqn, DqnConfig
+from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
+
+MODEL_BASED = ("teamster", "plastic-model", "learns-team", "learns-environment")
+AGENTS = MODEL_BASED + ("plastic-policy", "random", "original") + TEAMS
+
+
+class PlasticPolicy:
+    """PLASTIC-Policy: a library of (learned team model, DQN) pairs; the DQN of the most likely team acts.
+    While playing a team it trains a new team model and a new DQN (epsilon-greedy when that DQN acts)."""
+
+    def __init__(self, world: Pursuit4, rng: np.random.Generator, horizon: int, eta: float = 0.1,
+                 rule: str = "plastic", config: DqnConfig | None = None) -> None:
+        self.name, self.world, self.rng, self.horizon = "plastic-policy", world, rng, horizon
+        self.features = Features(world)
+        self.eta, self.rule, self.config = eta, rule, config
+        self.library: list[tuple[LearnedTeam, Dqn]] = []
+        self.online = LearnedTeam(world, rng)
+        self.dqn = self._new_dqn()
+        self.learning, self.belief, self.saved_belief = True, np.ones(1), np.ones(1)
+
+    def _new_dqn(self) -> Dqn:
+        return Dqn(self.features.offset_width, N_ACTIONS, self.rng, self.config, decay_steps=self.horizon)
+
+    @property
+    def pairs(self) -> list[tuple[LearnedTeam, Dqn]]:
+        return self.library + [(self.online, self.dqn)]
+
+    def start_team(self, rng: np.random.Generator) -> None:
+        self.rng = rng
+        self.online.reset()
+        self.dqn = self._new_dqn()
+        self.belief = np.full(len(self.pairs), 1.0 / len(self.pairs))
+
+    def set_evaluation(self, evaluating: bool) -> None:
+        self.learning = not evaluating
+        if evaluating:
+            self.saved_belief = self.belief
+            self.belief = np.full(len(self.pairs), 1.0 / len(self.pairs))
+        else:
+            self.belief = self.saved_belief
+
+    def act(self, state: np.ndarray) -> int:
+        chosen = int(np.argmax(self.belief))
+        dqn = self.pairs[chosen][1]
+        explore = self.learning and dqn is self.dqn
+        return dqn.act(self.features.agent(np.asarray(state)[None])[0], explore)
+
+    def observe(self, state, joint_action, reward, next_state, terminal) -> None:
+        state, joint_action = np.asarray(state), np.asarray(joint_action)
+        probs = np.stack([team.probs(state[None])[0] for team, _ in self.pairs])
+        self.belief = update_team_belief(self.belief, joint_likelihood(probs, joint_action[1:]), self.eta,
+                                         self.rule)
+        if self.learning:
+            self.online.update(state, joint_action[1:])
+            x = self.features.agent(state[None])[0]
+            y = self.features.agent(np.asarray(next_state)[None])[0]
+            self.dqn.update(x, int(joint_action[0]), float(reward), y, bool(terminal))
+
+    def finish_team(self, team: str) -> None:
+        self.library.append((self.online.frozen_copy(name=team), self.dqn))
+        self.online = LearnedTeam(self.world, self.rng)
+
+
+def build_agent(name: str, world: Pursuit4, rng: np.random.Generator, horizon: int,
+                uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic"):
+    """A fresh agent ``name`` (see the module table); ``horizon`` is the interaction length per team (the
+    DQN's epsilon decays over it)."""
+    exact = {team: ExactTeam(world, team) for team in TEAMS}
+    if name in MODEL_BASED:
+        learned_env = name in ("teamster", "learns-environment")
+        environment = LearnedEnvironment(world, rng) if learned_env else ExactEnvironment(world)
+        exact_library = exact if name in ("plastic-model", "learns-environment") else None
+        return ModelBasedAgent(name, environment, LearnedTeam(world, rng), exact_library, uct, eta, rule)
+    if name == "plastic-policy":
+        return PlasticPolicy(world, rng, horizon, eta, rule)
+    if name == "random":
+        return RandomAgent(N_ACTIONS)
+    policies = {team: model.seat for team, model in exact.items()}
+    if name == "original":
+        return OriginalTeammate(policies)
+    if name in TEAMS:
+        return OriginalTeammate(policies, name=name, fixed=name)
+    raise ConfigError(f"agent {name!r}: choose from {', '.join(AGENTS)}")
