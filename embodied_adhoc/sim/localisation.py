@@ -36,7 +36,7 @@ from scipy import ndimage
 
 from embodied_adhoc import checks
 from embodied_adhoc.control.reference import wrap_angle
-from embodied_adhoc.errors import SceneError
+from embodied_adhoc.errors import ConfigError, SceneError
 from embodied_adhoc.sim.lidar import LidarScan
 
 __all__ = [
@@ -100,14 +100,14 @@ class LocalisationConfig:
     def __post_init__(self) -> None:
         checks.integer("LocalisationConfig.particles", self.particles, 10)
         if len(self.alpha) != 4:
-            raise SceneError(f"LocalisationConfig.alpha needs 4 coefficients, got {self.alpha}")
+            raise ConfigError(f"LocalisationConfig.alpha needs 4 coefficients, got {self.alpha}")
         for i, value in enumerate(self.alpha):
             checks.number(f"LocalisationConfig.alpha[{i}]", value, 0.0)
         checks.number("LocalisationConfig.sigma_hit", self.sigma_hit, 0.0, low_open=True)
         z_hit = checks.number("LocalisationConfig.z_hit", self.z_hit, 0.0, 1.0)
         z_rand = checks.number("LocalisationConfig.z_rand", self.z_rand, 0.0, 1.0)
         if abs(z_hit + z_rand - 1.0) > 1e-9 or z_rand == 0.0:
-            raise SceneError("LocalisationConfig: z_hit + z_rand must be 1 and z_rand > 0")
+            raise ConfigError("LocalisationConfig: z_hit + z_rand must be 1 and z_rand > 0")
         checks.integer("LocalisationConfig.max_beams", self.max_beams, 1)
         checks.number("LocalisationConfig.resolution", self.resolution, 0.0, 0.5, low_open=True)
         for name in ("clearance", "update_distance", "update_angle", "update_period"):
@@ -120,7 +120,7 @@ class LocalisationConfig:
         checks.number("LocalisationConfig.sigma_global", self.sigma_global, 0.0, low_open=True)
         checks.number("LocalisationConfig.global_exponent", self.global_exponent, 0.0, 1.0, low_open=True)
         if len(self.roughening) != 2:
-            raise SceneError(f"LocalisationConfig.roughening needs (metres, radians), got {self.roughening}")
+            raise ConfigError(f"LocalisationConfig.roughening needs (metres, radians), got {self.roughening}")
         for i, value in enumerate(self.roughening):
             checks.number(f"LocalisationConfig.roughening[{i}]", value, 0.0)
         checks.number("LocalisationConfig.area_confidence", self.area_confidence, 0.5, 1.0)
@@ -209,6 +209,8 @@ class LikelihoodField:
                 )
             elif kind == mujoco.mjtGeom.mjGEOM_SPHERE:
                 half = np.full(3, size[0])
+            elif abs(centre[2] - height) > model.geom_rbound[geom]:
+                continue  # clear of the scan plane, whatever its shape
             else:
                 raise SceneError(
                     f"localisation map: static geom '{model.geom(geom).name}' has a type ({kind}) the map builder "

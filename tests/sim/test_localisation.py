@@ -142,7 +142,7 @@ def test_wheel_slip_is_corrected_and_a_blocked_step_says_so():
 def test_localisation_config_refuses_bad_values():
     with pytest.raises(ConfigError, match="particles"):
         LocalisationConfig(particles=3)
-    with pytest.raises(SceneError, match="z_hit"):
+    with pytest.raises(ConfigError, match="z_hit"):
         LocalisationConfig(z_hit=0.5, z_rand=0.1)
 
 
@@ -153,3 +153,21 @@ def test_overhead_render_can_draw_the_belief(world):
     assert (plain != marked).any(axis=2).sum() > 30  # particles, estimate and odometry drawn above the robot
     robot_view = world.render("robot", 64, 48)
     np.testing.assert_array_equal(robot_view, world.render("robot", 64, 48, markers=True))  # overhead only
+
+
+def test_map_builder_refuses_geoms_it_cannot_rasterise():
+    import mujoco
+
+    from embodied_adhoc.sim.localisation import LikelihoodField
+
+    xml = """<mujoco><worldbody>
+      <geom name="wall" type="box" size="0.05 2 1" pos="1 0 1"/>
+      <geom name="blob" type="ellipsoid" size="0.3 0.2 1" pos="-1 0 1"/>
+    </worldbody></mujoco>"""
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    with pytest.raises(SceneError, match="blob"):
+        LikelihoodField.from_scene(model, data, 0.4, LocalisationConfig(), 8.0, (-2, 2, -2, 2))
+    with pytest.raises(SceneError, match="no static geom cuts"):
+        LikelihoodField.from_scene(model, data, 2.5, LocalisationConfig(), 8.0, (-2, 2, -2, 2))
