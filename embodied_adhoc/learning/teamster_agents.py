@@ -25,9 +25,9 @@ from embodied_adhoc.decision.agents.teamwork import (
     ModelBasedAgent,
     OriginalTeammate,
     RandomAgent,
-    joint_likelihood,
+    TeamTracking,
 )
-from embodied_adhoc.decision.uct import UctConfig, update_team_belief
+from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.pursuit4 import N_ACTIONS, TEAMS, ExactEnvironment, ExactTeam, Pursuit4
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.dqn import Dqn, DqnConfig
@@ -37,7 +37,7 @@ MODEL_BASED = ("teamster", "plastic-model", "learns-team", "learns-environment")
 AGENTS = MODEL_BASED + ("plastic-policy", "random", "original") + TEAMS
 
 
-class PlasticPolicy:
+class PlasticPolicy(TeamTracking):
     """PLASTIC-Policy: a library of (learned team model, DQN) pairs; the DQN of the most likely team acts.
     While playing a team it trains a new team model and a new DQN (epsilon-greedy when that DQN acts)."""
 
@@ -49,7 +49,6 @@ class PlasticPolicy:
         self.library: list[tuple[LearnedTeam, Dqn]] = []
         self.online = LearnedTeam(world, rng)
         self.dqn = self._new_dqn()
-        self.learning, self.belief, self.saved_belief = True, np.ones(1), np.ones(1)
 
     def _new_dqn(self) -> Dqn:
         return Dqn(self.features.offset_width, N_ACTIONS, self.rng, self.config, decay_steps=self.horizon)
@@ -58,19 +57,15 @@ class PlasticPolicy:
     def pairs(self) -> list[tuple[LearnedTeam, Dqn]]:
         return self.library + [(self.online, self.dqn)]
 
+    @property
+    def models(self) -> list:
+        return [team for team, _ in self.pairs]
+
     def start_team(self, rng: np.random.Generator) -> None:
         self.rng = rng
         self.online.reset()
         self.dqn = self._new_dqn()
-        self.belief = np.full(len(self.pairs), 1.0 / len(self.pairs))
-
-    def set_evaluation(self, evaluating: bool) -> None:
-        self.learning = not evaluating
-        if evaluating:
-            self.saved_belief = self.belief
-            self.belief = np.full(len(self.pairs), 1.0 / len(self.pairs))
-        else:
-            self.belief = self.saved_belief
+        self.belief = self.uniform_belief()
 
     def act(self, state: np.ndarray) -> int:
         chosen = int(np.argmax(self.belief))
@@ -80,9 +75,7 @@ class PlasticPolicy:
 
     def observe(self, state, joint_action, reward, next_state, terminal) -> None:
         state, joint_action = np.asarray(state), np.asarray(joint_action)
-        probs = np.stack([team.probs(state[None])[0] for team, _ in self.pairs])
-        self.belief = update_team_belief(self.belief, joint_likelihood(probs, joint_action[1:]), self.eta,
-                                         self.rule)
+        self.track(state, joint_action[1:])
         if self.learning:
             self.online.update(state, joint_action[1:])
             x = self.features.agent(state[None])[0]

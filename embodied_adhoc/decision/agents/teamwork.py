@@ -53,9 +53,39 @@ def joint_likelihood(probs: np.ndarray, teammate_actions: np.ndarray) -> np.ndar
     return picked.prod(axis=1)
 
 
-class ModelBasedAgent:
+class TeamTracking:
+    """The belief over the team models ``self.models`` (library + online), shared by every agent that keeps
+    one: uniform at the start of an interaction and of an evaluation, updated by Algorithm 2."""
+
+    eta: float = 0.1
+    rule: str = "plastic"
+    learning: bool = True
+    belief: np.ndarray = np.ones(1)
+    saved_belief: np.ndarray = np.ones(1)
+
+    @property
+    def models(self) -> list:
+        raise NotImplementedError
+
+    def uniform_belief(self) -> np.ndarray:
+        return np.full(len(self.models), 1.0 / len(self.models))
+
+    def set_evaluation(self, evaluating: bool) -> None:
+        self.learning = not evaluating
+        if evaluating:
+            self.saved_belief, self.belief = self.belief, self.uniform_belief()
+        else:
+            self.belief = self.saved_belief
+
+    def track(self, state: np.ndarray, mates: np.ndarray) -> None:
+        """Line 10 of Algorithm 1: score the observed teammates' actions under every model (Eq. 4.2)."""
+        probs = np.stack([model.probs(state[None])[0] for model in self.models])
+        self.belief = update_team_belief(self.belief, joint_likelihood(probs, mates), self.eta, self.rule)
+
+
+class ModelBasedAgent(TeamTracking):
     """Algorithm 1: UCT over an environment model with the most likely team model of the library (augmented
-    with the team model learned online, when there is one), the belief updated by Algorithm 2."""
+    with the team model learned online), the belief updated by Algorithm 2."""
 
     def __init__(self, name: str, environment, online, exact_teams: dict | None = None,
                  uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic") -> None:
@@ -63,9 +93,6 @@ class ModelBasedAgent:
         self.library: list = []
         self.planner = BatchedUct(uct or UctConfig())
         self.eta, self.rule = eta, rule
-        self.learning = True
-        self.belief = np.ones(1)
-        self.saved_belief = self.belief
         self.rng = np.random.default_rng(0)
 
     @property
@@ -75,15 +102,7 @@ class ModelBasedAgent:
     def start_team(self, rng: np.random.Generator) -> None:
         self.rng = rng
         self.online.reset()
-        self.belief = np.full(len(self.models), 1.0 / len(self.models))
-
-    def set_evaluation(self, evaluating: bool) -> None:
-        self.learning = not evaluating
-        if evaluating:
-            self.saved_belief = self.belief
-            self.belief = np.full(len(self.models), 1.0 / len(self.models))
-        else:
-            self.belief = self.saved_belief
+        self.belief = self.uniform_belief()
 
     def team_model(self):
         """Line 7: the argmax of the belief (the first on ties)."""
@@ -102,8 +121,7 @@ class ModelBasedAgent:
     def observe(self, state, joint_action, reward, next_state, terminal) -> None:
         state, joint_action = np.asarray(state), np.asarray(joint_action)
         mates = joint_action[1:]
-        probs = np.stack([model.probs(state[None])[0] for model in self.models])
-        self.belief = update_team_belief(self.belief, joint_likelihood(probs, mates), self.eta, self.rule)
+        self.track(state, mates)
         if self.learning:
             if hasattr(self.environment, "update"):
                 self.environment.update(state, joint_action, reward, next_state, terminal)
