@@ -96,13 +96,14 @@ class SawtoothBound:
     def q_values(self, belief: np.ndarray, successors=None) -> np.ndarray:
         """``R(b, a) + gamma sum_z P(z | b, a) U(b_az)`` for every action (A,)."""
         successors = successors if successors is not None else self.successors(belief)
-        rewards = belief @ self.pomdp.rewards
-        return np.array(
-            [
-                rewards[action] + self.pomdp.discount * float(probabilities @ self.values(posteriors))
-                for action, (_, probabilities, posteriors) in enumerate(successors)
-            ]
-        )
+        # One values() call for the posteriors of every action (its cost is mostly per call, not per row).
+        values = self.values(np.vstack([posteriors for _, _, posteriors in successors]))
+        ends = np.cumsum([len(probabilities) for _, probabilities, _ in successors])
+        expected = [
+            float(probabilities @ part)
+            for (_, probabilities, _), part in zip(successors, np.split(values, ends[:-1]), strict=True)
+        ]
+        return belief @ self.pomdp.rewards + self.pomdp.discount * np.asarray(expected)
 
     def update(self, belief: np.ndarray, successors=None) -> float:
         """Back up ``U`` at ``belief`` and keep the point when it tightens the bound; returns the new ``U(b)``."""
