@@ -52,6 +52,13 @@ def load_localisation_model(source: str) -> ConfusionMatrix:
                 "scripts/bench_faults.py --confusion-out assets/data/localisation_confusion_measured.json or "
                 "pass a JSON path"
             ) from None
+    from pathlib import Path
+
+    if not Path(source).is_file():
+        raise ConfigError(
+            f"localisation_model={source!r}: no such file; use 'measured' or the path of a robot-node confusion JSON "
+            "(scripts/bench_faults.py --confusion-out writes one)"
+        )
     return load_confusion(source)
 
 

@@ -92,7 +92,7 @@ def test_measured_localisation_model_is_the_robot_factor(tmp_path):
     np.testing.assert_allclose(library.observation_model.robot(2), matrix[2])
     default = build_lab_library()
     assert default.observation_model.robot(2)[2] == pytest.approx(0.99)
-    with pytest.raises(ConfigError, match="does not exist"):
+    with pytest.raises(ConfigError, match="localisation_model=.*no such file"):
         build_lab_library(localisation_model=str(tmp_path / "missing.json"))
 
 
