@@ -14,6 +14,13 @@ from embodied_adhoc.gl import choose_gl_platform
 
 __all__ = ["ATLPO_TRAIN_COMMAND", "register_arena_runs"]
 
+FORAGING_EPILOG = """\
+examples:
+  embodied-adhoc run foraging --seed 0 --record runs/foraging        # ATLPO-MF, shipped library
+  embodied-adhoc run foraging --task 3 --team tau2 --library runs/atlpo/foraging --record runs/f3
+  rerun runs/foraging/episode.rrd
+"""
+
 PURSUIT_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa", "perseus", "random")
 ATLPO_TRAIN_COMMAND = "embodied-adhoc train atlpo --domain foraging --set task --out DIR"
 EPILOG = """\
@@ -49,14 +56,64 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
     pursuit.add_argument("--no-progress", action="store_true", help="no progress bar")
     pursuit.set_defaults(func=handle_pursuit)
 
+    from embodied_adhoc.experiments.recorded_foraging import FORAGING_AGENTS
+
     foraging = domains.add_parser(
         "foraging",
-        help="level-based foraging in the MuJoCo arena with the ATLPO agent (needs a pre-trained library)",
-        description="One episode of EmbodiedAdhoc/Foraging-v0 driven by the ATLPO agent of the ATLPO issue.",
+        help="level-based foraging in the MuJoCo arena with the ATLPO agent (thesis ch. 6; pre-trained library shipped)",
+        description="One episode of EmbodiedAdhoc/Foraging-v0: the ad hoc robot and three scripted teammate robots "
+        "(team drawn from --team) must forage the apple from the task's N/S/W/E positions, which the agent does "
+        "not know. ATLPO-MF reads the egocentric grid the arena computes from the robots' physical positions. "
+        "Episode 0 of 'trials foraging --backend mujoco --seed S' for the same agent.",
+        epilog=FORAGING_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    foraging.add_argument("--seed", type=seed, default=0, help="seed of the episode (default 0)")
-    foraging.add_argument("--record", type=output_folder, default=None, metavar="DIR", help="recording folder")
+    foraging.add_argument("--agent", choices=FORAGING_AGENTS, default="atlpo-mf", help="ad hoc agent (atlpo-mf)")
+    foraging.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
+    foraging.add_argument("--task", type=int, default=None, metavar="K", help="true task 1..4 (default: drawn)")
+    foraging.add_argument("--team", default="tau0,tau1,tau2", metavar="NAME[,NAME]",
+                          help="team type(s) the episode's team is drawn from (default tau0,tau1,tau2)")
+    foraging.add_argument("--library", default=None, metavar="DIR",
+                          help="atlpo-mf: a folder written by `embodied-adhoc train atlpo --domain foraging` "
+                               "(default: the pre-trained task+team library shipped with the package)")
+    foraging.add_argument("--max-steps", type=int, default=200, help="step cap (default 200, the grid envs')")
+    foraging.add_argument("--record", type=output_folder, default=None, metavar="DIR",
+                          help="write episode.mp4/.rrd, metrics.json")
+    foraging.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
+    foraging.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
+    foraging.add_argument("--size", type=int, default=480, help="video width and height in pixels, even (480)")
+    foraging.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
+    foraging.add_argument("--json", action="store_true", help="print the summary as JSON")
+    foraging.add_argument("--no-progress", action="store_true", help="no progress bar")
     foraging.set_defaults(func=handle_foraging)
+
+
+def _play(args: argparse.Namespace, domain: str, run, postfix) -> dict:
+    """``run(progress)`` (one recorded-episode player call) under a progress bar (``postfix(info)`` beside it,
+    unless ``--no-progress``); returns the metrics summary without the per-step rows, with the files written."""
+    bar = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=args.max_steps, desc=f"{domain} {args.agent}", unit="step", file=sys.stderr)
+
+    def progress(step: int, info: dict) -> None:
+        if bar is not None:
+            bar.set_postfix_str(postfix(info))
+            bar.update(1)
+
+    try:
+        outcome = run(progress)
+        if bar is not None and outcome.metrics["success"]:
+            from embodied_adhoc.commands.run import finish_progress
+
+            finish_progress(bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = {k: v for k, v in outcome.metrics.items() if k != "per_step"}
+    summary["files"] = {name: str(path) for name, path in outcome.files.items()}
+    return summary
 
 
 def handle_pursuit(args: argparse.Namespace) -> int:
@@ -67,28 +124,8 @@ def handle_pursuit(args: argparse.Namespace) -> int:
         agent=args.agent, seed=args.seed, task=args.task, max_steps=args.max_steps, record_dir=args.record,
         video_fps=args.video_fps, video_speed=args.video_speed, size=args.size, video_overlay=not args.no_overlay,
     )
-    bar = None
-    if not args.no_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=args.max_steps, desc=f"pursuit {args.agent}", unit="step", file=sys.stderr)
-
-    def progress(step: int, info: dict) -> None:
-        if bar is not None:
-            bar.set_postfix_str(f"sim {info['sim_time']:.0f}s")
-            bar.update(1)
-
-    try:
-        outcome = run_pursuit_episode(config, progress)
-        if bar is not None and outcome.metrics["success"]:
-            from embodied_adhoc.commands.run import finish_progress
-
-            finish_progress(bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    summary = {k: v for k, v in outcome.metrics.items() if k != "per_step"}
-    summary["files"] = {name: str(path) for name, path in outcome.files.items()}
+    summary = _play(args, "pursuit", lambda progress: run_pursuit_episode(config, progress),
+                    lambda info: f"sim {info['sim_time']:.0f}s")
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
@@ -110,12 +147,34 @@ def handle_pursuit(args: argparse.Namespace) -> int:
 
 
 def handle_foraging(args: argparse.Namespace) -> int:
-    """Refused: the package ships no pre-trained ATLPO library (``assets/`` holds none) and the arena run of the
-    ATLPO agent is not built; the message names the command that trains a library."""
-    from embodied_adhoc.errors import ConfigError
+    """One ATLPO (or original-teammate, random) episode in the foraging arena; the library defaults to the one
+    shipped in the package (``learning.atlpo.shipped_library``)."""
+    choose_gl_platform()
+    from pathlib import Path
 
-    raise ConfigError(
-        "run foraging drives the arena with the ATLPO agent, which needs a pre-trained policy library: none is "
-        f"shipped with this installation. Train one with `{ATLPO_TRAIN_COMMAND}` and evaluate it on the grid twin "
-        "with scripts/reproduce_atlpo.py (the physics run of ATLPO is not built yet)"
+    from embodied_adhoc.experiments.recorded_foraging import ForagingEpisodeConfig, run_foraging_episode
+
+    config = ForagingEpisodeConfig(
+        agent=args.agent, seed=args.seed, task=args.task, teams=tuple(t.strip() for t in args.team.split(",")),
+        library=None if args.library is None else Path(args.library), max_steps=args.max_steps,
+        record_dir=args.record, video_fps=args.video_fps, video_speed=args.video_speed, size=args.size,
+        video_overlay=not args.no_overlay,
     )
+    summary = _play(args, "foraging", lambda progress: run_foraging_episode(config, progress),
+                    lambda info: f"apples left {info['remaining']}")
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    identify = summary["identify_step"]
+    entropy = summary["final_entropy"]
+    lines = [
+        f"outcome:        {summary['outcome']} ({'apple foraged' if summary['success'] else 'not foraged'})",
+        f"steps:          {summary['steps']}",
+        f"identified:     {'never' if identify is None else f'at step {identify}'} (true task "
+        f"{summary['true_task'] + 1}, team {summary['true_team']})",
+        f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised task-posterior entropy)",
+        f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated",
+    ]
+    lines += [f"{name + ':':<16}{path}" for name, path in summary["files"].items()]
+    print("\n".join(lines))
+    return 0

@@ -6,8 +6,13 @@ episode the same way::
 
     obs, info = env.reset(seed=env_seed, options=reset_options)
     agent.reset(agent_rng, state=info["state"] if agent.observes_state else None)
+    agent.start(obs)                          # only agents that declare observes_raw (ATLPO)
     repeat up to max_steps:  a = agent.act(); obs, r, terminated, truncated, info = env.step(a)
                              agent.observe(a, z, state=info["state"] if agent.observes_state else None)
+
+``z`` is ``observation_index(obs, info)`` (the tabular agents' observation index), or the env's raw observation
+itself for agents that declare ``observes_raw`` (learned agents over egocentric arrays); the trace records the
+index either way.
 
 Recorders and progress bars are :class:`EpisodeObserver` objects: the loop calls them, they never drive the
 episode. Envs stay pure Gymnasium and ``record/`` never imports this layer (``tests/test_layers.py``).
@@ -104,12 +109,16 @@ def run_episode_loop(
     observers: Sequence[EpisodeObserver] = (),
 ) -> EpisodeTrace:
     """Run one episode of ``agent`` in ``env``; ``observation_index(observation, info)`` gives the agent's
-    observation. Agents that declare ``observes_state`` (BOPA, the oracle) also get ``info["state"]``."""
+    observation. Agents that declare ``observes_state`` (BOPA, the oracle) also get ``info["state"]``; agents that
+    declare ``observes_raw`` get the env's observations themselves, the first one through ``agent.start``."""
     trace = EpisodeTrace()
-    _, info = env.reset(seed=env_seed, options=reset_options)
+    observation, info = env.reset(seed=env_seed, options=reset_options)
     trace.reset_info = info
     privileged = bool(getattr(agent, "observes_state", False))
+    raw = bool(getattr(agent, "observes_raw", False))
     agent.reset(agent_rng, state=info["state"] if privileged else None)
+    if raw:
+        agent.start(observation)
     trace.posteriors.append(_posterior(agent))
     for observer in observers:
         observer.episode_started(info, trace.posteriors[0])
@@ -121,7 +130,7 @@ def run_episode_loop(
             observer.action_chosen(step, action)
         observation, reward, terminated, truncated, info = env.step(action)
         index = int(observation_index(observation, info))
-        agent.observe(action, index, state=info["state"] if privileged else None)
+        agent.observe(action, observation if raw else index, state=info["state"] if privileged else None)
         posterior = _posterior(agent)
         trace.actions.append(action)
         trace.observations.append(index)

@@ -6,8 +6,11 @@ initial grid state as JSON, imposed through ``reset(options={"state": ...})``), 
 team, task and start; the prey's moves and teammates' tie-breaks then follow each trial's env seed.
 
 Agents: ``original`` (the thesis's *original teammate*: the team's own policy, with the full state, in the ad
-hoc robot's seat) and ``random`` (uniform over the 5 actions). The observation index reported to the runner is
-a CRC-32 fingerprint of the egocentric observation (these domains have no finite observation library).
+hoc robot's seat), ``random`` (uniform over the 5 actions) and ``atlpo-mf`` (thesis chapter 6: the ATLPO agent of
+the pre-trained library shipped with the package, or of ``--library DIR``; it reads the egocentric arrays
+themselves, ``observes_raw``, and its task posterior is the classifier's marginal over the tasks). The
+observation index reported to the runner is a CRC-32 fingerprint of the egocentric observation (these domains
+have no finite observation library).
 """
 
 from __future__ import annotations
@@ -72,6 +75,7 @@ class GridTrialSession:
         import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 
         self.env_id = ENV_IDS["pursuit-pairs" if options.get("pairs") else domain][backend]
+        self.domain, self.library = domain, options.get("library")
         self.env_kwargs = env_kwargs(options)
         probe = gymnasium.make(self.env_id, **self.env_kwargs).unwrapped
         self.rules, self.tasks, self.teams = probe.core.rules, probe.core.tasks, probe.core.teams
@@ -92,10 +96,24 @@ class GridTrialSession:
             return RandomAgent()
         if name == "original":
             return OriginalTeammateAgent(self.rules, self.tasks[int(spec["task"])], self.teams[spec["team"]])
+        if name == "atlpo-mf":
+            from embodied_adhoc.learning.atlpo import library_agent
+
+            return library_agent(self.domain, self.library, self.rules.config, name=name)
         raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
 
     def observation_index(self, observation, info: dict) -> int:
         return zlib.crc32(np.ascontiguousarray(observation).tobytes())
+
+
+def library_folder(domain: str, folder) -> str:
+    """``--library DIR`` checked (it holds a ``library.json``) and made absolute (trial options are stored)."""
+    from pathlib import Path
+
+    if not (Path(folder) / "library.json").is_file():
+        raise ConfigError(f"--library {folder}: no library.json there; train one with `embodied-adhoc train atlpo "
+                          f"--domain {domain} --set task+team --out {folder}`")
+    return str(Path(folder).resolve())
 
 
 def env_kwargs(options: dict) -> dict:
@@ -110,7 +128,7 @@ def env_kwargs(options: dict) -> dict:
 
 class GridTrialDomain:
     backends = ("abstract", "mujoco")
-    agent_names = ("original", "random")
+    agent_names = ("original", "random", "atlpo-mf")
     default_agents = ("original", "random")
 
     def __init__(self, name: str, description: str, team_names: tuple[str, ...]) -> None:
@@ -127,6 +145,9 @@ class GridTrialDomain:
         group.add_argument("--cols", type=int, default=5, help="grid columns (default 5)")
         group.add_argument("--n-agents", type=int, default=4, help="robots incl. the ad hoc one, 2-4 (default 4)")
         group.add_argument("--toroidal", action="store_true", help="wrap-around grid (abstract backend only)")
+        group.add_argument("--library", default=None, metavar="DIR",
+                           help="atlpo-mf: a library folder written by `embodied-adhoc train atlpo` (default: the "
+                                "pre-trained task+team library shipped with the package)")
         if self.name == "pursuit":
             group.add_argument("--pairs", action="store_true",
                                help="Fig. 7.12 variant: 2 predators, capture pairs N+S, W+E, SW+NE, NW+SE, "
@@ -141,9 +162,15 @@ class GridTrialDomain:
             raise ConfigError(f"--team {args.team}: choose from {', '.join(allowed)}")
         if args.task is not None and not 1 <= args.task <= 4:
             raise ConfigError(f"--task {args.task}: the task library is 1..4")
-        return {"domain": self.name, "teams": list(teams), "task": args.task, "rows": args.rows,
-                "cols": args.cols, "agents": 2 if pairs else args.n_agents, "toroidal": bool(args.toroidal),
-                "pairs": pairs}
+        library = getattr(args, "library", None)
+        if library is not None:
+            library = library_folder(self.name, library)
+        options = {"domain": self.name, "teams": list(teams), "task": args.task, "rows": args.rows,
+                   "cols": args.cols, "agents": 2 if pairs else args.n_agents, "toroidal": bool(args.toroidal),
+                   "pairs": pairs}
+        if library is not None:  # only then: stored runs of the other agents keep their identity
+            options["library"] = library
+        return options
 
     def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
         from embodied_adhoc.domains.grid_rules import GridConfig, GridRules

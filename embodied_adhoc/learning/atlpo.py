@@ -7,7 +7,10 @@ environments, and its two sets share one; which seventh it added is not recovera
 
 On disk a library is a folder: ``library.json`` (domain, env settings, the members in order, the classifier) and
 one safetensors file per member and for the classifier (:mod:`embodied_adhoc.learning.weights`). Training is
-resumable per member: a member whose weights exist is loaded, not retrained.
+resumable per member: a member whose weights exist is loaded, not retrained. A member's seed depends on its
+environment, not on its set (:func:`member_seed`), so the ``task``, ``team`` and ``task+team`` libraries of one
+seed share identical members. The package ships the ``task+team`` library of each domain
+(:func:`shipped_library`; how it is made: docs/atlpo.md), so ``trials`` and ``run`` work without training.
 """
 
 from __future__ import annotations
@@ -23,6 +26,7 @@ import torch
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.paths import assets_dir
 from embodied_adhoc.learning.classifier import ClassifierConfig, RecurrentBayesianClassifier, Trajectories
 from embodied_adhoc.learning.networks import ActorCritic, NetworkConfig
 from embodied_adhoc.learning.ppo import PpoConfig, train_ppo, training_metadata
@@ -55,6 +59,27 @@ def library_set(name: str) -> tuple[LibraryEnvironment, ...]:
     raise ConfigError(f"set={name!r}: use one of {SETS}")
 
 
+def member_seed(seed: int, environment: LibraryEnvironment) -> int:
+    """The PPO seed of ``environment``'s member: ``seed`` plus its position in the ``task+team`` set, whichever
+    set it is trained for (so one environment's member is the same in every set of a seed)."""
+    return seed + library_set("task+team").index(environment)
+
+
+SHIPPED_FOLDER = "atlpo"
+SHIPPED_COMMAND = ("embodied-adhoc train atlpo --domain {domain} --set task+team --seed 0 --threads 1 "
+                   "--out assets/atlpo/{domain}")
+
+
+def shipped_library(domain: str) -> Path:
+    """The pre-trained ``task+team`` library of ``domain`` shipped in the package's data (``assets/atlpo/``),
+    made by :data:`SHIPPED_COMMAND`."""
+    folder = assets_dir() / SHIPPED_FOLDER / domain
+    if not (folder / "library.json").is_file():
+        raise ConfigError(f"no pre-trained ATLPO library for {domain!r} in {folder.parent}; train one with "
+                          f"`{SHIPPED_COMMAND.format(domain=domain)}` or pass --library DIR")
+    return folder
+
+
 @dataclass
 class PolicyLibrary:
     domain: str
@@ -74,17 +99,17 @@ def _member_path(folder: Path, domain: str, environment: LibraryEnvironment) -> 
 def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | Path, env_kwargs: dict | None = None,
                   progress: Callable[[str, int, dict], None] | None = None) -> PolicyLibrary:
     """Train (or, where its weights exist, load) one PPO policy per environment of ``set_name``; each member gets
-    the seed ``config.seed + k``."""
+    the seed :func:`member_seed` of ``config.seed``."""
     folder, env_kwargs = Path(folder), dict(env_kwargs or {})
     environments = library_set(set_name)
     policies = []
-    for k, environment in enumerate(environments):
+    for environment in environments:
         path = _member_path(folder, domain, environment)
         kwargs = {**env_kwargs, "tasks": (environment.task,), "teams": (environment.team,)}
         if path.exists():
             policies.append(load_policy(path))
             continue
-        member_config = replace(config, seed=config.seed + k)
+        member_config = replace(config, seed=member_seed(config.seed, environment))
         report = None if progress is None else (lambda steps, row, name=environment.name: progress(name, steps, row))
         result = train_ppo(domain, kwargs, member_config, report)
         save_weights(path, result.model, training_metadata(domain, kwargs, member_config, result))
@@ -212,22 +237,33 @@ class AtlpoAgent:
     decision layer's :func:`draw_action`, as ATPO does with its library (whose Perseus policies are
     deterministic; PPO's are stochastic, so their whole distributions are mixed).
 
-    It follows the project's ``Agent`` protocol, but needs raw egocentric observations (arrays) where the tabular
-    agents take observation indices: :meth:`start` gives it the first observation of an episode (after
-    :meth:`reset`), and :meth:`observe` each following one. With ``known=k`` the posterior stays on environment
-    ``k``: the library member alone, the model-free RL baseline that knows task and team (section 6.2.4).
+    It follows the project's ``Agent`` protocol with ``observes_raw``: the episode loop
+    (:func:`~embodied_adhoc.experiments.episode.run_episode_loop`) gives it the env's egocentric arrays instead of
+    observation indices, the episode's first one through :meth:`start` (after :meth:`reset`), each following one
+    through :meth:`observe`. With ``known=k`` the posterior stays on environment ``k``: the library member alone,
+    the model-free RL baseline that knows task and team (section 6.2.4).
+
+    :attr:`library_posterior` is ``p_t`` over the K library environments; :attr:`task_posterior` (what the trial
+    runner's identification and entropy metrics read) is its marginal over the domain's ``tasks`` tasks, or None
+    for a library whose environments all share one task (the team set: it identifies teams, not tasks).
     """
 
     observes_state = False
+    observes_raw = True
 
     def __init__(self, library: PolicyLibrary, classifier: RecurrentBayesianClassifier, greedy: bool = False,
-                 name: str = "atlpo-mf", known: int | None = None) -> None:
+                 name: str = "atlpo-mf", known: int | None = None, tasks: int = 4) -> None:
         if classifier.config.environments != len(library.policies):
             raise ConfigError(f"classifier over {classifier.config.environments} environments for a library of "
                               f"{len(library.policies)}: train the classifier on this library")
         if known is not None and not 0 <= known < len(library.policies):
             raise ConfigError(f"known={known}: the library has environments 0..{len(library.policies) - 1}")
         self.library, self.classifier, self.greedy, self.name, self.known = library, classifier, greedy, name, known
+        task_of = np.array([e.task - 1 for e in library.environments])
+        if task_of.max() >= tasks:
+            raise ConfigError(f"library environment of task {task_of.max() + 1} for a domain of {tasks} tasks")
+        # (K, tasks) 0/1 matrix: library posterior @ it = task marginal; None when the library has one task
+        self._task_marginal = np.eye(tasks)[task_of] if len(set(task_of.tolist())) > 1 else None
         self.rng = np.random.default_rng(0)
         self._posterior = self._prior()
         self._history = None
@@ -252,9 +288,12 @@ class AtlpoAgent:
         self._update(observation, None)
 
     def _checked(self, observation) -> np.ndarray:
-        if np.ndim(observation) != 3:
-            raise ConfigError(f"ATLPO observation of shape {np.shape(observation)}: it needs the egocentric "
-                              "(channels, view, view) array of the grid envs, not an observation index")
+        config = self.library.policies[0].config
+        expected = (config.channels, config.view, config.view)
+        if np.shape(observation) != expected:
+            raise ConfigError(f"ATLPO observation of shape {np.shape(observation)}: the library was trained on the "
+                              f"egocentric {expected} arrays of its grid env (not observation indices, nor another "
+                              "grid's agent or apple count)")
         return np.asarray(observation, dtype=np.float32)
 
     @torch.no_grad()
@@ -275,5 +314,46 @@ class AtlpoAgent:
         self._update(observation, action)
 
     @property
-    def task_posterior(self) -> np.ndarray:
+    def library_posterior(self) -> np.ndarray:
         return self._posterior.copy()
+
+    @property
+    def task_posterior(self) -> np.ndarray | None:
+        return None if self._task_marginal is None else self._posterior @ self._task_marginal
+
+
+_LOADED: dict[tuple[str, float], tuple[PolicyLibrary, RecurrentBayesianClassifier | None]] = {}
+_GRID_FIELDS = ("rows", "cols", "n_agents", "n_targets", "toroidal", "max_agent_level")
+
+
+def library_agent(domain: str, folder: str | Path | None, grid, name: str = "atlpo-mf",
+                  known: int | None = None) -> AtlpoAgent:
+    """The ATLPO agent of the library in ``folder`` (None: the shipped one, :func:`shipped_library`) for an
+    episode on the grid ``grid`` (a ``GridConfig``): the library must be of ``domain``, have its classifier and
+    have been trained on the same grid (size, agents, targets, walls, levels), else one line saying which.
+    Libraries are loaded once per process (the trial runner asks for one agent per trial)."""
+    import gymnasium
+
+    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    from embodied_adhoc.learning.vector_grid import GRID_IDS
+
+    folder = shipped_library(domain) if folder is None else Path(folder)
+    manifest = folder / "library.json"
+    key = (str(folder.resolve()), manifest.stat().st_mtime if manifest.exists() else 0.0)
+    if key not in _LOADED:
+        _LOADED[key] = load_library(folder)
+    library, classifier = _LOADED[key]
+    if library.domain != domain:
+        raise ConfigError(f"{manifest}: a {library.domain} library; {domain} needs one trained with "
+                          f"--domain {domain}")
+    if classifier is None:
+        raise ConfigError(f"{manifest}: the library has no classifier yet; rerun `embodied-adhoc train atlpo` on it")
+    probe = gymnasium.make(GRID_IDS[domain], **library.env_kwargs)
+    trained = probe.unwrapped.core.rules.config
+    probe.close()
+    differ = [f"{field} {getattr(grid, field)} (library {getattr(trained, field)})" for field in _GRID_FIELDS
+              if getattr(grid, field) != getattr(trained, field)]
+    if differ:
+        raise ConfigError(f"{manifest}: trained on another grid: {', '.join(differ)}; use the library's grid or "
+                          "train a library on this one (train_library's env_kwargs)")
+    return AtlpoAgent(library, classifier, name=name, known=known)

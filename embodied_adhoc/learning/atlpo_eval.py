@@ -56,7 +56,7 @@ def play(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, agent:
         observation, _, terminated, truncated, info = env.step(action)
         if learned is not None:
             learned.observe(action, observation)
-            beliefs.append(float(learned.task_posterior[k]))
+            beliefs.append(float(learned.library_posterior[k]))
         if terminated or truncated:
             env.close()
             return step, bool(terminated), beliefs

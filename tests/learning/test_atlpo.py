@@ -14,6 +14,7 @@ from embodied_adhoc.learning.atlpo import (
     generalist_path,
     library_set,
     load_library,
+    member_seed,
     train_generalist,
     train_library,
     write_manifest,
@@ -35,6 +36,12 @@ def test_library_sets():
     assert len(library_set("task")) == 4 and len(library_set("task+team")) == 6
     with pytest.raises(ConfigError, match="set="):
         library_set("teams")
+
+
+def test_member_seeds_depend_on_the_environment_not_the_set():
+    team, task = library_set("team"), library_set("task")
+    assert member_seed(3, team[1]) == member_seed(3, task[0]) == 3  # task1-tau1 in both sets
+    assert sorted(member_seed(0, e) for e in library_set("task+team")) == list(range(6))
 
 
 def test_tiny_library_classifier_and_agent(tmp_path):
@@ -64,7 +71,8 @@ def test_tiny_library_classifier_and_agent(tmp_path):
         assert 0 <= action < 5
         observation, _, terminated, truncated, _ = env.step(action)
         agent.observe(action, observation)
-        assert np.isclose(agent.task_posterior.sum(), 1.0) and agent.task_posterior.min() >= 0
+        assert np.isclose(agent.library_posterior.sum(), 1.0) and agent.library_posterior.min() >= 0
+        assert agent.task_posterior is None  # the team set's environments share task 1: no task marginal
         if terminated or truncated:
             break
     with pytest.raises(ConfigError, match="egocentric"):
@@ -73,7 +81,7 @@ def test_tiny_library_classifier_and_agent(tmp_path):
     known.reset(np.random.default_rng(0))
     known.start(observation)
     known.observe(known.act(), observation)
-    assert known.task_posterior.tolist() == [0.0, 0.0, 1.0]
+    assert known.library_posterior.tolist() == [0.0, 0.0, 1.0]
     generalist = train_generalist("foraging", "team", config, tmp_path)
     assert generalist_path(tmp_path, "foraging", "team").exists()
     results = evaluate(library, classifier, episodes=1, seed=0, max_steps=8, generalist=generalist)

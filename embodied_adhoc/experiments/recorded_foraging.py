@@ -1,0 +1,235 @@
+"""One recorded level-based-foraging episode in the MuJoCo arena: what ``embodied-adhoc run foraging`` runs.
+
+Seeds, episode draw, agent and loop are the trial runner's (the ``foraging`` grid-arena domain of
+:mod:`embodied_adhoc.experiments.foraging` and :func:`~embodied_adhoc.experiments.episode.run_episode_loop`), so
+``run foraging --seed S`` replays episode 0 of ``trials foraging --backend mujoco --seed S`` for the same agent
+(same ``--team``/``--task``/``--library``). The default agent is ATLPO-MF (thesis chapter 6) with the library
+shipped in the package: its observations are the egocentric arrays the arena computes from the robots' physical
+positions. With ``record_dir`` it writes ``episode.mp4`` (overhead view with step, action, true task and team,
+and the posterior), ``episode.rrd`` (robot poses, the library posterior as bars with its entropy, actions,
+events, overhead frames) and ``metrics.json`` (per step also the robots' cells and the library posterior), through
+the recorded-episode player shared with ``run toxic-waste`` and ``run pursuit``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord
+from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, play_recorded_episode
+
+__all__ = ["FORAGING_AGENTS", "ForagingEpisodeConfig", "run_foraging_episode"]
+
+FORAGING_AGENTS = ("atlpo-mf", "original", "random")
+ACTION_NAMES = ("up", "down", "left", "right", "forage")
+ROBOT_COLOURS = ((240, 140, 20), (40, 90, 220), (40, 160, 90), (150, 60, 200))
+
+
+@dataclass(frozen=True)
+class ForagingEpisodeConfig:
+    """What one ``run foraging`` episode is (CLI flags map one to one)."""
+
+    agent: str = "atlpo-mf"
+    seed: int = 0
+    task: int | None = None  # 1..4; None: drawn
+    teams: tuple[str, ...] = ("tau0", "tau1", "tau2")  # the episode's team is drawn among these
+    library: Path | None = None  # None: the shipped task+team library
+    max_steps: int = 200
+    record_dir: Path | None = None
+    video_fps: float = 12.0
+    video_speed: float = 2.0  # simulated seconds per second of video
+    video_hold: float = 1.0
+    size: int = 480  # square video, pixels (even)
+    video_overlay: bool = True
+    rerun_camera_hz: float = 2.0
+
+    def options(self) -> dict:
+        """The ``trials foraging`` options of this episode (the grid twin's defaults: 5x5 walled, 4 robots)."""
+        options = {"domain": "foraging", "teams": list(self.teams), "task": self.task, "rows": 5, "cols": 5,
+                   "agents": 4, "toroidal": False, "pairs": False}
+        if self.library is not None:
+            from embodied_adhoc.experiments.foraging import library_folder
+
+            options["library"] = library_folder("foraging", self.library)
+        return options
+
+
+def _library_posterior(agent) -> np.ndarray | None:
+    posterior = getattr(agent, "library_posterior", None)
+    return None if posterior is None else np.asarray(posterior, dtype=np.float64)
+
+
+def _entropy(posterior) -> float | None:
+    from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
+
+    return None if posterior is None else max(0.0, float(normalised_entropy(posterior)))
+
+
+class _Metrics(EpisodeObserver):
+    def __init__(self, metrics, agent, backend):
+        self.metrics, self.agent, self.backend = metrics, agent, backend
+
+    def episode_started(self, info: dict, task_posterior) -> None:
+        self.metrics.start_episode(task_posterior)
+
+    def step_started(self, step: int) -> None:
+        self.metrics.start_step()
+
+    def step_finished(self, record: StepRecord) -> None:
+        self.metrics.end_step(record.action, f"egocentric view, fingerprint {record.observation_index:08x}",
+                              record.reward, float(self.backend.data.time), record.task_posterior,
+                              _entropy(record.task_posterior))
+        library = _library_posterior(self.agent)
+        self.metrics.per_step[-1].update(
+            cells=record.info["state"]["agents"], apples_left=int(record.info["remaining"]),
+            library_posterior=None if library is None else [round(float(p), 6) for p in library])
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        self.metrics.finish(success=trace.success, truncated=trace.truncated)
+
+
+class _Recording(EpisodeObserver):
+    """Video (frames during motion at ``video_fps / video_speed`` per simulated second) and rerun."""
+
+    def __init__(self, config: ForagingEpisodeConfig, env, agent, files: dict[str, Path]):
+        from embodied_adhoc.record.arena_recorder import ArenaRerunRecorder
+        from embodied_adhoc.record.video import VideoWriter
+
+        self.config, self.agent = config, agent
+        self.backend = env.unwrapped.core.backend
+        folder = Path(config.record_dir)
+        folder.mkdir(parents=True, exist_ok=True)
+        files["video"], files["rerun"] = folder / "episode.mp4", folder / "episode.rrd"
+        self.video = VideoWriter(files["video"], config.size, config.size, fps=config.video_fps)
+        self.rerun = ArenaRerunRecorder(files["rerun"], recording_name=f"foraging {config.agent} seed {config.seed}")
+        layout = self.backend.layout
+        self.rerun.log_cells(layout.rows, layout.cols, layout.cell)
+        self.labels = ["ad hoc"] + [f"teammate {i}" for i in range(1, len(self.backend.robots))]
+        self.hud: dict[str, str] = {}
+        self.step = 0
+        self._frame_period = config.video_speed / config.video_fps
+        self._camera_period = 1.0 / config.rerun_camera_hz if config.rerun_camera_hz > 0 else float("inf")
+        self._next_frame = self._next_camera = 0.0
+        self.backend.on_tick = self._on_tick
+
+    @property
+    def sim_time(self) -> float:
+        return float(self.backend.data.time)
+
+    def _overlay(self) -> list[str] | None:
+        if not self.config.video_overlay:
+            return None
+        return [self.hud[k] for k in ("action", "truth", "posterior") if k in self.hud] + [
+            f"t = {self.sim_time:.1f} s"]
+
+    def _frame(self, force: bool = False, repeat: int = 1) -> None:
+        if not force and self.sim_time + 1e-9 < self._next_frame:
+            return
+        self._next_frame = self.sim_time + self._frame_period
+        frame = self.backend.render_top(self.config.size)
+        self.video.write(frame, self._overlay(), repeat=repeat)
+        self.rerun.set_time(self.step, self.sim_time)
+        self.rerun.log_robots(self.backend.poses(), self.labels, ROBOT_COLOURS[: len(self.labels)])
+        if force or self.sim_time + 1e-9 >= self._next_camera:
+            self.rerun.log_camera("overhead", frame)
+            self._next_camera = self.sim_time + self._camera_period
+
+    def _on_tick(self, _seconds_into_step: float) -> None:
+        self._frame()
+
+    def _posterior(self) -> None:
+        posterior = _library_posterior(self.agent)
+        if posterior is None:
+            self.hud.pop("posterior", None)
+            return
+        names = [f"{e.task}/{e.team}" for e in self.agent.library.environments]
+        self.hud["posterior"] = "P(task/team): " + " ".join(
+            f"{n} {p:.2f}" for n, p in zip(names, posterior, strict=True))
+        self.rerun.log_belief(posterior, _entropy(posterior))
+
+    def episode_started(self, info: dict, task_posterior) -> None:
+        self.rerun.set_time(0, self.sim_time)
+        self.hud["action"] = f"{self.config.agent} | step 0"
+        self.hud["truth"] = f"true task {info['task']} ({info['task_name'].split(':')[-1]}), team {info['team']}"
+        self._posterior()
+        library = getattr(self.agent, "library", None)
+        environments = "" if library is None else ", library posterior over " + ", ".join(
+            e.name for e in library.environments)
+        self.rerun.log_text("events", f"start: robots at {info['state']['agents']}, apple at "
+                                      f"{info['state']['targets']}, {self.hud['truth']}{environments}")
+        self._frame(force=True)
+
+    def action_chosen(self, step: int, action: int) -> None:
+        self.step = step
+        self.hud["action"] = f"{self.config.agent} | step {step}: {ACTION_NAMES[action]}"
+        self.rerun.set_time(step, self.sim_time)
+        self.rerun.log_text("actions", f"step {step}: {ACTION_NAMES[action]}")
+
+    def step_finished(self, record: StepRecord) -> None:
+        self.rerun.set_time(record.step, self.sim_time)
+        self.rerun.log_text("observations", f"step {record.step}: robots at {record.info['state']['agents']}, "
+                                            f"teammates {record.info['teammate_actions']}")
+        self._posterior()
+        self._frame(force=True)
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        outcome = "apple foraged" if trace.success else "not foraged"
+        self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
+        self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
+        self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
+
+    def close(self) -> None:
+        self.backend.on_tick = None
+        try:
+            self.video.close()
+        finally:
+            self.rerun.close()
+
+
+def run_foraging_episode(config: ForagingEpisodeConfig,
+                         progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+    """Run (and, with ``config.record_dir``, record) one physics episode; ``progress(step, info)`` per step."""
+    import gymnasium
+
+    from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.foraging import DOMAIN
+    from embodied_adhoc.experiments.stats import identify_step
+    from embodied_adhoc.record.metrics import EpisodeMetrics
+
+    if config.agent not in FORAGING_AGENTS:
+        raise ConfigError(f"--agent {config.agent}: choose from {', '.join(FORAGING_AGENTS)}")
+    if config.max_steps < 1:
+        raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
+    if config.task is not None and not 1 <= config.task <= 4:
+        raise ConfigError(f"--task {config.task}: the task library is 1..4")
+    unknown = [team for team in config.teams if team not in DOMAIN.team_names]
+    if unknown or not config.teams:
+        raise ConfigError(f"--team {','.join(config.teams)}: choose from {', '.join(DOMAIN.team_names)}")
+    if not (config.video_fps > 0 and config.video_speed > 0 and config.size >= 16 and config.size % 2 == 0):
+        raise ConfigError(f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
+                          f"--size ({config.size}) even and >= 16")
+    options = config.options()
+    spec = DOMAIN.episode_spec(options, seeding.episode_rng(config.seed, 0))
+    session = DOMAIN.open_session("mujoco", options)
+    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
+    recording = config.record_dir is not None
+    env = gymnasium.make(session.env_id, max_episode_steps=int(config.max_steps), disable_env_checker=True,
+                         render_mode="rgb_array" if recording else None, **session.env_kwargs)
+    metrics = EpisodeMetrics(
+        config={"command": "run foraging", "agent": config.agent, "seed": config.seed, "spec": spec,
+                "options": options, "max_steps": config.max_steps, "env": session.env_id,
+                "library": [e.name for e in agent.library.environments] if hasattr(agent, "library") else None},
+        true_task=int(spec["task"]),
+        identify=identify_step,
+    )
+    outcome = play_recorded_episode(
+        env, agent, session, spec, config, metrics, [_Metrics(metrics, agent, env.unwrapped.core.backend)],
+        (lambda files: _Recording(config, env, agent, files)) if recording else None, progress,
+    )
+    outcome.metrics["true_team"] = spec["team"]
+    return outcome
