@@ -103,6 +103,7 @@ function onEvent(event) {
       stats.heard.push(event);
       $("heard").textContent = (event.transcript !== undefined ? `recognised "${event.transcript}" → ` : "") +
         (event.node === null ? "no location heard" : `heard: node ${event.node} (${event.place})`);
+      log($("heard").textContent);
       closeQuestion();
       break;
     case "step":
