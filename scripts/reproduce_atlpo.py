@@ -1,15 +1,23 @@
-"""Chapter-6 table (ATLPO-MF side) for one trained library: average steps to finish of the original teammate,
-the library member that knows the environment (model-free RL), ATLPO-MF and random, beside the thesis's numbers,
-and the posterior of the true environment per step.
+"""The chapter-6 table (thesis section 6.2.5) for ATLPO-MF: three environment sets x two domains, 16 episodes per
+environment x 3 training seeds, beside the thesis's numbers; the classifier's accuracy per step; and the
+held-out-teammate split (teams no library member saw, scores normalised between random 0 and the original
+teammate 1, IQM with bootstrap CIs).
 
-    .venv/bin/python -m embodied_adhoc.cli train atlpo --domain foraging --set team --out runs/atlpo/foraging-team
-    .venv/bin/python scripts/reproduce_atlpo.py --library runs/atlpo/foraging-team [--episodes 16 --seed 0]
+    .venv/bin/python scripts/reproduce_atlpo.py --out runs/atlpo [--domains foraging pursuit] [--seeds 0 1 2]
 
-Not yet here (issue 15): ATLPO-MB and the model-based column, the 3 training seeds, the held-out teammates.
+Per (domain, seed) it trains the ``task+team`` library (six members, 30,000 PPO steps each, the command
+``embodied-adhoc train atlpo``'s pipeline), then the ``task`` and ``team`` libraries from the same members (a
+member's seed depends on its environment, not its set: ``learning.atlpo.member_seed``), each with its own
+classifier. Seed 0's ``task+team`` library is the one shipped in the package when it was made with the same
+settings (its ``training.json`` says so), so it is copied, not retrained. Everything is resumable: a folder with
+``training.json`` is not retrained, an ``evaluation*.json`` not re-evaluated. ``--train-only`` stops before the
+evaluations; run two processes with different ``--domains`` to use two cores.
 """
 
 from __future__ import annotations
 
+import json
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,56 +26,197 @@ import numpy as np
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 
 # results-to-reproduce.md, chapter 6: (set, domain) -> original, model-free RL, ATLPO-MF, random (the thesis's
-# model-free RL column is printed beside both our members that know the environment and our mf-all policy)
+# model-free RL column "knows task/team": our ``known``, the library member of the true environment)
 THESIS = {
     ("task", "foraging"): (6.72, 7.56, 13.02, 59.05), ("task", "pursuit"): (9.36, 11.22, 21.36, 50.66),
     ("team", "foraging"): (9.2, 7.68, 8.85, 53.71), ("team", "pursuit"): (14.45, 10.19, 10.71, 58.21),
     ("task+team", "foraging"): (7.89, 7.62, 11.96, 56.52), ("task+team", "pursuit"): (11.54, 10.71, 16.75, 54.21),
 }
+TABLE_AGENTS = ("original", "known", "atlpo-mf", "random")
+SETS = ("task", "team", "task+team")
 
 
 @dataclass(frozen=True)
 class Args:
-    library: Path = Path("runs/atlpo/foraging-team")
-    """a folder written by `embodied-adhoc train atlpo`"""
+    out: Path = Path("runs/atlpo")
+    """folder of the libraries, evaluations and the table (resumable)"""
+    domains: tuple[str, ...] = ("foraging", "pursuit")
+    sets: tuple[str, ...] = SETS
+    seeds: tuple[int, ...] = (0, 1, 2)
+    """training seeds (the thesis: 3)"""
     episodes: int = 16
-    """episodes per library environment (the thesis: 16)"""
-    seed: int = 0
+    """episodes per library environment and seed (the thesis: 16)"""
+    steps: int = 30_000
+    """PPO env steps per library member (the thesis: 30,000)"""
     max_steps: int = 200
     """step cap; an unfinished episode counts it"""
     threads: int = 1
+    train_only: bool = False
+    """train the libraries and classifiers, evaluate nothing"""
+    held_out: bool = True
+    """also evaluate the held-out-teammate split with each seed's task+team library"""
+    team: str = ""
+    """held-out split: also a user's team, ``module:callable`` (see learning/atlpo_heldout.py)"""
+    report_only: bool = False
+    """print the table from what ``--out`` holds, train and evaluate nothing"""
+
+
+def library_folder(out: Path, domain: str, seed: int, set_name: str) -> Path:
+    return out / domain / f"seed{seed}" / set_name.replace("+", "-")
+
+
+def train(args: Args, domain: str, seed: int) -> None:
+    from embodied_adhoc.learning.atlpo import library_set, shipped_library
+    from embodied_adhoc.learning.atlpo_train import AtlpoTraining, train_atlpo
+
+    union = library_folder(args.out, domain, seed, "task+team")
+    if not (union / "training.json").exists() and seed == 0:
+        shipped = shipped_library(domain)
+        made = json.loads((shipped / "training.json").read_text())
+        if made["steps"] == args.steps and made["seed"] == 0 and made["set"] == "task+team":
+            shutil.copytree(shipped, union, dirs_exist_ok=True)
+            print(f"{union}: the shipped library (same settings)", flush=True)
+    for set_name in ("task+team",) + tuple(s for s in args.sets if s != "task+team"):
+        folder = library_folder(args.out, domain, seed, set_name)
+        if (folder / "training.json").exists():
+            continue
+        folder.mkdir(parents=True, exist_ok=True)
+        for environment in library_set(set_name):  # the same member (same seed) as in the task+team library
+            name = f"{domain}-{environment.name}.safetensors"
+            if (union / name).exists() and not (folder / name).exists():
+                shutil.copy2(union / name, folder / name)
+        report = train_atlpo(AtlpoTraining(domain, set_name, str(folder), steps=args.steps, seed=seed,
+                                           threads=args.threads, quiet=True))
+        print(f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)", flush=True)
+
+
+def evaluate_cell(args: Args, domain: str, seed: int, set_name: str) -> dict:
+    from embodied_adhoc.learning.atlpo import load_library
+    from embodied_adhoc.learning.atlpo_eval import evaluate
+
+    folder = library_folder(args.out, domain, seed, set_name)
+    path = folder / f"evaluation-{args.episodes}x{args.max_steps}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    library, classifier = load_library(folder)
+    results = evaluate(library, classifier, args.episodes, seed, args.max_steps, agents=TABLE_AGENTS)
+    path.write_text(json.dumps(results) + "\n")
+    return results
+
+
+def held_out_cell(args: Args, domain: str, seed: int) -> dict:
+    from embodied_adhoc.learning.atlpo import load_library
+    from embodied_adhoc.learning.atlpo_heldout import evaluate_held_out, held_out_teams
+
+    folder = library_folder(args.out, domain, seed, "task+team")
+    tag = "" if not args.team else "-" + args.team.replace(":", "_").replace(".", "_")
+    path = folder / f"held-out-{args.episodes}x{args.max_steps}{tag}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    library, classifier = load_library(folder)
+    results = evaluate_held_out(library, classifier, held_out_teams(domain, args.team or None), args.episodes,
+                                seed, args.max_steps)
+    path.write_text(json.dumps(results) + "\n")
+    return results
+
+
+def classifier_accuracy(args: Args, domain: str, set_name: str) -> list[float]:
+    """Mean over the seeds of the classifier's held-out accuracy after steps 1..10 (training.json)."""
+    rows = []
+    for seed in args.seeds:
+        path = library_folder(args.out, domain, seed, set_name) / "training.json"
+        if path.exists():
+            per_step = json.loads(path.read_text())["per_step"]
+            rows.append([row["accuracy"] for row in per_step[1:11]])
+    width = min((len(r) for r in rows), default=0)
+    return [float(np.mean([r[t] for r in rows])) for t in range(width)]
+
+
+def report(args: Args) -> str:
+    from embodied_adhoc.experiments.stats import summarise_sample
+
+    lines = [f"Chapter-6 table: average steps to finish ({args.episodes} episodes per environment x seeds "
+             f"{list(args.seeds)}, cap {args.max_steps}; an unfinished episode counts the cap); mean [95 % "
+             "bootstrap CI] (solved %) | thesis", ""]
+    header = f"| set | domain | K | seeds | {' | '.join(TABLE_AGENTS)} | classifier accuracy after step 1/3/5/7/10 |"
+    lines += [header, "|" + "---|" * (header.count("|") - 1)]
+    table = {}
+    for set_name in SETS:
+        for domain in ("foraging", "pursuit"):
+            cells = []
+            for seed in args.seeds:
+                path = library_folder(args.out, domain, seed, set_name) / f"evaluation-{args.episodes}x{args.max_steps}.json"
+                if path.exists():
+                    cells.append(json.loads(path.read_text()))
+            if not cells:
+                continue
+            k = len(cells[0]["original"]["steps"]) // args.episodes
+            row = [set_name, domain, str(k), str(len(cells))]
+            table[f"{set_name}/{domain}"] = {}
+            for i, agent in enumerate(TABLE_AGENTS):
+                steps = np.concatenate([c[agent]["steps"] for c in cells]).astype(float)
+                solved = np.mean(np.concatenate([c[agent]["finished"] for c in cells]))
+                summary = summarise_sample(steps)
+                thesis = THESIS[(set_name, domain)][i]
+                row.append(f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] ({100 * solved:.0f} %) "
+                           f"\\| {thesis}")
+                table[f"{set_name}/{domain}"][agent] = {"mean": summary.mean, "ci": [summary.ci_low, summary.ci_high],
+                                                        "iqm": summary.iqm, "solved": float(solved), "n": summary.n,
+                                                        "thesis": thesis}
+            accuracy = classifier_accuracy(args, domain, set_name)
+            row.append("/".join(f"{accuracy[t]:.2f}" for t in (0, 2, 4, 6, 9) if t < len(accuracy)))
+            lines.append("| " + " | ".join(row) + " |")
+    held = held_out_report(args)
+    (args.out / "table.json").write_text(json.dumps({"table": table, "held_out": held[1]}, indent=1) + "\n")
+    return "\n".join(lines + [""] + held[0])
+
+
+def held_out_report(args: Args) -> tuple[list[str], dict]:
+    from embodied_adhoc.learning.atlpo_heldout import normalised_scores
+
+    lines, data = [], {}
+    for domain in ("foraging", "pursuit"):
+        cells = []
+        for seed in args.seeds:
+            folder = library_folder(args.out, domain, seed, "task+team")
+            cells += [json.loads(p.read_text()) for p in sorted(folder.glob(f"held-out-{args.episodes}x{args.max_steps}*.json"))]
+        if not cells:
+            continue
+        if not lines:
+            lines = ["Held-out teammates (task+team library; teams no member saw): normalised score "
+                     "(random 0, original teammate 1), IQM [95 % bootstrap CI] over episodes; mean steps (solved %)",
+                     "", "| domain | team | episodes | atlpo-mf | known-task | original steps | atlpo-mf steps "
+                     "| random steps |", "|---|---|---|---|---|---|---|---|"]
+        for team, scores in normalised_scores(cells).items():
+            data[f"{domain}/{team}"] = scores
+            lines.append(f"| {domain} | {team} | {scores['episodes']} | {scores['atlpo-mf']['iqm']:.2f} "
+                         f"[{scores['atlpo-mf']['ci'][0]:.2f}, {scores['atlpo-mf']['ci'][1]:.2f}] | "
+                         f"{scores['known-task']['iqm']:.2f} | {scores['steps']['original']:.1f} "
+                         f"({100 * scores['solved']['original']:.0f} %) | {scores['steps']['atlpo-mf']:.1f} "
+                         f"({100 * scores['solved']['atlpo-mf']:.0f} %) | {scores['steps']['random']:.1f} "
+                         f"({100 * scores['solved']['random']:.0f} %) |")
+    return lines, data
 
 
 def main(args: Args) -> None:
-    import json
-
     import torch
 
-    from embodied_adhoc.learning.atlpo import generalist_path, load_library, load_policy
-    from embodied_adhoc.learning.atlpo_eval import AGENTS, evaluate
-
     torch.set_num_threads(args.threads)
-    library, classifier = load_library(args.library)
-    if classifier is None:
-        raise SystemExit(f"{args.library}: the library has no classifier yet; rerun `embodied-adhoc train atlpo`")
-    training = json.loads((args.library / "training.json").read_text())
-    path = generalist_path(args.library, library.domain, training["set"])
-    generalist = load_policy(path) if path.exists() else None
-    results = evaluate(library, classifier, args.episodes, args.seed, args.max_steps, generalist=generalist)
-    thesis = dict(zip(("original", "known", "atlpo-mf", "random"),
-                      THESIS.get((training["set"], library.domain), (float("nan"),) * 4), strict=True))
-    thesis["mf-all"] = thesis["known"]
-    print(f"{library.domain}, set {training['set']} (K={len(library.policies)}), {args.episodes} episodes per "
-          f"environment, seed {args.seed}, cap {args.max_steps} steps; policies trained {training['steps']} steps")
-    print(f"{'agent':10s} {'steps':>7s} {'+-sd':>6s} {'solved':>7s} {'thesis':>7s}")
-    for name in (a for a in AGENTS if a in results):
-        steps = np.array(results[name]["steps"], float)
-        print(f"{name:10s} {steps.mean():7.2f} {steps.std():6.2f} {np.mean(results[name]['finished']):7.2f} "
-              f"{thesis[name]:7.2f}")
-    belief = results["true_posterior_per_step"]
-    marks = [t for t in (0, 1, 2, 4, 9, 19) if t < len(belief)]
-    print("ATLPO-MF posterior of the true environment after step: "
-          + ", ".join(f"{t + 1}: {belief[t]:.2f}" for t in marks))
+    if not args.report_only:
+        for domain in args.domains:
+            for seed in args.seeds:
+                train(args, domain, seed)
+        if not args.train_only:
+            for domain in args.domains:
+                for seed in args.seeds:
+                    for set_name in args.sets:
+                        evaluate_cell(args, domain, seed, set_name)
+                    if args.held_out:
+                        held_out_cell(args, domain, seed)
+                    print(f"{domain} seed {seed}: evaluated", flush=True)
+    text = report(args)
+    (args.out / "table.md").write_text(text + "\n")
+    print(text)
 
 
 if __name__ == "__main__":
