@@ -22,6 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from embodied_adhoc.decision.agents.teamwork import (
+    CHAPTER4_AGENTS,
+    MODEL_BASED,
     ModelBasedAgent,
     OriginalTeammate,
     RandomAgent,
@@ -33,8 +35,8 @@ from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.dqn import Dqn, DqnConfig
 from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
 
-MODEL_BASED = ("teamster", "plastic-model", "learns-team", "learns-environment")
-AGENTS = MODEL_BASED + ("plastic-policy", "random", "original") + TEAMS
+AGENTS = CHAPTER4_AGENTS
+assert AGENTS[-3:] == TEAMS  # the scripted seat types are the teams' policies
 
 
 class PlasticPolicy(TeamTracking):

@@ -25,6 +25,12 @@ import numpy as np
 
 from embodied_adhoc.decision.uct import BatchedUct, UctConfig, update_team_belief
 
+MODEL_BASED = ("teamster", "plastic-model", "learns-team", "learns-environment")
+CHAPTER4_AGENTS = MODEL_BASED + ("plastic-policy", "random", "original", "teammate-aware", "greedy",
+                                 "probabilistic-destinations")
+"""The chapter-4 agents by name (built in ``learning/teamster_agents.py``); the last three are scripted team
+policies in the ad hoc seat."""
+
 
 class TeamworkAgent(Protocol):
     name: str

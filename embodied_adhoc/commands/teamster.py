@@ -1,0 +1,107 @@
+"""``embodied-adhoc teamster DOMAIN``: the sequential-teams protocol of thesis section 4.1.4 (TEAMSTER and its
+baselines, chapter 4) on DOMAIN (pursuit: 5x5 toroidal, four predators, fully observable).
+
+Each agent is paired with the teammate-aware, greedy and probabilistic-destinations teams in turn for ``--steps``
+steps each, learning, evaluated (``--eval-steps`` steps, learning paused) before and after every 10 % of the
+interaction and, after each team, on all three. ``--changed P`` adds the changed-environment phase (predator
+moves fail with probability P). With ``--out`` every (agent, trial) is stored as it finishes and a rerun resumes
+from them; the folder gets ``summary.json``, ``table.md`` and ``curves.png``. ``--json`` prints the summary
+(accumulated reward = prey captures, mean and 95 % CI, at each evaluation point, and per 500 steps).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from embodied_adhoc.atomic import atomic_write_text
+from embodied_adhoc.commands.arguments import bounded, output_folder, positive_int, seed
+from embodied_adhoc.decision.agents.teamwork import CHAPTER4_AGENTS as AGENTS
+from embodied_adhoc.errors import ConfigError
+
+DEFAULT_AGENTS = AGENTS[:7]
+
+
+def _agents(text: str) -> list[str]:
+    names = [name.strip() for name in text.split(",") if name.strip()]
+    unknown = [name for name in names if name not in AGENTS]
+    if unknown or not names:
+        raise ConfigError(f"--agents {text!r}: unknown {', '.join(unknown) or '(none given)'}; choose from "
+                          f"{', '.join(AGENTS)}")
+    return list(dict.fromkeys(names))
+
+
+def handle(args: argparse.Namespace) -> int:
+    agents = _agents(args.agents)
+    if args.steps % args.points:
+        raise ConfigError(f"--steps {args.steps}: must be a multiple of --points {args.points}")
+    if args.changed >= 1.0:
+        raise ConfigError(f"--changed {args.changed}: a move-failure probability in [0, 1)")
+    from embodied_adhoc.experiments.teamster import final_table, summarise, write_outputs
+    from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, run_trial
+
+    config = ProtocolConfig(steps=args.steps, eval_steps=args.eval_steps, points=args.points,
+                            changed=args.changed, seed=args.seed, iterations=args.iterations, depth=args.depth)
+    out = args.out
+    records = []
+    jobs = [(agent, trial) for agent in agents for trial in range(args.trials)]
+    from tqdm import tqdm
+
+    phases = 3 + (config.changed > 0)
+    bar = tqdm(total=len(jobs) * phases, desc="teamster", unit="team", disable=args.json or args.quiet,
+               file=sys.stderr)
+    try:
+        for agent, trial in jobs:
+            path = Path(out, "runs", agent, f"trial-{trial}.json") if out else None
+            if path is not None and path.is_file():
+                record = json.loads(path.read_text())
+                if record.get("config") != config.as_dict():
+                    raise ConfigError(f"{path}: written with other settings ({record.get('config')}); use another "
+                                      "--out or the same options")
+                bar.update(phases)
+            else:
+                bar.set_postfix_str(f"{agent} trial {trial}")
+                record = run_trial(agent, trial, config, tick=lambda: bar.update(1))
+                if path is not None:
+                    atomic_write_text(path, json.dumps(record) + "\n")
+            records.append(record)
+    finally:
+        bar.close()
+    summary = summarise(records)
+    if out is not None:
+        write_outputs(summary, out)
+    if args.json:
+        print(json.dumps({"domain": args.domain, "config": config.as_dict(), "trials": args.trials,
+                          "agents": summary}, indent=2))
+    else:
+        print(final_table(summary))
+        if out is not None:
+            print(f"summary.json, table.md and curves.png in {out}")
+    return 0
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("teamster", help="chapter 4: TEAMSTER, PLASTIC-Model/-Policy, sequential teams",
+                                   description=__doc__)
+    parser.add_argument("domain", choices=("pursuit",), help="pursuit (the navigation maps are not built yet)")
+    parser.add_argument("--agents", default=",".join(DEFAULT_AGENTS), metavar="A,B,...",
+                        help=f"comma-separated from {{{', '.join(AGENTS)}}} (default {','.join(DEFAULT_AGENTS)})")
+    parser.add_argument("--steps", type=positive_int, default=5000,
+                        help="interaction steps per team, a multiple of --points (default 5000)")
+    parser.add_argument("--trials", type=positive_int, default=8, help="trials per agent (default 8)")
+    parser.add_argument("--eval-steps", type=positive_int, default=500, help="steps per evaluation (default 500)")
+    parser.add_argument("--points", type=positive_int, default=10,
+                        help="evaluations per interaction (default 10: every 10 %%)")
+    parser.add_argument("--changed", type=bounded(float, 0.0, "a probability in [0, 1)"), default=0.0,
+                        help="add the changed-environment phase: predator moves fail with this probability")
+    parser.add_argument("--iterations", type=positive_int, default=100, help="UCT iterations (Table 4.1: 100)")
+    parser.add_argument("--depth", type=positive_int, default=5, help="UCT rollout depth (Table 4.1: 5)")
+    parser.add_argument("--seed", type=seed, default=0, help="seed, >= 0 (default 0)")
+    parser.add_argument("--out", type=output_folder, default=None, metavar="DIR",
+                        help="store (and resume) the trials in DIR, with summary.json, table.md, curves.png")
+    parser.add_argument("--json", action="store_true", help="print only the JSON summary on stdout")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.set_defaults(func=handle)
+

@@ -1,0 +1,123 @@
+"""Summaries of the chapter-4 sequential-teams protocol (records of ``learning/teamster_protocol.py``): per
+agent and team the accumulated reward (prey captures) at each evaluation point with percentile-bootstrap CIs over
+trials, the after-learning matrix of Table 4.4, the changed-environment curve, captures per 500 steps, the
+learning-curve figure (Fig. 4.7's layout) and the text table. No torch here: records are plain JSON.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from embodied_adhoc.atomic import atomic_write_text
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.plots import _pyplot, _save
+from embodied_adhoc.experiments.stats import summarise_sample
+from embodied_adhoc.experiments.tables import format_table
+
+PER = 500  # captures are reported per 500 steps (the PLASTIC reference's unit)
+
+
+def _cell(values, scale: float) -> dict:
+    s = summarise_sample(np.asarray(values, dtype=float) * scale)
+    return {"mean": s.mean, "ci": [s.ci_low, s.ci_high], "n": s.n}
+
+
+def load_records(folder: str | Path) -> list[dict]:
+    """Every trial record under ``folder/runs`` (``AGENT/trial-K.json``)."""
+    records = []
+    for path in sorted(Path(folder, "runs").glob("*/trial-*.json")):
+        try:
+            records.append(json.loads(path.read_text()))
+        except json.JSONDecodeError as error:
+            raise ConfigError(f"{path}:{error.lineno}: not a trial record ({error.msg}); delete it to rerun "
+                              "that trial") from None
+    return records
+
+
+def summarise(records: list[dict]) -> dict:
+    """The JSON summary: per agent, per team, curve points {step, captures (mean, CI), per 500}, the
+    after-learning matrix and the changed-environment curve."""
+    out: dict = {}
+    for agent in dict.fromkeys(r["agent"] for r in records):
+        mine = [r for r in records if r["agent"] == agent]
+        eval_steps = mine[0]["config"]["eval_steps"]
+        scale = PER / eval_steps
+        entry: dict = {"trials": len(mine), "eval_steps": eval_steps, "curves": {}, "after": {}}
+        for team in mine[0]["curves"]:
+            points = np.array([[c for _, c in r["curves"][team]] for r in mine])
+            steps = [s for s, _ in mine[0]["curves"][team]]
+            entry["curves"][team] = [{"step": s, "captures": _cell(points[:, i], 1.0),
+                                      "per_500": _cell(points[:, i], scale)} for i, s in enumerate(steps)]
+        for learned in mine[0]["after"]:
+            entry["after"][learned] = {team: {"captures": _cell([r["after"][learned][team] for r in mine], 1.0),
+                                              "per_500": _cell([r["after"][learned][team] for r in mine], scale)}
+                                       for team in mine[0]["after"][learned]}
+        if "changed" in mine[0]:
+            points = np.array([[c for _, c in r["changed"]] for r in mine])
+            entry["changed"] = [{"step": s, "per_500": _cell(points[:, i], scale)}
+                                for i, (s, _) in enumerate(mine[0]["changed"])]
+        entry["seconds"] = float(np.mean([r.get("seconds", np.nan) for r in mine]))
+        out[agent] = entry
+    return out
+
+
+def _fmt(cell: dict) -> str:
+    low, high = cell["ci"]
+    if np.isnan(low):
+        return f"{cell['mean']:.1f}"
+    return f"{cell['mean']:.1f} [{low:.1f}, {high:.1f}]"
+
+
+def after_table(summary: dict, markdown: bool = False) -> str:
+    """Table 4.4's layout: rows (agent, after learning tau_i), columns the evaluation teams; captures per 500
+    steps, mean [95 % CI]."""
+    teams = next(iter(summary.values()))["after"]
+    rows = []
+    for agent, entry in summary.items():
+        for learned, evals in entry["after"].items():
+            rows.append([agent, learned] + [_fmt(evals[team]["per_500"]) for team in teams])
+    return format_table(["agent", "after learning"] + [f"eval {t}" for t in teams], rows, markdown)
+
+
+def final_table(summary: dict, markdown: bool = False) -> str:
+    """One row per agent: captures per 500 steps at the end of each team's interaction."""
+    teams = next(iter(summary.values()))["curves"]
+    rows = [[agent] + [_fmt(entry["curves"][t][-1]["per_500"]) for t in teams]
+            + ([_fmt(entry["changed"][-1]["per_500"])] if "changed" in entry else [])
+            + [f"{entry['seconds']:.0f}"] for agent, entry in summary.items()]
+    changed = ["changed env"] if any("changed" in e for e in summary.values()) else []
+    return format_table(["agent"] + [f"end of {t}" for t in teams] + changed + ["s/trial"], rows, markdown)
+
+
+def plot_curves(summary: dict, path: str | Path) -> Path:
+    """Learning curves (captures per 500 steps vs interaction steps), one panel per team, CI bands."""
+    plt = _pyplot()
+    teams = list(next(iter(summary.values()))["curves"])
+    figure, axes = plt.subplots(1, len(teams), figsize=(4.2 * len(teams), 3.4), sharey=True)
+    for axis, team in zip(np.atleast_1d(axes), teams, strict=True):
+        for agent, entry in summary.items():
+            points = entry["curves"][team]
+            x = [p["step"] for p in points]
+            mean = np.array([p["per_500"]["mean"] for p in points])
+            low = np.array([p["per_500"]["ci"][0] for p in points])
+            high = np.array([p["per_500"]["ci"][1] for p in points])
+            axis.plot(x, mean, label=agent)
+            if not np.isnan(low).all():
+                axis.fill_between(x, low, high, alpha=0.2)
+        axis.set_title(team)
+        axis.set_xlabel("interaction steps")
+    np.atleast_1d(axes)[0].set_ylabel("prey captures per 500 steps")
+    np.atleast_1d(axes)[-1].legend(fontsize=7)
+    return _save(figure, Path(path))
+
+
+def write_outputs(summary: dict, folder: str | Path) -> list[Path]:
+    folder = Path(folder)
+    paths = [atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n"),
+             atomic_write_text(folder / "table.md", "## After learning each team\n\n" + after_table(summary, True)
+                               + "\n\n## End of each interaction\n\n" + final_table(summary, True) + "\n"),
+             plot_curves(summary, folder / "curves.png")]
+    return paths

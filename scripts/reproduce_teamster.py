@@ -1,0 +1,101 @@
+"""Reproduce thesis chapter 4 on 5x5 pursuit: the PLASTIC reference and the sequential-teams protocol.
+
+    .venv/bin/python scripts/reproduce_teamster.py [--trials 8] [--steps 5000] [--eval-steps 500] [--points 10]
+        [--agents ...] [--changed 0.25] [--out runs/teamster-pursuit] [--skip-protocol]
+
+Part A, the PLASTIC reference (results-to-reproduce.md): prey captures per 500 steps with the teammate-aware
+team for the ad hoc seat filled by a teammate-aware, greedy or probabilistic-destinations agent, by a random
+agent and by PLASTIC-Model that already knows the three teams (exact models, as in Barrett et al.); ``--trials``
+runs of 500 steps each, printed beside the reference (64, 32, 35, 11; PLASTIC-Policy 43).
+
+Part B, section 4.1.4: ``embodied-adhoc teamster pursuit`` with the given options (resumable in ``--out``); the
+table of captures per 500 steps after learning each team (Table 4.4's layout) and PLASTIC-Policy / TEAMSTER
+evaluated on the teammate-aware team after learning it, beside the reference's PLASTIC-Policy.
+The thesis's scale (8 trials, T = 5000) takes hours on two CPU cores; smaller options give a smaller study.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from embodied_adhoc.cli import main as cli_main
+from embodied_adhoc.domains.pursuit4 import TEAMS, ExactTeam, Pursuit4
+from embodied_adhoc.experiments.stats import summarise_sample
+from embodied_adhoc.experiments.tables import format_table
+from embodied_adhoc.learning.teamster_agents import build_agent
+from embodied_adhoc.learning.teamster_protocol import play
+
+REFERENCE = {"teammate-aware": 64, "greedy": 32, "probabilistic-destinations": 35, "plastic-policy": 43,
+             "random": 11}
+
+
+def _cell(values) -> str:
+    s = summarise_sample(values)
+    return f"{s.mean:.1f} [{s.ci_low:.1f}, {s.ci_high:.1f}]" if s.n > 1 else f"{s.mean:.1f}"
+
+
+def part_a(trials: int, seed: int) -> dict[str, list[int]]:
+    world = Pursuit4()
+    team = ExactTeam(world, "teammate-aware")
+    out: dict[str, list[int]] = {}
+    for name in ("teammate-aware", "greedy", "probabilistic-destinations", "random", "plastic-model"):
+        counts = []
+        for trial in range(trials):
+            rng = np.random.default_rng([seed, trial, 7])
+            agent = build_agent(name, world, np.random.default_rng([seed, trial, 8]), horizon=500)
+            for known in TEAMS:
+                agent.finish_team(known)  # PLASTIC-Model knows the three teams' exact models
+            agent.start_team(np.random.default_rng([seed, trial, 9]))
+            agent.set_evaluation(True)
+            counts.append(play(agent, world, team, 500, rng))
+        out[name] = counts
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trials", type=int, default=8)
+    parser.add_argument("--steps", type=int, default=5000)
+    parser.add_argument("--eval-steps", type=int, default=500)
+    parser.add_argument("--points", type=int, default=10)
+    parser.add_argument("--changed", type=float, default=0.0)
+    parser.add_argument("--agents", default="teamster,plastic-model,learns-team,learns-environment,plastic-policy,"
+                                            "random,original")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default="runs/teamster-pursuit")
+    parser.add_argument("--skip-protocol", action="store_true", help="part A only")
+    args = parser.parse_args()
+
+    counts = part_a(args.trials, args.seed)
+    rows = [[name, _cell(values), str(REFERENCE.get(name, "-"))] for name, values in counts.items()]
+    print(f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs, mean [95% CI])")
+    print(format_table(["ad hoc agent", "ours", "PLASTIC reference"], rows))
+
+    if args.skip_protocol:
+        return
+    print(f"\nPart B: sequential teams (T={args.steps}, {args.trials} trials, evaluations of {args.eval_steps} steps)")
+    command = ["teamster", "pursuit", "--agents", args.agents, "--steps", str(args.steps), "--trials",
+               str(args.trials), "--eval-steps", str(args.eval_steps), "--points", str(args.points), "--seed",
+               str(args.seed), "--out", args.out, "--quiet"]
+    if args.changed > 0:
+        command += ["--changed", str(args.changed)]
+    if cli_main(command) != 0:
+        raise SystemExit(2)
+    summary = json.loads(Path(args.out, "summary.json").read_text())
+    print("\n" + Path(args.out, "table.md").read_text())
+    rows = []
+    for agent in ("plastic-policy", "teamster", "plastic-model", "learns-team", "learns-environment"):
+        if agent in summary:
+            cell = summary[agent]["after"]["teammate-aware"]["teammate-aware"]["per_500"]
+            rows.append([agent, f"{cell['mean']:.1f} [{cell['ci'][0]:.1f}, {cell['ci'][1]:.1f}]",
+                         str(REFERENCE.get(agent, "-"))])
+    print("After learning the teammate-aware team, evaluated on it (captures per 500 steps)")
+    print(format_table(["ad hoc agent", "ours", "PLASTIC reference"], rows))
+
+
+if __name__ == "__main__":
+    main()

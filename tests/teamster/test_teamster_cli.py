@@ -1,0 +1,41 @@
+"""``embodied-adhoc teamster``: bad input is one line and exit 2; --out resumes; --json carries the curves."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from embodied_adhoc.cli import main
+
+SMALL = ["--steps", "20", "--points", "2", "--eval-steps", "10", "--trials", "2", "--quiet"]
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--agents", "oracle"], "--agents 'oracle'"),
+    (["--steps", "45"], "--steps 45: must be a multiple of --points 10"),
+    (["--changed", "1.5"], "--changed 1.5"),
+    (["--trials", "0"], "--trials"),
+])
+def test_bad_input_is_one_line_and_exit_2(argv, fragment):
+    done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "teamster", "pursuit", *argv],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and fragment in done.stderr and len(done.stderr.strip().splitlines()) == 1
+
+
+def test_out_resumes_and_json_summary(tmp_path, capsys):
+    argv = ["teamster", "pursuit", "--agents", "random,original", *SMALL, "--out", str(tmp_path)]
+    assert main(argv + ["--json"]) == 0
+    first = json.loads(capsys.readouterr().out)
+    record = tmp_path / "runs" / "original" / "trial-1.json"
+    stamp = record.stat().st_mtime_ns
+    assert main(argv + ["--json"]) == 0  # resumed: nothing rerun, same summary
+    assert json.loads(capsys.readouterr().out) == first and record.stat().st_mtime_ns == stamp
+    curve = first["agents"]["original"]["curves"]["greedy"]
+    assert [p["step"] for p in curve] == [0, 10, 20] and set(curve[0]["per_500"]) == {"mean", "ci", "n"}
+    assert (tmp_path / "curves.png").stat().st_size > 0 and "after learning" in (tmp_path / "table.md").read_text()
+    assert main(["teamster", "pursuit", "--agents", "random", "--steps", "40", "--points", "2", "--eval-steps",
+                 "10", "--trials", "1", "--quiet", "--out", str(tmp_path)]) == 2
+    assert "written with other settings" in capsys.readouterr().err
