@@ -2,9 +2,11 @@
 environment and the exact teammate-aware team model: the batched search (waves of simulations, one simulator
 call per depth) against the plain per-node sequential UCT, both measured in this run on the same states.
 
-    .venv/bin/python scripts/bench_uct.py [--decisions 20] [--wave 20] [--seed 0]
+    .venv/bin/python scripts/bench_uct.py [--decisions 20] [--wave 20] [--seed 0] [--model exact|learned]
 
-Prints milliseconds per decision for both and their ratio. Timings depend on the machine's load.
+``--model learned`` plans over TEAMSTER's networks instead, first trained on 500 steps of the teammate-aware
+team (an untrained reward network ends simulations at random; torch on one thread). Prints milliseconds per decision for both and their ratio. Timings depend on the
+machine's load.
 """
 
 from __future__ import annotations
@@ -24,9 +26,26 @@ def main() -> None:
     parser.add_argument("--decisions", type=int, default=20)
     parser.add_argument("--wave", type=int, default=20)
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--model", choices=("exact", "learned"), default="exact")
     args = parser.parse_args()
     world = Pursuit4()
     team, env = ExactTeam(world, "teammate-aware"), ExactEnvironment(world)
+    if args.model == "learned":
+        import torch
+
+        from embodied_adhoc.learning.teamster import LearnedEnvironment, LearnedTeam
+
+        torch.set_num_threads(1)
+        team = LearnedTeam(world, np.random.default_rng(args.seed))
+        env = LearnedEnvironment(world, np.random.default_rng(args.seed + 1))
+        rng = np.random.default_rng(args.seed + 2)
+        state = world.sample_states(rng, 1)[0]
+        for _ in range(500):
+            joint = sample_rows(world.team_policy("teammate-aware", state[None], agents=(0, 1, 2, 3))[0], rng)
+            nxt, reward, done = world.step(state[None], joint[None], rng)
+            env.update(state, joint, float(reward[0]), nxt[0], bool(done[0]))
+            team.update(state, joint[1:])
+            state = world.sample_states(rng, 1)[0] if done[0] else nxt[0]
 
     def simulate(states, actions, rng):
         mates = sample_rows(team.probs(states), rng)
