@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.arena_recording import ArenaRecording, check_video_options
 from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord
 from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, play_recorded_episode
 
@@ -93,54 +94,22 @@ class _Metrics(EpisodeObserver):
         self.metrics.finish(success=trace.success, truncated=trace.truncated)
 
 
-class _Recording(EpisodeObserver):
-    """Video (frames during motion at ``video_fps / video_speed`` per simulated second) and rerun."""
+class _Recording(ArenaRecording):
+    """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the foraging HUD
+    and the library posterior."""
+
+    hud_keys = ("action", "truth", "posterior")
 
     def __init__(self, config: ForagingEpisodeConfig, env, agent, files: dict[str, Path]):
-        from embodied_adhoc.record.arena_recorder import ArenaRerunRecorder
-        from embodied_adhoc.record.video import VideoWriter
-
-        self.config, self.agent = config, agent
-        self.backend = env.unwrapped.core.backend
-        folder = Path(config.record_dir)
-        folder.mkdir(parents=True, exist_ok=True)
-        files["video"], files["rerun"] = folder / "episode.mp4", folder / "episode.rrd"
-        self.video = VideoWriter(files["video"], config.size, config.size, fps=config.video_fps)
-        self.rerun = ArenaRerunRecorder(files["rerun"], recording_name=f"foraging {config.agent} seed {config.seed}")
-        layout = self.backend.layout
-        self.rerun.log_cells(layout.rows, layout.cols, layout.cell)
-        self.labels = ["ad hoc"] + [f"teammate {i}" for i in range(1, len(self.backend.robots))]
-        self.hud: dict[str, str] = {}
-        self.step = 0
-        self._frame_period = config.video_speed / config.video_fps
-        self._camera_period = 1.0 / config.rerun_camera_hz if config.rerun_camera_hz > 0 else float("inf")
-        self._next_frame = self._next_camera = 0.0
-        self.backend.on_tick = self._on_tick
+        backend = env.unwrapped.core.backend
+        labels = ["ad hoc"] + [f"teammate {i}" for i in range(1, len(backend.robots))]
+        self.agent = agent
+        super().__init__(config, backend, backend, lambda: float(backend.data.time), labels,
+                         ROBOT_COLOURS[: len(labels)], f"foraging {config.agent} seed {config.seed}", files)
 
     @property
     def sim_time(self) -> float:
-        return float(self.backend.data.time)
-
-    def _overlay(self) -> list[str] | None:
-        if not self.config.video_overlay:
-            return None
-        return [self.hud[k] for k in ("action", "truth", "posterior") if k in self.hud] + [
-            f"t = {self.sim_time:.1f} s"]
-
-    def _frame(self, force: bool = False, repeat: int = 1) -> None:
-        if not force and self.sim_time + 1e-9 < self._next_frame:
-            return
-        self._next_frame = self.sim_time + self._frame_period
-        frame = self.backend.render_top(self.config.size)
-        self.video.write(frame, self._overlay(), repeat=repeat)
-        self.rerun.set_time(self.step, self.sim_time)
-        self.rerun.log_robots(self.backend.poses(), self.labels, ROBOT_COLOURS[: len(self.labels)])
-        if force or self.sim_time + 1e-9 >= self._next_camera:
-            self.rerun.log_camera("overhead", frame)
-            self._next_camera = self.sim_time + self._camera_period
-
-    def _on_tick(self, _seconds_into_step: float) -> None:
-        self._frame()
+        return self.clock()
 
     def _posterior(self) -> None:
         posterior = _library_posterior(self.agent)
@@ -183,12 +152,6 @@ class _Recording(EpisodeObserver):
         self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
         self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
 
-    def close(self) -> None:
-        self.backend.on_tick = None
-        try:
-            self.video.close()
-        finally:
-            self.rerun.close()
 
 
 def run_foraging_episode(config: ForagingEpisodeConfig,
@@ -210,9 +173,7 @@ def run_foraging_episode(config: ForagingEpisodeConfig,
     unknown = [team for team in config.teams if team not in DOMAIN.team_names]
     if unknown or not config.teams:
         raise ConfigError(f"--team {','.join(config.teams)}: choose from {', '.join(DOMAIN.team_names)}")
-    if not (config.video_fps > 0 and config.video_speed > 0 and config.size >= 16 and config.size % 2 == 0):
-        raise ConfigError(f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
-                          f"--size ({config.size}) even and >= 16")
+    check_video_options(config)
     options = config.options()
     spec = DOMAIN.episode_spec(options, seeding.episode_rng(config.seed, 0))
     session = DOMAIN.open_session("mujoco", options)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.arena_recording import ArenaRecording, check_video_options
 from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord
 from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, play_recorded_episode
 
@@ -79,50 +80,15 @@ class _Metrics(EpisodeObserver):
         self.metrics.finish(success=trace.success, truncated=trace.truncated)
 
 
-class _Recording(EpisodeObserver):
-    """Video (frames during motion at ``video_fps / video_speed`` per simulated second) and rerun."""
+class _Recording(ArenaRecording):
+    """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the pursuit HUD."""
+
+    hud_keys = ("action", "observed", "posterior")
 
     def __init__(self, config: PursuitEpisodeConfig, env, task_names, files: dict[str, Path]):
-        from embodied_adhoc.record.arena_recorder import ArenaRerunRecorder
-        from embodied_adhoc.record.video import VideoWriter
-
-        self.config, self.env, self.task_names = config, env, task_names
-        folder = Path(config.record_dir)
-        folder.mkdir(parents=True, exist_ok=True)
-        files["video"], files["rerun"] = folder / "episode.mp4", folder / "episode.rrd"
-        self.video = VideoWriter(files["video"], config.size, config.size, fps=config.video_fps)
-        self.rerun = ArenaRerunRecorder(files["rerun"], recording_name=f"pursuit {config.agent} seed {config.seed}")
-        self.arena = env.unwrapped.arena
-        layout = self.arena.backend.layout
-        self.rerun.log_cells(layout.rows, layout.cols, layout.cell)
-        self.hud: dict[str, str] = {}
-        self.step = 0
-        self._frame_period = config.video_speed / config.video_fps
-        self._camera_period = 1.0 / config.rerun_camera_hz if config.rerun_camera_hz > 0 else float("inf")
-        self._next_frame = self._next_camera = 0.0
-        self.arena.backend.on_tick = self._on_tick
-
-    def _overlay(self) -> list[str] | None:
-        if not self.config.video_overlay:
-            return None
-        return [self.hud[k] for k in ("action", "observed", "posterior") if k in self.hud] + [
-            f"t = {self.arena.sim_time:.1f} s"]
-
-    def _frame(self, force: bool = False, repeat: int = 1) -> None:
-        sim_time = self.arena.sim_time
-        if not force and sim_time + 1e-9 < self._next_frame:
-            return
-        self._next_frame = sim_time + self._frame_period
-        frame = self.arena.render_top(self.config.size)
-        self.video.write(frame, self._overlay(), repeat=repeat)
-        self.rerun.set_time(self.step, sim_time)
-        self.rerun.log_robots(self.arena.poses(), ROBOT_LABELS, ROBOT_COLOURS)
-        if force or sim_time + 1e-9 >= self._next_camera:
-            self.rerun.log_camera("overhead", frame)
-            self._next_camera = sim_time + self._camera_period
-
-    def _on_tick(self, _seconds_into_step: float) -> None:
-        self._frame()
+        self.arena, self.task_names = env.unwrapped.arena, task_names
+        super().__init__(config, self.arena, self.arena.backend, lambda: self.arena.sim_time, ROBOT_LABELS,
+                         ROBOT_COLOURS, f"pursuit {config.agent} seed {config.seed}", files)
 
     def _posterior(self, posterior, info: dict) -> None:
         from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
@@ -166,12 +132,6 @@ class _Recording(EpisodeObserver):
         self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
         self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
 
-    def close(self) -> None:
-        self.arena.backend.on_tick = None
-        try:
-            self.video.close()
-        finally:
-            self.rerun.close()
 
 
 def run_pursuit_episode(config: PursuitEpisodeConfig,
@@ -194,9 +154,7 @@ def run_pursuit_episode(config: PursuitEpisodeConfig,
         raise ConfigError(f"--agent {config.agent}: choose from {', '.join(POMDP_AGENTS + ('random',))}")
     if config.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
-    if not (config.video_fps > 0 and config.video_speed > 0 and config.size >= 16 and config.size % 2 == 0):
-        raise ConfigError(f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
-                          f"--size ({config.size}) even and >= 16")
+    check_video_options(config)
     options = pomdp_options(config.task)
     spec = get_trial_domain("pursuit").episode_spec(options, seeding.episode_rng(config.seed, 0))
     session = PursuitPairsSession("mujoco", options)
@@ -216,4 +174,3 @@ def run_pursuit_episode(config: PursuitEpisodeConfig,
     )
     outcome.metrics["physics_mismatches"] = sum(r["state"] != r["intended_state"] for r in metrics.per_step)
     return outcome
-

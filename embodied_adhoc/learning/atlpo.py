@@ -26,12 +26,12 @@ import torch
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.paths import assets_dir
 from embodied_adhoc.learning.classifier import ClassifierConfig, RecurrentBayesianClassifier, Trajectories
 from embodied_adhoc.learning.networks import ActorCritic, NetworkConfig
 from embodied_adhoc.learning.ppo import PpoConfig, train_ppo, training_metadata
 from embodied_adhoc.learning.vector_grid import GridVectorEnv
 from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights, save_weights
+from embodied_adhoc.paths import assets_dir
 
 SETS = ("task", "team", "task+team")
 
