@@ -42,6 +42,18 @@ def test_collision_has_a_random_winner():
     assert winners == {(1, 0), (0, 1)}
 
 
+def test_changed_environment_moves_fail_with_the_slip_probability():
+    rng = np.random.default_rng(2)
+    states = WORLD.sample_states(rng, 2000)
+    moved = {}
+    for slip in (0.0, 0.6):
+        nxt, _, _ = Pursuit4(slip=slip).step(states, np.zeros((2000, 4), dtype=np.int64), rng)  # all "up"
+        moved[slip] = (nxt[:, :4] != states[:, :4]).mean()
+    assert abs(moved[0.6] / moved[0.0] - 0.4) < 0.05
+    with pytest.raises(ConfigError, match="slip"):
+        Pursuit4(slip=1.0)
+
+
 def test_teammate_aware_team_holds_its_ring_positions():
     probs = WORLD.team_policy("teammate-aware", ONE_STEP[None])
     assert np.allclose(probs[0, :, 4], 1.0)  # teammates already around the prey stay
