@@ -192,3 +192,29 @@ class Pursuit4:
             w /= w.sum(-1, keepdims=True)
             out[:, p] = np.einsum("bc,bca->ba", w, self.good_moves[states[:, p]])
         return out
+
+
+class ExactTeam:
+    """The exact team model of one team (PLASTIC-Model's library entry): ``probs`` for the teammates 1-3."""
+
+    def __init__(self, world: Pursuit4, team: str) -> None:
+        if team not in TEAMS:
+            raise ConfigError(f"team={team!r}: choose one of {', '.join(TEAMS)}")
+        self.world, self.team, self.name = world, team, team
+
+    def probs(self, states: np.ndarray) -> np.ndarray:
+        return self.world.team_policy(self.team, states)
+
+    def seat(self, states: np.ndarray) -> np.ndarray:
+        """(B, 5) the team's own policy for the ad hoc seat (the "original teammate" baseline)."""
+        return self.world.team_policy(self.team, states, agents=(0,))[:, 0]
+
+
+class ExactEnvironment:
+    """The exact environment model (the true rules) with the planner's interface."""
+
+    def __init__(self, world: Pursuit4) -> None:
+        self.world = world
+
+    def step(self, states, joint_actions, rng):
+        return self.world.step(states, joint_actions, rng)
