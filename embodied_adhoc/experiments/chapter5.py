@@ -232,8 +232,9 @@ class Chapter5Domain:
                 default=None,
                 metavar="NAME|MODULE:CALLABLE",
                 help="the world's teammate instead of the library's (the agents keep their library: a "
-                "model-mismatch test): optimal (the MMDP's), random, or CALLABLE(library, model) returning its "
-                "policy, an (S x B) array over its B actions",
+                f"model-mismatch test): {', '.join(world_teammate_names(self.name))} "
+                f"({_TEAMMATE_HELP.get(self.name, _GENERIC_HELP)}), or MODULE:CALLABLE, CALLABLE(library, model) "
+                "returning its policy, an (S x B) array over its B actions",
             )
         group.add_argument(
             "--beliefs", type=int, default=None, help="Perseus belief-set size (default: Table 5.2's)"
@@ -331,8 +332,34 @@ def __getattr__(attribute: str):
 
 
 NAMED_TEAMMATES = ("optimal", "random")
-"""World teammates by name: ``optimal`` (the MMDP's optimal marginal, ``library.optimal_teammate_policy``) and
-``random`` (uniform over its actions)."""
+"""World teammates by name in every domain: ``optimal`` (the MMDP's optimal marginal,
+``library.optimal_teammate_policy``) and ``random`` (uniform over its actions). A domain adds its own teammate
+models (``ModelLibrary.teammates``), listed per domain in ``DOMAIN_TEAMMATES`` for ``--help`` (a test checks that
+both agree)."""
+DOMAIN_TEAMMATES = {
+    "gridworld": ("greedy",),
+    "pursuit-task": ("greedy", "aware"),
+    "pursuit-teammate": ("greedy", "aware"),
+    "pursuit-both": ("greedy", "aware"),
+    "overcooked": ("optimal", "upper", "lower", "random"),
+}
+_GENERIC_HELP = "optimal: the MMDP's; random: uniform"
+_TEAMMATE_HELP = {
+    "gridworld": "greedy: to its closest goal cell, the library's; " + _GENERIC_HELP,
+    **dict.fromkeys(
+        ("pursuit-task", "pursuit-teammate", "pursuit-both"),
+        "greedy: columns then rows to its closest capture cell; aware: teammate-aware, a shortest path around "
+        "the agent; " + _GENERIC_HELP,
+    ),
+    "overcooked": "the library's four cooks: optimal; upper / lower: insists on the top / bottom counter w.p. "
+    "0.9; random: uniform",
+}
+
+
+def world_teammate_names(domain_name: str) -> tuple[str, ...]:
+    """The ``--teammate`` names of a domain: its own teammate models, then the generic ones."""
+    own = DOMAIN_TEAMMATES.get(domain_name, ())
+    return own + tuple(name for name in NAMED_TEAMMATES if name not in own)
 
 
 def _named_teammate(name: str):
@@ -358,12 +385,18 @@ def world_with_teammate(library, reference: str) -> tuple:
     from embodied_adhoc.domains.chapter5.library import reduce_joint
 
     module_name, _, attribute = reference.partition(":")
-    if reference in NAMED_TEAMMATES:
+    if reference in library.teammates:
+        own = library.teammates[reference]
+
+        def factory(_, m: int) -> np.ndarray:
+            return own(m)
+    elif reference in NAMED_TEAMMATES:
         factory = _named_teammate(reference)
     elif not module_name or not attribute:
+        names = (*library.teammates, *(n for n in NAMED_TEAMMATES if n not in library.teammates))
         raise ConfigError(
-            f"--teammate {reference!r}: give {' or '.join(NAMED_TEAMMATES)}, or MODULE:CALLABLE "
-            "(e.g. my_teammates:cautious)"
+            f"--teammate {reference!r}: unknown teammate of {library.domain}; give one of {', '.join(names)}, "
+            "or MODULE:CALLABLE (e.g. my_teammates:cautious)"
         )
     else:
         try:

@@ -1,8 +1,9 @@
 """On-disk cache of solved policies, keyed by the model's content and the solver settings.
 
 A key is the SHA-256 of the POMDP's arrays (every transition and observation matrix, rewards, discount, initial
-belief), of the solver settings (JSON, sorted keys) and of the solver's own source files (so that a changed solver
-never serves an old answer). Policies are ``AlphaVectorPolicy`` ``.npz`` files (no pickle), written atomically, under
+belief), of the solver settings (JSON, sorted keys) and of the solver's own source files: every module directly in
+``embodied_adhoc/decision/`` (Perseus, backups, beliefs, ``plan_graph.py``, the bounds, the policy, the models, value
+iteration and any solver module added there), so that a changed solver never serves an old answer. Policies are ``AlphaVectorPolicy`` ``.npz`` files (no pickle), written atomically, under
 ``$XDG_CACHE_HOME/embodied-adhoc/policies`` (default ``~/.cache/embodied-adhoc/policies``), never inside the package.
 """
 
@@ -16,16 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["cache_dir", "model_digest", "solve_cached"]
+__all__ = ["cache_dir", "model_digest", "solve_cached", "solver_sources"]
 
-_SOLVER_SOURCES = (
-    "perseus.py",
-    "backup.py",
-    "beliefs.py",
-    "belief_expansion.py",
-    "upper_bound.py",
-    "policy.py",
-)
 
 
 def cache_dir() -> Path:
@@ -51,17 +44,21 @@ def model_digest(pomdp) -> str:
 
 @functools.lru_cache(maxsize=1)
 def _solver_digest() -> str:
-    """Digest of the solver's source files, read once per process: the code this process runs (a file edited
+    """Digest of the solver's source files (every ``decision/*.py``, sorted by name; the agents' subpackage is
+    left out: it does not change a solution), read once per process: the code this process runs (a file edited
     after the solver was imported must not label policies the old code solved)."""
+    digest = hashlib.sha256()
+    for path in solver_sources():
+        digest.update(path.name.encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()
+
+
+def solver_sources() -> list[Path]:
+    """The source files whose content is part of every cache key: ``embodied_adhoc/decision/*.py``, sorted."""
     import embodied_adhoc.decision as decision
 
-    digest = hashlib.sha256()
-    folder = Path(decision.__file__).parent
-    for name in _SOLVER_SOURCES:
-        path = folder / name
-        if path.is_file():
-            digest.update(path.read_bytes())
-    return digest.hexdigest()
+    return sorted(Path(decision.__file__).parent.glob("*.py"))
 
 
 def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object, bool]:

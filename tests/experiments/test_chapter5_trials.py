@@ -135,7 +135,7 @@ def test_a_users_teammate_replaces_the_worlds(tmp_path, monkeypatch):
         assert all(names[y].endswith("-tr4c4") for y in row.indices)  # the teammate never moves
     with pytest.raises(ConfigError, match=r"my_teammates:broken: returned shape \(3, 5\)"):
         world_with_teammate(library, "my_teammates:broken")
-    with pytest.raises(ConfigError, match="give optimal or random, or MODULE:CALLABLE"):
+    with pytest.raises(ConfigError, match="unknown teammate of ntu; give one of optimal, random, or MODULE:CALLABLE"):
         world_with_teammate(library, "frozen")
     # named teammates: the optimal one is the library's own (maps), the random one moves uniformly
     optimal = world_with_teammate(library, "optimal")
@@ -166,3 +166,60 @@ def test_cli_map_domains_take_a_users_teammate(tmp_path):
     assert json.loads(result.stdout)["config"]["options"]["teammate"] == "still_teammate:still"
     result = _cli("ntu", "--episodes", "1", "--teammate", "nowhere:still", env=env)
     assert result.returncode == 2 and "--teammate 'nowhere:still': cannot import it" in result.stderr
+
+
+def test_policy_cache_key_covers_every_solver_module(tmp_path, monkeypatch):
+    from embodied_adhoc.experiments import policy_cache
+
+    names = {path.name for path in policy_cache.solver_sources()}
+    assert {"perseus.py", "backup.py", "plan_graph.py", "upper_bound.py", "models.py"} <= names
+    copy = tmp_path / "plan_graph.py"
+    copy.write_text((ROOT / "embodied_adhoc" / "decision" / "plan_graph.py").read_text())
+    monkeypatch.setattr(policy_cache, "solver_sources", lambda: [copy])
+    policy_cache._solver_digest.cache_clear()
+    before = policy_cache._solver_digest()
+    copy.write_text(copy.read_text() + "\n# edited\n")
+    policy_cache._solver_digest.cache_clear()
+    assert policy_cache._solver_digest() != before
+    policy_cache._solver_digest.cache_clear()
+
+
+def _same_world(first, second) -> bool:
+    return all(
+        abs(a - b).max() < 1e-12 for a, b in zip(first.transitions, second.transitions, strict=True)
+    )
+
+
+def test_named_world_teammates_are_the_domains_own_models():
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.chapter5 import DOMAIN_TEAMMATES, world_with_teammate
+
+    both = build_library("pursuit-teammate")  # models: greedy and aware, same capture configuration
+    assert set(both.teammates) == set(DOMAIN_TEAMMATES["pursuit-teammate"])
+    aware = world_with_teammate(both, "aware")
+    greedy = world_with_teammate(both, "greedy")
+    assert _same_world(aware[0], both.pomdps[1]) and _same_world(greedy[1], both.pomdps[0])
+    assert not _same_world(aware[0], both.pomdps[0])
+    cooks = build_library("overcooked")
+    assert set(cooks.teammates) == set(DOMAIN_TEAMMATES["overcooked"])
+    for k, name in enumerate(cooks.task_names):  # each named cook is that model's, in every model's world
+        world = world_with_teammate(cooks, name)
+        assert _same_world(world[3 - k], cooks.pomdps[k])
+    grid = build_library("gridworld", n_models=3)
+    assert set(grid.teammates) == set(DOMAIN_TEAMMATES["gridworld"])
+    small = grid.subset([2, 0])
+    assert _same_world(world_with_teammate(small, "greedy")[0], grid.pomdps[2])
+    assert build_library("ntu").teammates == {}
+    with pytest.raises(ConfigError, match="unknown teammate of overcooked; give one of optimal, upper, lower, random"):
+        world_with_teammate(cooks, "stubborn")
+
+
+def test_cli_lists_and_refuses_teammate_names(tmp_path):
+    import os
+
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    result = _cli("pursuit-task", "--help", env=env)
+    assert result.returncode == 0 and "greedy, aware, optimal, random" in " ".join(result.stdout.split())
+    result = _cli("pursuit-task", "--episodes", "1", "--teammate", "lazy", env=env)
+    assert result.returncode == 2
+    assert "unknown teammate of pursuit-task; give one of greedy, aware, optimal, random" in result.stderr

@@ -18,7 +18,7 @@ Shared mechanisms of the builders:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +63,10 @@ class ModelLibrary:
     # Power plant: the tasks' own state spaces (the ``pomdps`` are padded to one size) and absorbing states.
     native_pomdps: tuple[POMDP, ...] | None = None
     absorbing_states: tuple[int, ...] | None = None
+    # The domain's own teammate models by name (pursuit's greedy / aware, overcooked's cooks, gridworld's greedy):
+    # ``teammates[name](m)`` is that teammate's ``pi(b | x)`` (S x B) in model m's task, for ``--teammate NAME``
+    # (the world's teammate replaced, Fig. 5.2's reduction; ``experiments.chapter5.world_with_teammate``).
+    teammates: Mapping[str, Callable[[int], np.ndarray]] = field(default_factory=dict)
 
     def absorbing(self, model: int) -> int:
         """The absorbing state of ``model`` (where an episode is over)."""
@@ -118,7 +122,13 @@ class ModelLibrary:
             {**self.settings, "models": models},
             None if self.native_pomdps is None else tuple(self.native_pomdps[m] for m in models),
             None if self.absorbing_states is None else tuple(self.absorbing_states[m] for m in models),
+            {name: _remapped(policy, models) for name, policy in self.teammates.items()},
         )
+
+
+def _remapped(policy: Callable[[int], np.ndarray], models: Sequence[int]) -> Callable[[int], np.ndarray]:
+    """A teammate factory of the full library as one of its subset (model ``k`` of the subset = ``models[k]``)."""
+    return lambda k: policy(models[k])
 
 
 def deterministic_matrix(next_states: np.ndarray, n_states: int) -> sp.csr_matrix:

@@ -171,6 +171,9 @@ def _library(
         )
         mmdps.append(mmdp)
         names.append(f"{grid.cell_name(pair[0])}+{grid.cell_name(pair[1])}")
+    teammates = {}
+    if shared_cells:  # --teammate greedy on gridworld (its own); maps' teammate is the MMDP's optimal one
+        teammates["greedy"] = lambda m: _greedy_policy(grid, teammate_all, pairs[m])
     return ModelLibrary(
         domain,
         tuple(names),
@@ -182,6 +185,7 @@ def _library(
         absorbing,
         description,
         settings,
+        teammates=teammates,
     )
 
 

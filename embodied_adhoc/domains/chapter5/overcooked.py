@@ -190,4 +190,5 @@ def build_overcooked(
         absorbing,
         "overcooked: the ad hoc helper passes onions and plates to one of four cooks",
         settings,
+        teammates={name: (lambda m, policy=policies[name]: policy) for name in TEAMMATES},
     )

@@ -151,20 +151,17 @@ def build_pursuit(
         goal = np.append(_captured(teammate, prey, task, size), False)
         rewards = step_rewards(goal, absorbing, 5)
         joint = _joint(teammate, prey, goal, absorbing, n_states, size, index_of)
-        target = _closest_capture(teammate, prey, task, size)
-        if teammate_name == "greedy":
-            policy = np.zeros((n_live, 5))
-            policy[np.arange(n_live), _greedy_step(target)] = 1.0
-        else:
-            policy = _aware_policy(teammate, target, size)
-        policy = np.vstack([policy, np.eye(5)[4]])
-        transitions = reduce_joint(joint, policy)
+        transitions = reduce_joint(joint, _teammate_policy(teammate_name, teammate, prey, task, size))
         start = ~goal
         start[absorbing] = False
         pomdps.append(task_pomdp(transitions, rewards, observations, start, names, ACTION_NAMES, z_names))
         mmdps.append(joint_mdp(joint, rewards, ACTION_NAMES))
         task_names.append(f"{teammate_name}:{task.name.split(':')[1]}")
     settings = {"variant": variant, "size": size, "noise": noise}
+
+    def named(name: str):  # --teammate NAME: that predator in model m's capture configuration
+        return lambda m: _teammate_policy(name, teammate, prey, tasks[models[m][1]], size)
+
     description = (
         f"{variant}: toroidal {size}x{size} pursuit, 2 predators, capture pairs, greedy/aware teammates"
     )
@@ -179,7 +176,20 @@ def build_pursuit(
         absorbing,
         description,
         settings,
+        teammates={name: named(name) for name in TEAMMATES},
     )
+
+
+def _teammate_policy(name: str, teammate: np.ndarray, prey: np.ndarray, task, size: int) -> np.ndarray:
+    """``pi(b | x)`` (S x 5) of the ``greedy`` or (teammate-)``aware`` predator heading for ``task``'s capture
+    cell closest to it (the absorbing state's row: stay)."""
+    target = _closest_capture(teammate, prey, task, size)
+    if name == "greedy":
+        policy = np.zeros((len(teammate), 5))
+        policy[np.arange(len(teammate)), _greedy_step(target)] = 1.0
+    else:
+        policy = _aware_policy(teammate, target, size)
+    return np.vstack([policy, np.eye(5)[4]])
 
 
 def _captured(teammate: np.ndarray, prey: np.ndarray, task, size: int) -> np.ndarray:
