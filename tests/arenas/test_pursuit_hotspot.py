@@ -127,6 +127,7 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
                           timeout=300)
 
 
+@pytest.mark.slow
 def test_trials_pairs_with_decision_agents_and_refusals():
     done = _cli("trials", "pursuit", "--pairs", "--agents", "hotspot,oracle", "--episodes", "2", "--json")
     assert done.returncode == 0, done.stderr
@@ -166,3 +167,29 @@ def test_the_rule_based_pair_envs_expose_the_pomdps_observation_index(env_id):
         runs[noise] = trace
         env.close()
     assert runs[0.0] == runs[0.5]
+
+
+@pytest.mark.slow
+def test_run_pursuit_records_video_rerun_and_metrics(tmp_path):
+    """``run pursuit --record``: the mp4 has frames, the rrd holds poses, posterior bars, entropy, observations,
+    actions and overhead frames, metrics.json replays the trial runner's episode 0."""
+    import json
+
+    import imageio.v3 as iio
+    from rerun.chunk import RrdReader
+
+    done = _cli("run", "pursuit", "--agent", "hotspot", "--seed", "0", "--size", "160", "--record", str(tmp_path),
+                "--no-progress", "--json")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["success"] and summary["physics_mismatches"] == 0
+    assert len(iio.imread(tmp_path / "episode.mp4")) > summary["steps"]
+    entities = {chunk.entity_path.lstrip("/") for chunk in RrdReader(tmp_path / "episode.rrd").store().stream().to_chunks()}
+    for entity in ("world/arena/cells", "world/arena/robots", "world/arena/headings", "belief/task", "belief/entropy",
+                   "log/observations", "log/actions", "log/events", "camera/overhead"):
+        assert entity in entities, entity
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["config"]["env"] == PHYSICS and len(metrics["per_step"]) == summary["steps"]
+    trial = _cli("trials", "pursuit", "--pairs", "--backend", "mujoco", "--agents", "hotspot", "--episodes", "1",
+                 "--json")
+    assert json.loads(trial.stdout)["agents"]["hotspot"]["steps_mean"] == summary["steps"]
