@@ -306,6 +306,7 @@ def table_line(row: str, localisation: bool, chosen: list[dict]) -> str:
         f"| {np.mean([r['steps'] for r in chosen]):.1f} "
         f"| {max(r['worst_pose_error'] for r in chosen):.2f} m "
         f"| {sum(r['blocked'] for r in chosen)} "
+        f"| {sum(r['kidnaps'] for r in chosen)} "
         f"| {unknown} / {wrong} of {len(readings)} "
         f"| {np.mean([r['wall_s'] for r in chosen]):.1f} |"
     )
@@ -322,11 +323,11 @@ def main() -> None:
         f"localiser on = lidar MCL, off = wheel odometry alone; {args.workers} worker(s)\n"
     )
     header = (
-        "| fault | localiser | success | mean steps | worst pose error | blocked steps | unknown / wrong readings "
-        "| wall s/episode |"
+        "| fault | localiser | success | mean steps | worst pose error | blocked steps | re-localisations "
+        "| unknown / wrong readings | wall s/episode |"
     )
     print(header)
-    print("|---|---|---|---|---|---|---|---|", flush=True)
+    print("|---|---|---|---|---|---|---|---|---|", flush=True)
     pool = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     results: list[dict] = []
     started = time.perf_counter()
