@@ -37,15 +37,15 @@ class ToxicWasteEnv(gymnasium.Env):
     places the three balls (default library: nodes [0, 1, 2] and [1, 2, 3]). The human knows the task and follows
     ``domains.lab_human.LabHuman`` (nearest ball on the ground, pick it up, wait holding it until the robot is in
     the same area and stays or asks; with probability ``human_epsilon`` a move or pick fails). The robot knows
-    neither the task nor where the human is: it perceives its wheel-odometry area, the human's spoken reply and
-    its container's RFID reader. It is the embodied twin of ``EmbodiedAdhoc/ToxicWasteAbstract-v0``: same actions,
+    neither the task nor where the human is: it perceives its own area (from its lidar Monte Carlo localiser, or
+    wheel odometry alone with ``localisation=False``), the human's spoken reply and its container's RFID reader. It is the embodied twin of ``EmbodiedAdhoc/ToxicWasteAbstract-v0``: same actions,
     same observation semantics and encoding, same reward, same ``reset`` options, so an agent (and the trial
     runner) works unchanged in both.
 
     Each ``step`` is one macro step, turn-based as in the thesis: the human's command is decided from the true
-    state at the start of the step, then the robot's waypoint controller (tracking its odometry estimate, not
-    ground truth) and the human's motion script run together in physics until both are done (or
-    ``macro_timeout`` simulated seconds). The physics step and the env step are synchronous and deterministic: the
+    state at the start of the step, then the robot's waypoint controller (tracking its pose estimate, not
+    ground truth) and the human's motion script run together in physics until both are done (or the robot is
+    blocked, ``info["blocked"]``, or ``macro_timeout`` simulated seconds). The physics step and the env step are synchronous and deterministic: the
     same ``reset(seed=...)`` and actions give the same trajectory.
 
     ## Action space
@@ -269,7 +269,7 @@ class ToxicWasteEnv(gymnasium.Env):
         return observation.to_vector(), reward, terminated, False, info
 
     def move_target(self, action: int) -> int | None:
-        """The node ``action`` drives to if taken now: that neighbour of the robot's believed (odometry) node,
+        """The node ``action`` drives to if taken now: that neighbour of the robot's believed node (its last reading),
         exactly as ``step`` maps it (a k beyond the degree: the lowest); None for "stay" and "locate human"."""
         lib = self.library
         if int(action) >= lib.stay_action:
