@@ -191,6 +191,12 @@ def _run_one(args: argparse.Namespace, config, out):
     )
     print()
     print(summary_table(summary))
+    if timing:  # chapter-5 domains: Table 5.5's accumulated reward beside the steps, and where the time went
+        from embodied_adhoc.experiments.chapter5 import return_table, timing_line
+
+        print()
+        print(return_table(summary))
+        print(timing_line(timing))
     print()
     print(comparison_table(summary))
     if out is not None:

@@ -17,7 +17,9 @@ Agents (section 5.2.4):
 
 Perseus policies are solved once per model and settings and cached on disk
 (:mod:`embodied_adhoc.experiments.policy_cache`; ``--no-cache`` bypasses it). The session's ``timing`` (seconds
-building the library and solving or loading its policies) goes into ``--json``.
+building the library and solving or loading its policies) goes into ``--json``. A solve that stopped at
+``--solve-seconds`` before Perseus' first backup (the blind policy, ``policy_cache.is_blind``) is refused with the
+models named, never used silently, and never cached.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "LibraryEnv", "RandomPickerAgent"]
+__all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "LibraryEnv", "RandomPickerAgent", "return_table", "timing_line"]
 
 CHAPTER5_AGENTS = ("value-iteration", "perseus", "atpo", "random-picker", "bopa", "random")
 TABLE_5_2_HORIZON = {
@@ -136,7 +138,7 @@ class Chapter5Session:
 
     def policies(self) -> tuple:
         if self._policies is None:
-            from embodied_adhoc.experiments.policy_cache import solve_cached
+            from embodied_adhoc.experiments.policy_cache import is_blind, solve_cached
 
             settings = {
                 "n_beliefs": int(self.options["beliefs"] or self.library.n_beliefs),
@@ -149,6 +151,14 @@ class Chapter5Session:
             self.timing["solve_seconds"] += time.perf_counter() - start
             self.timing["policies_from_cache"] = sum(hit for _, hit in solved)
             self.timing["solver_settings"] = settings
+            blind = [name for name, (policy, _) in zip(self.task_names, solved, strict=True) if is_blind(policy)]
+            if blind:
+                raise ConfigError(
+                    f"{self.library.domain}: Perseus stopped at --solve-seconds {settings['time_limit']:g} before "
+                    f"its first backup for model(s) {', '.join(blind)}: that policy is the blind one (one action "
+                    "for ever), so perseus, atpo and random-picker would be measured on no solution; raise "
+                    "--solve-seconds (the machine's load counts: this is wall-clock time)"
+                )
             self._policies = tuple(policy for policy, _ in solved)
         return self._policies
 
@@ -433,3 +443,30 @@ def world_with_teammate(library, reference: str) -> tuple:
             )  # fmt: skip
         )
     return tuple(world)
+
+
+def return_table(summary, markdown: bool = False) -> str:
+    """Per agent: the accumulated reward (Table 5.5's measure): mean ± sd, its 95 % percentile-bootstrap interval
+    (:mod:`embodied_adhoc.experiments.stats`) and IQM, beside the success rate."""
+    from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd
+
+    rows = [
+        [s.agent, str(s.trials), mean_sd(s.total_reward), interval(s.total_reward), fmt(s.total_reward.iqm),
+         fmt(s.success_rate)]  # fmt: skip
+        for s in summary.agents.values()
+    ]
+    headers = ("agent", "trials", "return mean ± sd", f"return {CI_HEADER}", "return IQM", "success")
+    return format_table(headers, rows, markdown)
+
+
+def timing_line(timing: dict) -> str:
+    """One line: seconds building the library, solving (or loading) its policies, value iteration."""
+    parts = [f"library built in {timing['build_seconds']:.2f} s"]
+    if "solver_settings" in timing:
+        parts.append(
+            f"policies solved or loaded in {timing['solve_seconds']:.2f} s ({timing['policies_from_cache']} from "
+            "the cache)"
+        )
+    if "value_iteration_seconds" in timing:
+        parts.append(f"value iteration {timing['value_iteration_seconds']:.2f} s")
+    return "; ".join(parts)

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["cache_dir", "model_digest", "solve_cached", "solver_sources"]
+__all__ = ["cache_dir", "is_blind", "model_digest", "solve_cached", "solver_sources"]
 
 
 
@@ -61,10 +61,18 @@ def solver_sources() -> list[Path]:
     return sorted(Path(decision.__file__).parent.glob("*.py"))
 
 
+def is_blind(policy) -> bool:
+    """Whether a Perseus solve stopped (its time limit) before completing one backup stage: the policy is then the
+    blind-policy lower bound it starts from (one action for ever), not a solution."""
+    stats = getattr(policy, "stats", None)
+    return stats is not None and stats.iterations == 0 and not stats.converged
+
+
 def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object, bool]:
     """``(policy, from_cache)``: Perseus with ``settings`` (``PerseusConfig`` fields) on ``pomdp``, loaded from the
-    cache when a policy of the same model, settings and solver exists; solved and stored otherwise. ``use_cache``
-    False bypasses the cache entirely (neither read nor written)."""
+    cache when a policy of the same model, settings and solver exists; solved and stored otherwise (a blind policy,
+    :func:`is_blind`, is never stored: a later run with more time must solve again). ``use_cache`` False bypasses
+    the cache entirely (neither read nor written)."""
     from embodied_adhoc.decision.perseus import PerseusConfig, perseus
     from embodied_adhoc.decision.policy import AlphaVectorPolicy
 
@@ -81,6 +89,7 @@ def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object,
         except (OSError, ValueError):
             pass  # a damaged entry is solved again and overwritten
     policy = perseus(pomdp, PerseusConfig(**settings))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    policy.save(path)
+    if not is_blind(policy):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        policy.save(path)
     return policy, False

@@ -223,3 +223,41 @@ def test_cli_lists_and_refuses_teammate_names(tmp_path):
     result = _cli("pursuit-task", "--episodes", "1", "--teammate", "lazy", env=env)
     assert result.returncode == 2
     assert "unknown teammate of pursuit-task; give one of greedy, aware, optimal, random" in result.stderr
+
+
+def test_a_blind_perseus_policy_is_refused_and_not_cached(private_cache, monkeypatch):
+    from embodied_adhoc.decision.policy import AlphaVectorPolicy, SolverStats
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments import policy_cache
+    from embodied_adhoc.experiments.chapter5 import Chapter5Session
+
+    solved = []
+
+    def timed_out(pomdp, config):  # what Perseus returns when its limit falls before the first stage
+        solved.append(config.time_limit)
+        stats = SolverStats("perseus", iterations=0, seconds=config.time_limit, converged=False, residual=np.inf)
+        return AlphaVectorPolicy(np.zeros((1, pomdp.n_states)), np.zeros(1, dtype=np.int64), stats=stats)
+
+    real = __import__("embodied_adhoc.decision.perseus", fromlist=["perseus"]).perseus
+    monkeypatch.setattr("embodied_adhoc.decision.perseus.perseus", timed_out)
+    session = Chapter5Session("panic-buttons", {**_options(cache=True), "library": {"size": 3, "teammate": "optimal"}})
+    with pytest.raises(ConfigError, match=r"before its first backup for model\(s\) .*raise --solve-seconds"):
+        session.policies()
+    assert len(solved) == 3 and not list(private_cache.rglob("*.npz"))
+    monkeypatch.setattr("embodied_adhoc.decision.perseus.perseus", real)  # one backup at least: a policy
+    assert not policy_cache.is_blind(solve_cached(session.library.pomdps[0], {"n_beliefs": 20, "seed": 0})[0])
+
+
+def test_cli_table_shows_the_return_and_the_timing(tmp_path):
+    import os
+
+    env = {**os.environ, "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    path = _corridor(tmp_path)
+    result = _cli("map", "--map", str(path), "--agents", "value-iteration,random", "--episodes", "3", env=env)
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.splitlines()
+    header = next(k for k, line in enumerate(lines) if "return mean ± sd" in line)
+    assert "return 95% CI (bootstrap)" in lines[header]
+    optimal = next(line for line in lines[header:] if line.strip().startswith("value-iteration"))
+    assert float(optimal.split()[2]) > 0  # the greedy agent reaches the +100 in a corridor
+    assert any(line.startswith("library built in") for line in lines)
