@@ -68,17 +68,23 @@ class RealtimeClock:
             return 0.0
         return time.perf_counter() - (self._wall0 + (sim_time - self._sim0) / self.speed)
 
-    def wait_for(self, sim_time: float) -> None:
-        """Sleep until ``sim_time`` is due; raise :class:`LiveStopped` if ``stop`` is set."""
+    def check(self, sim_time: float) -> float:
+        """The lag of ``sim_time`` (wall seconds late; negative: early), after re-anchoring if it exceeds
+        ``max_lag``; raise :class:`LiveStopped` if ``stop`` is set."""
         if self.stop.is_set():
             raise LiveStopped("the real-time loop was stopped")
         late = self.lag(sim_time)
-        if late < 0:
-            if self.stop.wait(-late):
-                raise LiveStopped("the real-time loop was stopped")
-        elif late > self.max_lag:
+        if late > self.max_lag:
             self.slipped += late
             self._wall0 += late
+            late = 0.0
+        return late
+
+    def wait_for(self, sim_time: float) -> None:
+        """Sleep until ``sim_time`` is due (see :meth:`check`)."""
+        late = self.check(sim_time)
+        if late < 0 and self.stop.wait(-late):
+            raise LiveStopped("the real-time loop was stopped")
 
 
 class RealtimeToxicWasteEnv(ToxicWasteEnv):
@@ -163,7 +169,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         lib, world, data = self.library, self.world, self.world.data
         reward = float(lib.config.reward.of(np.array(self._status)))
         decided_at = data.time
-        while self.clock.lag(data.time) > 0:  # the robot stood still while its agent decided
+        while self.clock.check(data.time) > 0:  # the robot stood still while its agent decided
             self._tick(None)
         decision_wait = data.time - decided_at
         target = self.move_target(action)

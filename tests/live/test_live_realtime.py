@@ -169,3 +169,21 @@ def test_clock_stops_and_never_waits_unpaced():
 def test_scripted_human_refuses_a_bad_pause():
     with pytest.raises(Exception, match="pause"):
         ScriptedHuman(pause=0)
+
+
+def test_a_slow_decision_passes_in_the_simulation_and_a_slow_machine_slips():
+    """Paced: the wall time the agent spends deciding passes in the simulation with the robot idle; a clock the
+    machine cannot follow re-anchors (``realtime_slip_s``) instead of catching up forever."""
+    env = RealtimeToxicWasteEnv(human=ScriptedHuman(), speed=1.0, localisation=False)
+    try:
+        env.reset(seed=3, options={"task": 0, "robot_node": 1, "human_node": 1})
+        env.clock.start(env.world.data.time + 0.5)  # the simulation half a second behind: the agent thought
+        robot = env.world.true_robot_pose()
+        _, _, _, _, info = env.step(env.library.stay_action)
+        assert info["decision_wait_s"] >= 0.5 - 0.02
+        assert np.hypot(*np.subtract(env.world.true_robot_pose()[:2], robot[:2])) < 0.05  # it stood still
+        env.clock.start(env.world.data.time + 3.0)  # three seconds behind: more than max_lag
+        _, _, _, _, info = env.step(env.library.stay_action)
+        assert info["realtime_slip_s"] >= 1.0
+    finally:
+        env.close()
