@@ -172,6 +172,7 @@ def report(args: Args) -> str:
 
 
 def held_out_report(args: Args) -> tuple[list[str], dict]:
+    from embodied_adhoc.experiments.stats import summarise_sample
     from embodied_adhoc.learning.atlpo_heldout import normalised_scores
 
     lines, data = [], {}
@@ -187,7 +188,7 @@ def held_out_report(args: Args) -> tuple[list[str], dict]:
                      "(random 0, original teammate 1), IQM [95 % bootstrap CI] over episodes; mean steps (solved %)",
                      "", "| domain | team | episodes | atlpo-mf | known-task | original steps | atlpo-mf steps "
                      "| random steps |", "|---|---|---|---|---|---|---|---|"]
-        for team, scores in normalised_scores(cells).items():
+        for team, scores in normalised_scores(cells, summarise_sample).items():
             data[f"{domain}/{team}"] = scores
             lines.append(f"| {domain} | {team} | {scores['episodes']} | {scores['atlpo-mf']['iqm']:.2f} "
                          f"[{scores['atlpo-mf']['ci'][0]:.2f}, {scores['atlpo-mf']['ci'][1]:.2f}] | "

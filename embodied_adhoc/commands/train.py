@@ -55,6 +55,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     atlpo.add_argument("--threads", type=int, default=0, help="torch CPU threads (default: torch's choice)")
     atlpo.add_argument("--generalist", action="store_true",
                        help="also train the model-free baseline on all the set's environments together")
+    atlpo.add_argument("--model", choices=("mf", "mb"), default="mf",
+                       help="mf: ATLPO-MF (PPO end to end, Fig. 6.2); mb: ATLPO-MB (encoder, transition and reward "
+                            "predictors and decoder on replayed experience, then PPO on the latents, Fig. 6.3)")
     atlpo.add_argument("--quiet", action="store_true", help="no progress bar")
     atlpo.add_argument("--out", required=True, help="folder for the weights, library.json and training.json")
     atlpo.set_defaults(func=handle_atlpo)

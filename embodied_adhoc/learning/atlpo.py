@@ -28,7 +28,7 @@ from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.classifier import ClassifierConfig, RecurrentBayesianClassifier, Trajectories
 from embodied_adhoc.learning.networks import ActorCritic, NetworkConfig
-from embodied_adhoc.learning.ppo import PpoConfig, train_ppo, training_metadata
+from embodied_adhoc.learning.ppo import POLICY_KINDS, PpoConfig, train_ppo, training_metadata
 from embodied_adhoc.learning.vector_grid import GridVectorEnv
 from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights, save_weights
 from embodied_adhoc.paths import assets_dir
@@ -86,69 +86,93 @@ class PolicyLibrary:
     environments: tuple[LibraryEnvironment, ...]
     policies: list[ActorCritic]
     env_kwargs: dict
+    model: str = "mf"  # "mf": ATLPO-MF members (PPO end to end); "mb": ATLPO-MB (PPO on a world model's latents)
 
     def env_for(self, k: int, **kwargs) -> dict:
         environment = self.environments[k]
         return {**self.env_kwargs, "tasks": (environment.task,), "teams": (environment.team,), **kwargs}
 
 
-def _member_path(folder: Path, domain: str, environment: LibraryEnvironment) -> Path:
-    return folder / f"{domain}-{environment.name}.safetensors"
+MODELS = ("mf", "mb")
+
+
+def _member_path(folder: Path, domain: str, environment: LibraryEnvironment, model: str = "mf") -> Path:
+    return folder / f"{domain}-{'mb-' if model == 'mb' else ''}{environment.name}.safetensors"
+
+
+def _train_policy(domain: str, kwargs: dict, config: PpoConfig, model: str, path: Path, report,
+                  world_model=None) -> ActorCritic:
+    """One policy, saved to ``path``: PPO end to end (``mf``) or PPO on the latents of a world model trained on
+    replayed experience first (``mb``, :func:`~embodied_adhoc.learning.world_model.train_mb_policy`)."""
+    if model not in MODELS:
+        raise ConfigError(f"model={model!r}: use one of {MODELS}")
+    if model == "mf":
+        result = train_ppo(domain, kwargs, config, report)
+        save_weights(path, result.model, training_metadata(domain, kwargs, config, result))
+        return result.model
+    from embodied_adhoc.learning.world_model import WorldModelTraining, mb_metadata, train_mb_policy
+
+    settings = replace(world_model or WorldModelTraining(), seed=config.seed)
+    result, _, history = train_mb_policy(domain, kwargs, config, settings, report)
+    metadata = {**training_metadata(domain, kwargs, config, result, kind="atlpo-mb-policy"),
+                **mb_metadata(settings, history)}
+    save_weights(path, result.model, metadata)
+    return result.model
 
 
 def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | Path, env_kwargs: dict | None = None,
-                  progress: Callable[[str, int, dict], None] | None = None) -> PolicyLibrary:
-    """Train (or, where its weights exist, load) one PPO policy per environment of ``set_name``; each member gets
-    the seed :func:`member_seed` of ``config.seed``."""
+                  progress: Callable[[str, int, dict], None] | None = None, model: str = "mf",
+                  world_model=None) -> PolicyLibrary:
+    """Train (or, where its weights exist, load) one policy per environment of ``set_name``; each member gets
+    the seed :func:`member_seed` of ``config.seed``. ``model``: ``mf`` (ATLPO-MF) or ``mb`` (ATLPO-MB, with the
+    world-model settings ``world_model``, a ``WorldModelTraining``)."""
     folder, env_kwargs = Path(folder), dict(env_kwargs or {})
     environments = library_set(set_name)
     policies = []
     for environment in environments:
-        path = _member_path(folder, domain, environment)
+        path = _member_path(folder, domain, environment, model)
         kwargs = {**env_kwargs, "tasks": (environment.task,), "teams": (environment.team,)}
         if path.exists():
             policies.append(load_policy(path))
             continue
         member_config = replace(config, seed=member_seed(config.seed, environment))
         report = None if progress is None else (lambda steps, row, name=environment.name: progress(name, steps, row))
-        result = train_ppo(domain, kwargs, member_config, report)
-        save_weights(path, result.model, training_metadata(domain, kwargs, member_config, result))
-        policies.append(result.model)
-    library = PolicyLibrary(domain, environments, policies, env_kwargs)
+        policies.append(_train_policy(domain, kwargs, member_config, model, path, report, world_model))
+    library = PolicyLibrary(domain, environments, policies, env_kwargs, model)
     write_manifest(folder, library, classifier=None)
     return library
 
 
-def generalist_path(folder: str | Path, domain: str, set_name: str) -> Path:
-    return Path(folder) / f"{domain}-all-{set_name.replace('+', '-')}.safetensors"
+def generalist_path(folder: str | Path, domain: str, set_name: str, model: str = "mf") -> Path:
+    return Path(folder) / f"{domain}-{'mb-' if model == 'mb' else ''}all-{set_name.replace('+', '-')}.safetensors"
 
 
 def train_generalist(domain: str, set_name: str, config: PpoConfig, folder: str | Path,
-                     env_kwargs: dict | None = None, progress: Callable[[int, dict], None] | None = None) -> ActorCritic:
-    """The model-free RL baseline trained on all environments of ``set_name`` together (each episode draws one
-    uniformly), with ``config.seed + 100``; loaded instead if its weights exist."""
-    path = generalist_path(folder, domain, set_name)
+                     env_kwargs: dict | None = None, progress: Callable[[int, dict], None] | None = None,
+                     model: str = "mf", world_model=None) -> ActorCritic:
+    """The model-free (``mf``) or model-based (``mb``) RL baseline trained on all environments of ``set_name``
+    together (each episode draws one uniformly), with ``config.seed + 100``; loaded instead if its weights
+    exist."""
+    path = generalist_path(folder, domain, set_name, model)
     if path.exists():
         return load_policy(path)
     kwargs = {**(env_kwargs or {}), "environments": [(e.task, e.team) for e in library_set(set_name)]}
-    seeded = replace(config, seed=config.seed + 100)
-    result = train_ppo(domain, kwargs, seeded, progress)
-    save_weights(path, result.model, training_metadata(domain, kwargs, seeded, result))
-    return result.model
+    return _train_policy(domain, kwargs, replace(config, seed=config.seed + 100), model, path, progress, world_model)
 
 
 def load_policy(path: str | Path) -> ActorCritic:
     _, metadata = load_weights(path)
-    if metadata.get("kind") != "atlpo-mf-policy":
-        raise WeightsError(f"{path}: not an ATLPO-MF policy (kind={metadata.get('kind')!r})")
+    if metadata.get("kind") not in POLICY_KINDS:
+        raise WeightsError(f"{path}: not an ATLPO policy (kind={metadata.get('kind')!r})")
     model = ActorCritic(NetworkConfig(**metadata["network"]))
     load_into(model, path)
     return model.eval()
 
 
 def write_manifest(folder: Path, library: PolicyLibrary, classifier: RecurrentBayesianClassifier | None) -> None:
-    manifest = {"domain": library.domain, "env_kwargs": library.env_kwargs,
-                "members": [{"task": e.task, "team": e.team, "weights": _member_path(folder, library.domain, e).name}
+    manifest = {"domain": library.domain, "env_kwargs": library.env_kwargs, "model": library.model,
+                "members": [{"task": e.task, "team": e.team,
+                             "weights": _member_path(folder, library.domain, e, library.model).name}
                             for e in library.environments]}
     previous = folder / "library.json"
     if classifier is None and previous.exists():  # keep a classifier trained on the same members
@@ -176,7 +200,8 @@ def load_library(folder: str | Path) -> tuple[PolicyLibrary, RecurrentBayesianCl
         raise ConfigError(f"{folder / 'library.json'}: not an ATLPO library manifest ({error!r}); "
                           "train one with train_library") from None
     policies = [load_policy(folder / m["weights"]) for m in members]
-    library = PolicyLibrary(manifest["domain"], environments, policies, dict(manifest.get("env_kwargs", {})))
+    library = PolicyLibrary(manifest["domain"], environments, policies, dict(manifest.get("env_kwargs", {})),
+                            str(manifest.get("model", "mf")))
     classifier = None
     if manifest.get("classifier"):
         _, metadata = load_weights(folder / manifest["classifier"])

@@ -1,7 +1,7 @@
 """Held-out-teammate protocol for ATLPO (issue 15 item 8, beyond the thesis, as current ad hoc teamwork benchmarks
 evaluate): teams no library member was trained with, scores normalised between random (0) and the original
 teammate (1), summarised by the interquartile mean with percentile-bootstrap intervals
-(:func:`embodied_adhoc.experiments.stats.summarise_sample`).
+(``experiments.stats.summarise_sample``, passed to :func:`normalised_scores`).
 
 A *team* is a callable ``team(rules, state, task, rng, members) -> actions`` giving the actions of the listed
 agents (``members``, a list of indices) in a grid state, the signature of
@@ -153,12 +153,12 @@ def evaluate_held_out(library: PolicyLibrary, classifier: RecurrentBayesianClass
     return results
 
 
-def normalised_scores(cells: list[dict]) -> dict:
+def normalised_scores(cells: list[dict], summarise: Callable) -> dict:
     """Pool the evaluations of several seeds (``cells``) per team; each agent's episode score is
     ``(mean random steps - steps) / (mean random steps - mean original steps)`` over that team's pooled episodes
-    (random 0, original teammate 1), summarised by its IQM and mean with bootstrap intervals."""
-    from embodied_adhoc.experiments.stats import summarise_sample
-
+    (random 0, original teammate 1), summarised by ``summarise`` (the project's one summary,
+    ``experiments.stats.summarise_sample``, passed in: ``learning/`` does not import ``experiments/``): its IQM
+    and mean with percentile-bootstrap intervals."""
     scores = {}
     for team in dict.fromkeys(name for cell in cells for name in cell):
         pooled = {agent: np.concatenate([np.asarray(c[team][agent]["steps"], float) for c in cells if team in c])
@@ -173,7 +173,7 @@ def normalised_scores(cells: list[dict]) -> dict:
             if span <= 0:  # the team does no better than random: no scale to normalise on
                 row[agent] = {"iqm": float("nan"), "ci": [float("nan")] * 2, "mean": float("nan")}
                 continue
-            summary = summarise_sample((random_mean - pooled[agent]) / span)
+            summary = summarise((random_mean - pooled[agent]) / span)
             row[agent] = {"iqm": summary.iqm, "ci": [summary.iqm_ci_low, summary.iqm_ci_high], "mean": summary.mean}
         scores[team] = row
     return scores

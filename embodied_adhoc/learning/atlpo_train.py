@@ -50,6 +50,7 @@ class AtlpoTraining:
     threads: int = 0  # 0: torch's choice
     generalist: bool = False
     quiet: bool = False
+    model: str = "mf"  # "mf": ATLPO-MF; "mb": ATLPO-MB (world model on replayed experience, PPO on its latents)
 
 
 def train_atlpo(settings: AtlpoTraining) -> dict:
@@ -69,10 +70,11 @@ def train_atlpo(settings: AtlpoTraining) -> dict:
             bar.set_postfix_str(f"{member} episode length {row['mean_episode_length'] or '-'}")
             bar.update(batch)
 
-        library = train_library(settings.domain, settings.set_name, config, out, progress=progress)
+        library = train_library(settings.domain, settings.set_name, config, out, progress=progress,
+                                model=settings.model)
         if settings.generalist:
             train_generalist(settings.domain, settings.set_name, config, out,
-                             progress=lambda steps, row: progress("all", steps, row))
+                             progress=lambda steps, row: progress("all", steps, row), model=settings.model)
     policy_seconds = time.perf_counter() - started
     data = collect_trajectories(library, settings.episodes, settings.episode_steps, seed=settings.seed,
                                 mixing=settings.mixing)
@@ -85,7 +87,8 @@ def train_atlpo(settings: AtlpoTraining) -> dict:
                               device)
     classifier.cpu().eval()
     write_manifest(out, library, classifier)
-    report = {"domain": settings.domain, "set": settings.set_name, "members": [m.name for m in members],
+    report = {"domain": settings.domain, "set": settings.set_name, "model": settings.model,
+              "members": [m.name for m in members],
               "steps": settings.steps, "seed": settings.seed, "device": str(device),
               "classifier_episodes": settings.episodes, "classifier_iterations": settings.iterations,
               "mixing": settings.mixing, "policy_seconds": round(policy_seconds, 1),

@@ -91,9 +91,11 @@ class PpoResult:
 
 
 def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
-              progress: Callable[[int, dict], None] | None = None) -> PpoResult:
+              progress: Callable[[int, dict], None] | None = None, encoder: nn.Module | None = None) -> PpoResult:
     """Train an actor-critic on ``GridVectorEnv(domain, config.num_envs, **env_kwargs)`` for
-    ``config.total_steps`` env steps. ``progress(steps_done, row)`` is called after every update."""
+    ``config.total_steps`` env steps. ``progress(steps_done, row)`` is called after every update. With
+    ``encoder`` (ATLPO-MB: a world model's trained encoder) the actor and critic learn on its latent states: its
+    weights are copied in and frozen, only the actor and critic heads are trained (Fig. 6.3)."""
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     device = pick_device(config.device)
@@ -101,8 +103,13 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
     observation, _ = env.reset(seed=config.seed)
     network = NetworkConfig(channels=observation.shape[1], view=observation.shape[2],
                             hidden_channels=config.hidden_channels, features=config.features)
-    model = ActorCritic(network).to(device)
-    optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate, eps=1e-5)
+    model = ActorCritic(network)
+    if encoder is not None:
+        model.encoder.load_state_dict(encoder.state_dict())
+        model.encoder.requires_grad_(False)
+    model.to(device)
+    optimiser = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=config.learning_rate,
+                                 eps=1e-5)
     steps, envs = config.rollout_steps, config.num_envs
     batch = steps * envs
     updates = max(1, config.total_steps // batch)
@@ -181,8 +188,12 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
     return result
 
 
-def training_metadata(domain: str, env_kwargs: dict, config: PpoConfig, result: PpoResult) -> dict:
+POLICY_KINDS = ("atlpo-mf-policy", "atlpo-mb-policy")
+
+
+def training_metadata(domain: str, env_kwargs: dict, config: PpoConfig, result: PpoResult,
+                      kind: str = "atlpo-mf-policy") -> dict:
     """What to store beside the weights: network sizes, env, settings and the training cost."""
-    return {"kind": "atlpo-mf-policy", "domain": domain, "env_kwargs": env_kwargs,
+    return {"kind": kind, "domain": domain, "env_kwargs": env_kwargs,
             "network": result.model.config.as_dict(), "ppo": asdict(config), "env_steps": result.env_steps,
             "seconds": round(result.seconds, 3), "final": result.history[-1] if result.history else None}

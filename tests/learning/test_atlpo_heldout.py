@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.stats import summarise_sample
 from embodied_adhoc.learning.atlpo import load_library, shipped_library
 from embodied_adhoc.learning.atlpo_heldout import AGENTS, evaluate_held_out, held_out_teams, normalised_scores
 
@@ -54,10 +55,10 @@ def test_scores_are_normalised_between_random_and_the_original_teammate():
         return {"team": {name: {"steps": steps, "finished": [True] * len(steps)}
                          for name, steps in zip(AGENTS, (original, known, atlpo, random), strict=True)}}
 
-    scores = normalised_scores([cell([10, 10], [10, 10], [55, 55], [100, 100]), cell([10, 10], [100, 100],
-                                                                                       [55, 55], [100, 100])])
+    scores = normalised_scores([cell([10, 10], [10, 10], [55, 55], [100, 100]),
+                                cell([10, 10], [100, 100], [55, 55], [100, 100])], summarise_sample)
     assert scores["team"]["episodes"] == 4
     assert scores["team"]["atlpo-mf"]["iqm"] == pytest.approx(0.5) and scores["team"]["atlpo-mf"]["mean"] == 0.5
     assert scores["team"]["known-task"]["mean"] == pytest.approx(0.5)  # two at 1 (the original), two at 0 (random)
-    useless = normalised_scores([cell([100], [10], [10], [100])])  # the team is no better than random: no scale
+    useless = normalised_scores([cell([100], [10], [10], [100])], summarise_sample)  # the team is no better than random: no scale
     assert np.isnan(useless["team"]["atlpo-mf"]["iqm"])

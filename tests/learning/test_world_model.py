@@ -1,0 +1,62 @@
+"""ATLPO-MB (Fig. 6.3): the world model learns on replayed experience, the MB member's PPO runs on its frozen
+encoder's latents, and an MB library is an ordinary ATLPO library (loadable, usable by the agent)."""
+
+import numpy as np
+import torch
+
+from embodied_adhoc.learning.atlpo import (
+    generalist_path,
+    load_library,
+    load_policy,
+    train_generalist,
+    train_library,
+)
+from embodied_adhoc.learning.networks import NetworkConfig
+from embodied_adhoc.learning.ppo import PpoConfig
+from embodied_adhoc.learning.weights import load_weights
+from embodied_adhoc.learning.world_model import (
+    WorldModel,
+    WorldModelTraining,
+    collect_experience,
+    train_mb_policy,
+    train_world_model,
+)
+
+torch.set_num_threads(1)
+ONE = {"tasks": (1,), "teams": ("tau1",)}
+
+
+def test_replay_is_seeded():
+    data = collect_experience("foraging", {**ONE, "max_episode_steps": 5}, steps=64, seed=3, num_envs=4)
+    again = collect_experience("foraging", {**ONE, "max_episode_steps": 5}, steps=64, seed=3, num_envs=4)
+    assert data.observations.shape == (64, 6, 5, 5) and data.actions.shape == (64,)
+    assert np.array_equal(data.next_observations, again.next_observations)
+    assert set(np.unique(data.actions)) <= set(range(5)) and len(np.unique(data.actions)) > 1
+
+
+def test_world_model_training_lowers_every_loss_term():
+    data = collect_experience("foraging", ONE, steps=1024, seed=0)
+    model = WorldModel(NetworkConfig(channels=6))
+    history = train_world_model(model, data, WorldModelTraining(iterations=200, batch_size=64))
+    first, last = history[0], history[-1]
+    for term in ("reconstruction", "next_observation", "latent", "loss"):
+        assert last[term] < first[term], term
+
+
+def test_mb_policy_learns_on_the_frozen_encoder(tmp_path):
+    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    settings = WorldModelTraining(experience=256, iterations=20, batch_size=32)
+    result, world, _ = train_mb_policy("foraging", ONE, config, settings)
+    for ours, theirs in zip(result.model.encoder.state_dict().values(), world.encoder.state_dict().values(),
+                            strict=True):
+        assert torch.equal(ours, theirs)  # PPO trained the heads only
+    library = train_library("foraging", "team", config, tmp_path, model="mb", world_model=settings)
+    assert sorted(p.name for p in tmp_path.glob("*-mb-*.safetensors")) == [
+        "foraging-mb-task1-tau0.safetensors", "foraging-mb-task1-tau1.safetensors", "foraging-mb-task1-tau2.safetensors"]
+    assert load_weights(tmp_path / "foraging-mb-task1-tau0.safetensors")[1]["kind"] == "atlpo-mb-policy"
+    loaded, _ = load_library(tmp_path)
+    assert loaded.model == "mb" and len(loaded.policies) == len(library.policies) == 3
+    baseline = train_generalist("foraging", "team", config, tmp_path, model="mb", world_model=settings)
+    assert generalist_path(tmp_path, "foraging", "team", "mb").exists()
+    assert torch.equal(next(iter(load_policy(generalist_path(tmp_path, "foraging", "team", "mb")).state_dict().values())),
+                       next(iter(baseline.state_dict().values())))
