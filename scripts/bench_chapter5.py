@@ -7,7 +7,15 @@ seconds, no cache) and its time is printed beside the thesis's mean solve time p
 
     .venv/bin/python scripts/bench_chapter5.py [--solve-seconds 20] [--repeats 3]
 
-Times are wall-clock on the machine at hand (say how loaded it was when you quote them).
+With ``--executors local ray`` it times instead the whole Table 5.5 (every library built, its policies solved or
+read from the policy cache, 32 episodes x 6 agents x 11 domains, the configs of ``reproduce_atpo.py``) once per
+executor in this one run, the first as the reference of the ratios, and checks that every executor gives the same
+returns. ``ray`` joins the cluster at ``RAY_ADDRESS`` (see docs/atpo.md for a local head + worker)::
+
+    RAY_ADDRESS=127.0.0.1:6380 .venv/bin/python scripts/bench_chapter5.py --executors local ray
+
+A cold cache (``XDG_CACHE_HOME`` pointing at an empty folder) times solving too; a warm one times the trials and
+the building. Times are wall-clock on the machine at hand (say how loaded it was when you quote them).
 """
 
 from __future__ import annotations
@@ -16,6 +24,7 @@ import time
 from dataclasses import dataclass
 
 from embodied_adhoc.domains.chapter5 import build_library
+from embodied_adhoc.experiments.chapter5 import TABLE_5_5_DOMAINS, forget_sessions, sweep_config
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.tables import format_table
 
@@ -35,12 +44,49 @@ class Args:
     """builds per library (the fastest is reported)"""
     markdown: bool = False
     """print a Markdown table"""
+    executors: tuple[str, ...] = ()
+    """time the whole Table 5.5 sweep with each of these executors (local, ray) instead"""
+    workers: int = 1
+    """worker processes of the local executor (ray: the cluster's CPUs)"""
+    sweep_solve_seconds: float = 20.0
+    """Perseus limit per model in the Table 5.5 sweep (reproduce_atpo.py's default: the same cache entries)"""
+    episodes: int = 32
+    """episodes per agent and domain in the Table 5.5 sweep"""
+
+
+def time_table_5_5(args: Args) -> None:
+    """The whole Table 5.5 once per executor, fresh sessions each time (libraries built and policies solved or
+    loaded again in every run); the same returns are required of every executor."""
+    from embodied_adhoc.experiments.runner import run_sweep
+
+    rows, reference, first = [], None, None
+    for executor in args.executors:
+        forget_sessions()
+        start = time.perf_counter()
+        returns, trials = {}, 0
+        for domain in TABLE_5_5_DOMAINS:
+            config = sweep_config(domain, episodes=args.episodes, solve_seconds=args.sweep_solve_seconds)
+            result = run_sweep(config, workers=args.workers, executor=executor)
+            trials += len(result.records)
+            returns[domain] = sorted((r.agent, r.episode, r.total_reward) for r in result.records)
+        seconds = time.perf_counter() - start
+        if reference is None:
+            reference, first = seconds, returns
+        same = "yes" if returns == first else "NO"
+        rows.append([executor, str(trials), f"{seconds:.1f}", f"{seconds / reference:.2f}", same])
+    headers = ["executor", "trials", "Table 5.5 s", f"ratio to {args.executors[0]}", "same returns"]
+    print(format_table(headers, rows, args.markdown))
+    if any(row[-1] == "NO" for row in rows):
+        raise SystemExit("executors disagree on the returns: a seeding bug")
 
 
 def main() -> None:
     from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 
     args = parse_dataclass_args(Args, __doc__)
+    if args.executors:
+        time_table_5_5(args)
+        return
     rows = []
     total_build = total_solve = 0.0
     for domain, (thesis_setup, thesis_solve) in THESIS.items():

@@ -29,13 +29,12 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from embodied_adhoc.experiments.chapter5 import CHAPTER5_AGENTS, TABLE_5_2_HORIZON
-from embodied_adhoc.experiments.runner import SweepConfig, SweepResult, run_sweep
+from embodied_adhoc.experiments.chapter5 import CHAPTER5_AGENTS, TABLE_5_5_DOMAINS, sweep_config, table_agents
+from embodied_adhoc.experiments.runner import SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.tables import fmt, format_table, interval, mean_sd, p_value
 
-DOMAINS = ("gridworld", "pursuit-both", "pursuit-task", "pursuit-teammate", "power-plant", "ntu", "overcooked",
-           "isr", "mit", "pentagon", "cit")  # fmt: skip
+DOMAINS = TABLE_5_5_DOMAINS
 THESIS = {  # Table 5.5: (mean, sd) per agent, in CHAPTER5_AGENTS order (None: n/a)
     "gridworld": ((95.62, 1.54), (93.44, 3.13), (86.53, 9.12), (39.91, 61.34), (93.38, 3.14), (5.88, 64.13)),
     "pursuit-both": (
@@ -104,28 +103,17 @@ class Args:
     """also run ntu, mit and overcooked with the original's model bugs"""
     workers: int = 1
     """worker processes (each solves the policies it needs, or reads them from the cache)"""
+    executor: str = "local"
+    """local (this process or a process pool) or ray (RAY_ADDRESS: that cluster; else a private one)"""
     markdown: bool = False
     """print Markdown tables (for the README)"""
 
 
 def sweep(args: Args, domain: str, library: dict, agents: tuple[str, ...], folder: str) -> SweepResult:
-    options = {
-        "library": library,
-        "task": None,
-        "beliefs": args.beliefs or None,
-        "solve_seconds": args.solve_seconds,
-        "cache": True,
-    }
-    if domain not in ("panic-buttons", "power-plant"):
-        options["teammate"] = None
-    config = SweepConfig(
-        domain, "abstract", options, agents, args.episodes, args.seed, TABLE_5_2_HORIZON[domain]
+    config = sweep_config(
+        domain, library, agents, args.episodes, args.seed, args.solve_seconds, args.beliefs or None
     )
-    return run_sweep(config, out=args.out / folder, workers=args.workers, progress=True)
-
-
-def agents_of(domain: str) -> tuple[str, ...]:
-    return tuple(a for a in CHAPTER5_AGENTS if not (domain == "power-plant" and a == "bopa"))
+    return run_sweep(config, out=args.out / folder, workers=args.workers, executor=args.executor, progress=True)
 
 
 def returns(result: SweepResult, agent: str) -> list[float]:
@@ -261,12 +249,12 @@ def plot_table(results: dict[str, SweepResult], path: Path) -> Path:
 
 def main() -> None:
     args = parse_dataclass_args(Args, __doc__)
-    results = {domain: sweep(args, domain, {}, agents_of(domain), domain) for domain in args.domains}
+    results = {domain: sweep(args, domain, {}, table_agents(domain), domain) for domain in args.domains}
     if args.with_bugs:
         for domain in BUGGY:
             label = f"{domain} (bug)"
             results[label] = sweep(
-                args, domain, {"bug_compatible": True}, agents_of(domain), label.replace(" ", "-")
+                args, domain, {"bug_compatible": True}, table_agents(domain), label.replace(" ", "-")
             )
     print(
         f"Table 5.5: {args.episodes} episodes per agent and domain, seed {args.seed}, Perseus <= {args.solve_seconds:g} s per model"

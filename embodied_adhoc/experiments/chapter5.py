@@ -470,3 +470,48 @@ def timing_line(timing: dict) -> str:
     if "value_iteration_seconds" in timing:
         parts.append(f"value iteration {timing['value_iteration_seconds']:.2f} s")
     return "; ".join(parts)
+
+
+TABLE_5_5_DOMAINS = ("gridworld", "pursuit-both", "pursuit-task", "pursuit-teammate", "power-plant", "ntu",
+                     "overcooked", "isr", "mit", "pentagon", "cit")  # fmt: skip
+"""Table 5.5's domains, in its order."""
+
+
+def table_agents(domain_name: str) -> tuple[str, ...]:
+    """The agents of a Table 5.5 row (no BOPA on the power plant, whose tasks have their own state spaces)."""
+    return domain(domain_name).agent_names
+
+
+def sweep_config(
+    domain_name: str,
+    library: dict | None = None,
+    agents: tuple[str, ...] | None = None,
+    episodes: int = 32,
+    seed: int = 0,
+    solve_seconds: float = DEFAULT_SOLVE_SECONDS,
+    beliefs: int | None = None,
+):
+    """The :class:`~embodied_adhoc.experiments.runner.SweepConfig` of one Table 5.5 cell row (the options
+    ``trials DOMAIN`` would pass; Table 5.2's horizon as the cap), shared by the reproduction and benchmark scripts
+    so that their policies share the cache."""
+    from embodied_adhoc.experiments.runner import SweepConfig
+
+    options = {
+        "library": dict(library or {}),
+        "task": None,
+        "beliefs": beliefs,
+        "solve_seconds": solve_seconds,
+        "cache": True,
+    }
+    if domain_name not in ("panic-buttons", "power-plant"):
+        options["teammate"] = None
+    agents = table_agents(domain_name) if agents is None else tuple(agents)
+    return SweepConfig(domain_name, "abstract", options, agents, episodes, seed, TABLE_5_2_HORIZON[domain_name])
+
+
+def forget_sessions() -> None:
+    """Drop every library and policy this process holds (a benchmark's next run builds and loads them again)."""
+    from embodied_adhoc.experiments.executors import close_sessions
+
+    _SESSION_CACHE.clear()
+    close_sessions()

@@ -23,6 +23,9 @@ from embodied_adhoc.experiments.registry import get_trial_domain
 from embodied_adhoc.experiments.trial import TrialJob, TrialResult, run_trial
 
 EXECUTORS = ("local", "ray")
+RAY_WORKER_ENV = ("XDG_CACHE_HOME", "MUJOCO_GL")
+"""Variables the driver passes to Ray's workers (a node started by ``ray start`` has the environment of that
+command, not the driver's): the policy cache location and the rendering backend."""
 
 _SESSIONS: dict[str, object] = {}
 _ENVS: dict[tuple[str, int, int], object] = {}
@@ -158,7 +161,23 @@ def _execute_ray(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResult
             "--executor ray needs Ray, which is not installed; install it with: pip install 'embodied-adhoc[ray]'"
         ) from error
     if not ray.is_initialized():
-        ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+        # RAY_ADDRESS (Ray's own variable, e.g. 127.0.0.1:6380): join that cluster and use all its CPUs; else a
+        # private single-node Ray with --workers CPUs.
+        runtime_env = {"env_vars": {name: os.environ[name] for name in RAY_WORKER_ENV if name in os.environ}}
+        address = os.environ.get("RAY_ADDRESS")
+        try:
+            if address:
+                ray.init(address=address, log_to_driver=False, runtime_env=runtime_env)
+            else:
+                ray.init(
+                    address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                    runtime_env=runtime_env,
+                )  # fmt: skip
+        except ConnectionError as error:
+            raise ConfigError(
+                f"--executor ray: no Ray cluster at RAY_ADDRESS={address} ({error}); start one with "
+                "'ray start --head --node-ip-address=127.0.0.1 --port=6380' or unset RAY_ADDRESS"
+            ) from None
     remote = ray.remote(execute_job)
     pending = [remote.remote(job) for job in jobs]
     try:
