@@ -6,8 +6,8 @@ random-picker, bopa (not on the power plant) and random. Perseus policies (Table
 --beliefs, tolerance 0.01, at most --solve-seconds per model) are cached on disk, so a second run costs only the
 trials. Prints:
 
-* Table 5.5: accumulated reward, ours (mean ± sd, 95 % bootstrap CI) beside the thesis's (mean ± sd), with the
-  Welch p-value of ours against the thesis's (summary statistics, n = 32 both sides);
+* Table 5.5: accumulated reward, ours (mean ± sd, 95 % seeded percentile-bootstrap interval of the mean,
+  ``experiments.stats``) beside the thesis's (mean ± sd), with the Welch p-value of ours against the thesis's (summary statistics, n = 32 both sides);
 * Table 5.6: ATPO normalised between random (0 %) and value iteration (100 %), ours and the thesis's;
 * the original's model bugs (``--with-bugs``): ntu, mit and overcooked rebuilt with the bug, beside the fix;
 * Fig. 5.9: ATPO's normalised score on gridworld for library sizes --library-sizes (normalised by this run's
@@ -32,7 +32,7 @@ from scipy import stats
 from embodied_adhoc.experiments.chapter5 import CHAPTER5_AGENTS, TABLE_5_5_DOMAINS, sweep_config, table_agents
 from embodied_adhoc.experiments.runner import SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
-from embodied_adhoc.experiments.tables import fmt, format_table, interval, mean_sd, p_value
+from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd, p_value
 
 DOMAINS = TABLE_5_5_DOMAINS
 THESIS = {  # Table 5.5: (mean, sd) per agent, in CHAPTER5_AGENTS order (None: n/a)
@@ -95,8 +95,8 @@ class Args:
     """Perseus time limit per model"""
     beliefs: int = 0
     """Perseus belief-set size (0: Table 5.2's)"""
-    library_sizes: tuple[int, ...] = (2, 4, 8)
-    """Fig. 5.9: gridworld library sizes (the thesis: 2 to 32); none with --skip-fig59"""
+    library_sizes: tuple[int, ...] = (2, 4, 8, 16, 32)
+    """Fig. 5.9: gridworld library sizes (the thesis's 2 to 32); none with --skip-fig59"""
     skip_fig59: bool = False
     """do not run Fig. 5.9"""
     with_bugs: bool = False
@@ -155,7 +155,7 @@ def table_5_5(results: dict[str, SweepResult], markdown: bool) -> str:
                     p_value(p) if not math.isnan(p) else "-",
                 ]
             )
-    headers = ("domain", "agent", "reward (ours)", "95% CI", "reward (thesis)", "p vs thesis")
+    headers = ("domain", "agent", "reward (ours)", CI_HEADER, "reward (thesis)", "Welch p vs thesis")
     return format_table(headers, rows, markdown)
 
 

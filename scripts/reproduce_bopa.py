@@ -7,7 +7,7 @@ episode from --seed, the same for the three agents) of:
 * ``bopa``: BOPA over the three button configurations (section 5.1, Eqs. 5.1-5.2);
 * ``random``: uniform actions.
 
-Prints steps to finish, ours (mean ± sd, 95 % bootstrap CI) beside the thesis's (mean ± the thesis's spread,
+Prints steps to finish, ours (mean ± sd, 95 % seeded percentile-bootstrap interval of the mean) beside the thesis's (mean ± the thesis's spread,
 taken as a standard deviation of 32 trials), the Welch p-value of ours against the thesis's (from summary
 statistics) and, per setting, the Welch test of BOPA against greedy. Our episodes end on entering the absorbing
 state, one step after the buttons are pressed (the step that collects the +100), so "ours - 1" is the thesis's
@@ -26,7 +26,7 @@ from scipy import stats
 from embodied_adhoc.experiments.runner import SweepConfig, SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.stats import welch_test
-from embodied_adhoc.experiments.tables import fmt, format_table, interval, mean_sd, p_value
+from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd, p_value
 
 AGENTS = {"greedy": "value-iteration", "bopa": "bopa", "random": "random"}
 TEAMMATES = ("optimal", "suboptimal", "random")
@@ -90,8 +90,8 @@ def table(results: dict[tuple[int, str], SweepResult], markdown: bool) -> str:
                 f"{size}x{size}", teammate, label, mean_sd(steps), interval(steps), fmt(steps.mean - 1),
                 fmt(summary[agent].success_rate), f"{thesis_mean:.1f} ± {thesis_sd:.1f}", p_value(p),
             ])  # fmt: skip
-    headers = ("grid", "teammate", "agent", "steps (ours)", "95% CI", "ours - 1", "success", "steps (thesis)",
-               "p (ours - 1 vs thesis)")  # fmt: skip
+    headers = ("grid", "teammate", "agent", "steps (ours)", CI_HEADER, "ours - 1", "success", "steps (thesis)",
+               "Welch p (ours - 1 vs thesis)")  # fmt: skip
     return format_table(headers, rows, markdown)
 
 
@@ -107,7 +107,7 @@ def bopa_vs_greedy(results: dict[tuple[int, str], SweepResult], markdown: bool) 
         share = len(identified) / max(1, len(bopa))
         mean_identify = fmt(sum(identified) / len(identified)) if identified else "-"
         rows.append([f"{size}x{size}", teammate, fmt(t), p_value(p), fmt(share), mean_identify])
-    headers = ("grid", "teammate", "t (bopa - greedy)", "p", "identified", "identify step")
+    headers = ("grid", "teammate", "Welch t (bopa - greedy)", "Welch p", "identified", "identify step")
     return format_table(headers, rows, markdown)
 
 
