@@ -20,11 +20,11 @@ factors), so that PLASTIC-Model's planner can use them and the team belief can s
   toroidal distance (ties: the first permutation), and each walks a shortest path (breadth-first search) to its
   cell treating the other agents as immovable obstacles; uniform among equally short first moves; stays once
   there. Walled off: the moves that shorten the plain toroidal distance.
-* ``greedy`` (tau2): each predator heads for its nearest cell around the prey (ties: uniform) ignoring the
-  others, uniformly among the moves that shorten the toroidal distance.
+* ``greedy`` (tau2): each predator heads for its nearest cell around the prey not held by another predator
+  (ties: uniform), uniformly among the moves that shorten the toroidal distance, not avoiding the others.
 * ``probabilistic-destinations`` (tau3): each step a destination is drawn among the cells not taken by another
-  agent with weight ``exp(-d(cell, prey))`` times 4 for the cells around the prey and 2 for the cells two steps
-  away (circling positions), then a move shortening the distance to it; the policy is that mixture.
+  agent with weight ``exp(-2 d(cell, prey))`` times 8 for the cells around the prey and 2 for the cells two
+  steps away (circling positions), then a move shortening the distance to it; the policy is that mixture.
 """
 
 from __future__ import annotations
@@ -132,7 +132,11 @@ class Pursuit4:
     def _greedy(self, states: np.ndarray) -> np.ndarray:
         around = self.neighbours[states[:, PREY], :4]  # (B, 4)
         pred = states[:, :N_PREDATORS]
-        d = self.distance[pred[:, :, None], around[:, None, :]]  # (B, 4 pred, 4 targets)
+        d = self.distance[pred[:, :, None], around[:, None, :]].astype(float)  # (B, 4 pred, 4 targets)
+        # a cell around the prey held by another predator is not a target (its own cell is)
+        held = (around[:, None, :, None] == pred[:, None, None, :]) & ~np.eye(4, dtype=bool)[:, None, :]
+        d = np.where(held.any(-1), np.inf, d)
+        d = np.where(np.isinf(d).all(-1, keepdims=True), 0.0, d)  # all held: any cell around the prey
         nearest = (d == d.min(-1, keepdims=True)).astype(float)
         nearest /= nearest.sum(-1, keepdims=True)
         moves = self.good_moves[pred[:, :, None], around[:, None, :]]  # (B, 4, 4, 5)
@@ -181,7 +185,7 @@ class Pursuit4:
     def _probabilistic_destinations(self, states: np.ndarray) -> np.ndarray:
         count = states.shape[0]
         prey_d = self.distance[states[:, PREY]]  # (B, C)
-        weight = np.exp(-prey_d.astype(float)) * np.where(prey_d == 1, 4.0, np.where(prey_d == 2, 2.0, 1.0))
+        weight = np.exp(-2.0 * prey_d.astype(float)) * np.where(prey_d == 1, 8.0, np.where(prey_d == 2, 2.0, 1.0))
         weight[np.arange(count), states[:, PREY]] = 0.0
         out = np.empty((count, N_PREDATORS, N_ACTIONS))
         for p in range(N_PREDATORS):
