@@ -160,6 +160,11 @@ def test_an_open_server_needs_the_printed_token(tmp_path):
                     pass
             async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws?token={token}") as ws:
                 assert json.loads(await ws.recv())["type"] == "hello"
+                # one participant at a time: a second page is told so and closed
+                async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws?token={token}") as second:
+                    assert "another participant" in json.loads(await second.recv())["message"]
+                    with pytest.raises(websockets.ConnectionClosed):
+                        await asyncio.wait_for(second.recv(), 10)
 
         asyncio.run(scenario())
     finally:
