@@ -32,6 +32,12 @@ THESIS = {
     ("team", "foraging"): (9.2, 7.68, 8.85, 53.71), ("team", "pursuit"): (14.45, 10.19, 10.71, 58.21),
     ("task+team", "foraging"): (7.89, 7.62, 11.96, 56.52), ("task+team", "pursuit"): (11.54, 10.71, 16.75, 54.21),
 }
+# ... and (set, domain) -> model-based RL ("knows task/team"), ATLPO-MB
+THESIS_MB = {
+    ("task", "foraging"): (8.13, 15.35), ("task", "pursuit"): (9.79, 17.34), ("team", "foraging"): (7.31, 10.24),
+    ("team", "pursuit"): (10.11, 10.64), ("task+team", "foraging"): (7.73, 14.06),
+    ("task+team", "pursuit"): (9.95, 15.67),
+}
 TABLE_AGENTS = ("original", "known", "atlpo-mf", "random")
 SETS = ("task", "team", "task+team")
 
@@ -104,6 +110,65 @@ def evaluate_cell(args: Args, domain: str, seed: int, set_name: str) -> dict:
     return results
 
 
+def mb_cells(args: Args) -> list[tuple[str, int, str, Path]]:
+    """(domain, seed, set, folder) of every ATLPO-MB library under ``--out`` (``<set>-mb`` folders written by
+    ``embodied-adhoc train atlpo --model mb [--generalist]``), for the seeds asked."""
+    found = []
+    for domain in ("foraging", "pursuit"):
+        for seed in args.seeds:
+            for set_name in SETS:
+                folder = library_folder(args.out, domain, seed, set_name).with_name(
+                    library_folder(args.out, domain, seed, set_name).name + "-mb")
+                if (folder / "training.json").exists():
+                    found.append((domain, seed, set_name, folder))
+    return found
+
+
+def evaluate_mb_cell(args: Args, domain: str, seed: int, set_name: str, folder: Path) -> dict:
+    """ATLPO-MB and, where trained, the model-based baseline (one MB policy on all the set's environments), on
+    the same episodes as the MF cell."""
+    from embodied_adhoc.learning.atlpo import generalist_path, load_library, load_policy
+    from embodied_adhoc.learning.atlpo_eval import evaluate
+
+    path = folder / f"evaluation-{args.episodes}x{args.max_steps}.json"
+    if path.exists():
+        return json.loads(path.read_text())
+    library, classifier = load_library(folder)
+    baseline = generalist_path(folder, domain, set_name, "mb")
+    generalist = load_policy(baseline) if baseline.exists() else None
+    results = evaluate(library, classifier, args.episodes, seed, args.max_steps, agents=("atlpo-mf", "mf-all"),
+                       generalist=generalist)
+    results = {{"atlpo-mf": "atlpo-mb", "mf-all": "mb-all"}.get(k, k): v for k, v in results.items()}
+    path.write_text(json.dumps(results) + "\n")
+    return results
+
+
+def mb_report(args: Args) -> list[str]:
+    lines = []
+    for domain, seed, set_name, folder in mb_cells(args):
+        path = folder / f"evaluation-{args.episodes}x{args.max_steps}.json"
+        if not path.exists():
+            continue
+        if not lines:
+            lines = ["ATLPO-MB and the model-based baseline (where trained; same episodes as the MF cell): mean steps "
+                     "[95 % bootstrap CI] (solved %) | thesis (ATLPO-MB; model-based RL, which knows task and team)", "",
+                     "| set | domain | seed | atlpo-mb | mb-all |",
+                     "|---|---|---|---|---|"]
+        results = json.loads(path.read_text())
+        cells = []
+        for agent, thesis in zip(("atlpo-mb", "mb-all"), THESIS_MB[(set_name, domain)], strict=True):
+            if agent not in results:
+                cells.append("not trained")
+                continue
+            from embodied_adhoc.experiments.stats import summarise_sample
+
+            summary = summarise_sample(np.asarray(results[agent]["steps"], float))
+            cells.append(f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] "
+                         f"({100 * np.mean(results[agent]['finished']):.0f} %) \\| {thesis}")
+        lines.append(f"| {set_name} | {domain} | {seed} | {cells[0]} | {cells[1]} |")
+    return lines
+
+
 def held_out_cell(args: Args, domain: str, seed: int) -> dict:
     from embodied_adhoc.learning.atlpo import load_library
     from embodied_adhoc.learning.atlpo_heldout import evaluate_held_out, held_out_teams
@@ -138,7 +203,7 @@ def report(args: Args) -> str:
     lines = [f"Chapter-6 table: average steps to finish ({args.episodes} episodes per environment x seeds "
              f"{list(args.seeds)}, cap {args.max_steps}; an unfinished episode counts the cap); mean [95 % "
              "bootstrap CI] (solved %) | thesis", ""]
-    header = f"| set | domain | K | seeds | {' | '.join(TABLE_AGENTS)} | classifier accuracy after step 1/3/5/7/10 |"
+    header = f"| set | domain | K | seeds | {' | '.join(TABLE_AGENTS)} | classifier accuracy after step 1/3/5/7/10 (mean over the trained seeds) |"
     lines += [header, "|" + "---|" * (header.count("|") - 1)]
     table = {}
     for set_name in SETS:
@@ -168,7 +233,8 @@ def report(args: Args) -> str:
             lines.append("| " + " | ".join(row) + " |")
     held = held_out_report(args)
     (args.out / "table.json").write_text(json.dumps({"table": table, "held_out": held[1]}, indent=1) + "\n")
-    return "\n".join(lines + [""] + held[0])
+    mb = mb_report(args)
+    return "\n".join(lines + [""] + held[0] + ([""] + mb if mb else []))
 
 
 def held_out_report(args: Args) -> tuple[list[str], dict]:
@@ -191,8 +257,9 @@ def held_out_report(args: Args) -> tuple[list[str], dict]:
         for team, scores in normalised_scores(cells, summarise_sample).items():
             data[f"{domain}/{team}"] = scores
             lines.append(f"| {domain} | {team} | {scores['episodes']} | {scores['atlpo-mf']['iqm']:.2f} "
-                         f"[{scores['atlpo-mf']['ci'][0]:.2f}, {scores['atlpo-mf']['ci'][1]:.2f}] | "
-                         f"{scores['known-task']['iqm']:.2f} | {scores['steps']['original']:.1f} "
+                         f"[{scores['atlpo-mf']['ci'][0]:.2f}, {scores['atlpo-mf']['ci'][1]:.2f}], mean "
+                         f"{scores['atlpo-mf']['mean']:.2f} | {scores['known-task']['iqm']:.2f}, mean "
+                         f"{scores['known-task']['mean']:.2f} | {scores['steps']['original']:.1f} "
                          f"({100 * scores['solved']['original']:.0f} %) | {scores['steps']['atlpo-mf']:.1f} "
                          f"({100 * scores['solved']['atlpo-mf']:.0f} %) | {scores['steps']['random']:.1f} "
                          f"({100 * scores['solved']['random']:.0f} %) |")
@@ -214,6 +281,9 @@ def main(args: Args) -> None:
                         evaluate_cell(args, domain, seed, set_name)
                     if args.held_out:
                         held_out_cell(args, domain, seed)
+            for domain, seed, set_name, folder in mb_cells(args):
+                if domain in args.domains:
+                    evaluate_mb_cell(args, domain, seed, set_name, folder)
                     print(f"{domain} seed {seed}: evaluated", flush=True)
     text = report(args)
     (args.out / "table.md").write_text(text + "\n")
