@@ -46,14 +46,7 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
     pursuit.add_argument("--task", type=int, default=None, metavar="K",
                          help="true task 1..4 (N+S, W+E, SW+NE, NW+SE; default: drawn)")
     pursuit.add_argument("--max-steps", type=int, default=150, help="step cap (default 150, Fig. 7.12's)")
-    pursuit.add_argument("--record", type=output_folder, default=None, metavar="DIR",
-                         help="write episode.mp4/.rrd, metrics.json")
-    pursuit.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
-    pursuit.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
-    pursuit.add_argument("--size", type=int, default=480, help="video width and height in pixels, even (480)")
-    pursuit.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
-    pursuit.add_argument("--json", action="store_true", help="print the summary as JSON")
-    pursuit.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _recording_arguments(pursuit)
     pursuit.set_defaults(func=handle_pursuit)
 
     from embodied_adhoc.experiments.recorded_foraging import FORAGING_AGENTS
@@ -77,15 +70,20 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
                           help="atlpo-mf: a folder written by `embodied-adhoc train atlpo --domain foraging` "
                                "(default: the pre-trained task+team library shipped with the package)")
     foraging.add_argument("--max-steps", type=int, default=200, help="step cap (default 200, the grid envs')")
-    foraging.add_argument("--record", type=output_folder, default=None, metavar="DIR",
-                          help="write episode.mp4/.rrd, metrics.json")
-    foraging.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
-    foraging.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
-    foraging.add_argument("--size", type=int, default=480, help="video width and height in pixels, even (480)")
-    foraging.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
-    foraging.add_argument("--json", action="store_true", help="print the summary as JSON")
-    foraging.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _recording_arguments(foraging)
     foraging.set_defaults(func=handle_foraging)
+
+
+def _recording_arguments(parser: argparse.ArgumentParser) -> None:
+    """The recording and output flags shared by ``run pursuit`` and ``run foraging``."""
+    parser.add_argument("--record", type=output_folder, default=None, metavar="DIR",
+                        help="write episode.mp4/.rrd, metrics.json")
+    parser.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
+    parser.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
+    parser.add_argument("--size", type=int, default=480, help="video width and height in pixels, even (480)")
+    parser.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
+    parser.add_argument("--json", action="store_true", help="print the summary as JSON")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
 def _play(args: argparse.Namespace, domain: str, run, postfix) -> dict:
