@@ -121,3 +121,11 @@ def test_run_foraging_records_atlpo_in_the_arena(tmp_path):
     assert metrics["config"]["agent"] == "atlpo-mf" and 1 <= metrics["steps"] <= 3
     assert all(np.isclose(sum(s["library_posterior"]), 1.0) for s in metrics["per_step"])
     assert metrics["config"]["spec"]["team"] == outcome.metrics["true_team"]
+
+
+@pytest.mark.parametrize(("args", "named"), [(("--team", "tau9"), "--team tau9"), (("--task", "7"), "--task 7"),
+                                             (("--size", "15"), "--size (15)")])
+def test_run_foraging_bad_input_is_one_line_and_exit_2(args, named):
+    done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "run", "foraging", *args, "--no-progress"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 2 and named in done.stderr and done.stderr.strip().count("\n") == 0, done.stderr
