@@ -98,7 +98,7 @@ class _Recording(ArenaRecording):
     """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the foraging HUD
     and the library posterior."""
 
-    hud_keys = ("action", "truth", "posterior")
+    hud_keys = ("action", "truth", "posterior", "posterior more")
 
     def __init__(self, config: ForagingEpisodeConfig, env, agent, files: dict[str, Path]):
         backend = env.unwrapped.core.backend
@@ -115,10 +115,11 @@ class _Recording(ArenaRecording):
         posterior = _library_posterior(self.agent)
         if posterior is None:
             self.hud.pop("posterior", None)
+            self.hud.pop("posterior more", None)
             return
-        names = [f"{e.task}/{e.team}" for e in self.agent.library.environments]
-        self.hud["posterior"] = "P(task/team): " + " ".join(
-            f"{n} {p:.2f}" for n, p in zip(names, posterior, strict=True))
+        cells = [f"{e.task}/{e.team} {p:.2f}" for e, p in zip(self.agent.library.environments, posterior, strict=True)]
+        self.hud["posterior"] = "P(task/team): " + " ".join(cells[:4])  # four per line fit the video's width
+        self.hud["posterior more"] = " ".join(cells[4:])
         self.rerun.log_belief(posterior, _entropy(posterior))
 
     def episode_started(self, info: dict, task_posterior) -> None:
