@@ -52,6 +52,8 @@ class Args:
     """Perseus limit per model in the Table 5.5 sweep (reproduce_atpo.py's default: the same cache entries)"""
     episodes: int = 32
     """episodes per agent and domain in the Table 5.5 sweep"""
+    domains: tuple[str, ...] = TABLE_5_5_DOMAINS
+    """the Table 5.5 rows to time (default: all eleven)"""
 
 
 def time_table_5_5(args: Args) -> None:
@@ -64,7 +66,7 @@ def time_table_5_5(args: Args) -> None:
         forget_sessions()
         start = time.perf_counter()
         returns, trials = {}, 0
-        for domain in TABLE_5_5_DOMAINS:
+        for domain in args.domains:
             config = sweep_config(domain, episodes=args.episodes, solve_seconds=args.sweep_solve_seconds)
             result = run_sweep(config, workers=args.workers, executor=executor)
             trials += len(result.records)
