@@ -25,7 +25,7 @@ from embodied_adhoc.experiments.trial import TrialJob, TrialResult, run_trial
 EXECUTORS = ("local", "ray")
 RAY_WORKER_ENV = ("XDG_CACHE_HOME", "MUJOCO_GL", "PYTHONPATH")
 """Variables the driver passes to Ray's workers (a node started by ``ray start`` has the environment of that
-command, not the driver's): the policy cache location, the rendering backend and the import path.
+command, not the driver's): the policy cache location, the rendering backend and the import path."""
 
 _SESSIONS: dict[str, object] = {}
 _ENVS: dict[tuple[str, int, int], object] = {}
