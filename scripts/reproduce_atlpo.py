@@ -59,8 +59,8 @@ class Args:
     threads: int = 1
     train_only: bool = False
     """train the libraries and classifiers, evaluate nothing"""
-    held_out: bool = True
-    """also evaluate the held-out-teammate split with each seed's task+team library"""
+    no_held_out: bool = False
+    """skip the held-out-teammate split (evaluated with each seed's task+team library)"""
     team: str = ""
     """held-out split: also a user's team, ``module:callable`` (see learning/atlpo_heldout.py)"""
     report_only: bool = False
@@ -279,7 +279,7 @@ def main(args: Args) -> None:
                 for seed in args.seeds:
                     for set_name in args.sets:
                         evaluate_cell(args, domain, seed, set_name)
-                    if args.held_out:
+                    if not args.no_held_out:
                         held_out_cell(args, domain, seed)
             for domain, seed, set_name, folder in mb_cells(args):
                 if domain in args.domains:
