@@ -135,7 +135,11 @@ class BackupOperator:
         return branch_keys % n_obs, branch_keys // n_obs, best
 
     def backup(
-        self, beliefs: np.ndarray, alphas: np.ndarray | PreparedAlphas, with_children: bool = False
+        self,
+        beliefs: np.ndarray,
+        alphas: np.ndarray | PreparedAlphas,
+        with_children: bool = False,
+        project: bool = True,
     ) -> tuple[np.ndarray, ...]:
         """Backed-up vectors for each row of ``beliefs``: ``(vectors (n, S), actions (n,), values (n,))``.
 
@@ -144,6 +148,8 @@ class BackupOperator:
         appends ``children`` (n, Z): the row of ``alphas`` each new vector continues with after each
         observation, i.e. its conditional plan (``vectors[i] = R_a + gamma T_a sum_z O_z alphas[children[i, z]]``).
         Internally everything is laid out (S, n) so that every sparse product is a row-oriented CSR product.
+        ``project=False`` always scores on the predicted beliefs' support, never building the projection of all
+        vectors (for one or a few beliefs, e.g. the solver's trials, building it costs more than the scores).
         """
         prepared = alphas if isinstance(alphas, PreparedAlphas) else self.prepare(alphas)
         alphas = prepared.alphas
@@ -158,7 +164,9 @@ class BackupOperator:
             end_states, observations, probabilities, from_entries, observation_t = self.entries[action]
             # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
             predicted = self.transitions_t[action] @ beliefs_t
-            if self.sparse_observations[action] and np.count_nonzero(predicted) < _SUPPORT_DENSITY * predicted.size:
+            if not project or (
+                self.sparse_observations[action] and np.count_nonzero(predicted) < _SUPPORT_DENSITY * predicted.size
+            ):
                 # (Z, n): best continuation per branch and belief; impossible branches keep the fallback.
                 chosen = np.repeat(prepared.fallbacks[action][:, None], n, axis=1)
                 branch_observations, branch_beliefs, best = self._support_choices(prepared, action, predicted)

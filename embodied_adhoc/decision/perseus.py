@@ -17,6 +17,7 @@ Finite horizon (``horizon=H``, mandatory when the discount is 1.0): ``H`` exact 
 from __future__ import annotations
 
 import contextlib
+import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -36,6 +37,7 @@ from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import SolverError
 
 STOP_RULES = ("bound", "gain")
+_TRIAL_SHARE = 0.1  # with a time limit, trials from b0 take at most this share of the time spent
 _DOMINANCE_CANDIDATES = 4  # new vectors tested for dominating each vector a stage drops
 
 
@@ -164,7 +166,31 @@ def _infinite_horizon(
     threshold = config.tolerance * (1.0 - gamma) / gamma if bound else config.tolerance
     max_beliefs = config.max_beliefs or (10 if deadline is not None else 3) * config.n_beliefs
     round_start, last_round, last_round_time = bounds, 0, time.perf_counter()
+    stage_seconds, stage_gain, trial_wait, trial_skip, trial_seconds = 0.0, 0.0, 0, 0, 0.0
     for iteration in range(1, config.max_iterations + 1):
+        now = time.perf_counter()
+        if config.expand and trial_wait <= 0 and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start)):
+            # A trial from b0 before a stage (for at most half the last stage's time, and a tenth of the time so
+            # far, with a time limit). A trial that raises V(b0) by less than the tolerance, or by less than the
+            # last stage did, doubles the number of stages until the next one (Tag: trials before every stage
+            # halved the stages done in 20 s and lowered V(b0) there; cit and sunysb need them early).
+            end = None if deadline is None else min(deadline, now + max(0.05, 0.5 * stage_seconds))
+            grown = _lower_trial(operator, graph, current, upper, b0, config.precision, end)
+            if len(grown) > len(current):
+                added = graph.vectors[grown[len(current) :]]
+                current, alphas, actions = grown, graph.vectors[grown], graph.actions[grown]
+                values = np.maximum(values, np.asarray(rows @ added.T).max(axis=1))
+            lower_b0 = float((alphas @ b0).max())
+            gain = lower_b0 - bounds.lower
+            trial_skip = 0 if gain > config.tolerance and gain >= stage_gain else max(1, 2 * trial_skip)
+            trial_wait, trial_seconds = trial_skip, trial_seconds + time.perf_counter() - now
+            bounds = _Bounds(lower_b0, float(upper.values(b0)[0]))
+            trace.append((time.perf_counter() - start, bounds.lower))
+            if bounds.gap <= config.precision:
+                break
+        else:
+            trial_wait -= 1
+        stage_start = time.perf_counter()
         stage = _perseus_iteration(operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline)
         if stage.timed_out and not stage.vectors.shape[0]:
             iteration -= 1
@@ -174,9 +200,11 @@ def _infinite_horizon(
             stage = stage.with_old(alphas, actions)
             stage.values[:] = (rows @ stage.vectors.T).max(axis=1)
         improvement = float(np.max(stage.values - values))
+        stage_seconds = time.perf_counter() - stage_start
         current = _record(graph, current, stage, rows)
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
-        bounds = _Bounds(float((alphas @ b0).max()), bounds.upper)
+        lower_b0 = float((alphas @ b0).max())
+        stage_gain, bounds = lower_b0 - bounds.lower, _Bounds(lower_b0, bounds.upper)
         trace.append((time.perf_counter() - start, bounds.lower))
         report(iteration, improvement)
         if stage.timed_out or bounds.gap <= config.precision:
@@ -292,14 +320,46 @@ def _explore(
 ) -> None:
     """Excess-gap paths from b0, each backing up the upper bound along it, for ``budget`` seconds."""
     end = time.perf_counter() + budget
-    # Beyond this depth any gap at b0's scale is within precision / gamma^depth, so paths end there anyway.
-    gamma, scale = upper.pomdp.discount, float(upper.values(b0)[0] - lower(b0[None, :])[0])
-    max_depth = int(np.clip(np.log(max(precision, 1e-9) / max(scale, 1e-9)) / np.log(gamma), 20, 1000))
+    max_depth = _max_depth(upper, lower, b0, precision)
     while time.perf_counter() < end:
         # Paths aim at half the precision: they stop where the gap is within their target, and the lower bound
         # is not backed up along them, so aiming at the precision itself leaves a gap at b0 just above it.
         if not sample_path(upper, lower, b0, precision / 2, max_depth, end):
             break  # the gap at b0 is within precision
+
+
+def _max_depth(upper: SawtoothBound, lower: Callable[[np.ndarray], np.ndarray], b0: np.ndarray, precision: float) -> int:
+    """Beyond this depth any gap at b0's scale is within precision / gamma^depth, so paths end there anyway."""
+    gamma, scale = upper.pomdp.discount, float(upper.values(b0)[0] - lower(b0[None, :])[0])
+    return int(np.clip(np.log(max(precision, 1e-9) / max(scale, 1e-9)) / np.log(gamma), 20, 1000))
+
+
+def _lower_trial(
+    operator: BackupOperator,
+    graph: PlanGraph,
+    current: np.ndarray,
+    upper: SawtoothBound,
+    b0: np.ndarray,
+    precision: float,
+    deadline: float | None,
+) -> np.ndarray:
+    """One excess-gap path from b0 (HSVI/SARSOP trial), then the lower bound backed up at its beliefs, deepest
+    first, each against the set grown by the previous ones: value travels the whole path in one trial, where
+    Perseus' synchronous stages move it one step per stage (cit, sunysb: V(b0) stayed at the blind policies' 0
+    for about 15 stages). A backup is kept only where it raises the bound at its belief; its continuations are
+    rows of the graph, so the set stays closed and every vector the value of a plan. Returns the grown rows."""
+    alphas = graph.vectors[current]
+    lower = _lower_values(alphas)
+    # Paths end at the effective horizon 1 / (1 - gamma) (20 steps at 0.95, 100 at 0.99): HSVI's gap rule alone
+    # lets them run 130-670 steps while the upper bound is loose, at the cost of a few stages each.
+    depth = min(_max_depth(upper, lower, b0, precision), math.ceil(1.0 / (1.0 - operator.discount)))
+    path = sample_path(upper, lower, b0, precision / 2, depth, deadline)
+    for belief in reversed(path):
+        alphas = graph.vectors[current]
+        vector, action, value, children = operator.backup(belief[None, :], alphas, with_children=True, project=False)
+        if value[0] > float((alphas @ belief).max()) + 1e-12:
+            current = np.append(current, graph.add(vector, action, current[children]))
+    return current
 
 
 def _unknown(beliefs, known: set[bytes]) -> list[np.ndarray]:

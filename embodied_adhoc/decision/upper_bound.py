@@ -64,6 +64,8 @@ class SawtoothBound:
         self._starts = np.empty(0, dtype=np.int64)
         self._values = np.empty(0)
         self._excess: np.ndarray | None = None
+        self._indicator: sp.csr_matrix | None = None  # (P, S): 1 on each point's support; rebuilt when one is added
+        self._sizes = np.empty(0, dtype=np.int64)
 
     @property
     def n_points(self) -> int:
@@ -77,8 +79,27 @@ class SawtoothBound:
             return bound
         if self._excess is None:
             self._excess = self._values - np.add.reduceat(self._masses * self.corners[self._support], self._starts)
-        ratios = np.minimum.reduceat(beliefs[:, self._support] / self._masses, self._starts, axis=1)  # phi_i(b)
-        sawtooth = beliefs @ self.corners + (ratios * self._excess).min(axis=1)
+        if self._indicator is None:
+            sizes = np.diff(np.append(self._starts, len(self._support)))
+            indptr = np.append(self._starts, len(self._support))
+            self._indicator = sp.csr_matrix(
+                (np.ones(len(self._support)), self._support, indptr), shape=(self.n_points, self.pomdp.n_states)
+            )
+            self._sizes = sizes
+        # phi_i(b) > 0 only where b covers the whole support of b_i: find those (point, belief) pairs with one
+        # sparse product, then take the ratios on them alone (phi is 0 elsewhere, and so is its term).
+        covered = np.asarray(self._indicator @ (beliefs > 0.0).T.astype(np.float64))  # (P, n)
+        points, rows = np.nonzero(covered >= self._sizes[:, None])
+        terms = np.zeros(beliefs.shape[0])
+        if points.size:
+            lengths = self._sizes[points]
+            positions = np.repeat(self._starts[points] - np.cumsum(lengths) + lengths, lengths) + np.arange(
+                lengths.sum()
+            )
+            ratios = beliefs[np.repeat(rows, lengths), self._support[positions]] / self._masses[positions]
+            phi = np.minimum.reduceat(ratios, np.cumsum(lengths) - lengths)
+            np.minimum.at(terms, rows, phi * self._excess[points])
+        sawtooth = beliefs @ self.corners + terms
         return np.minimum(bound, sawtooth)
 
     def successors(self, belief: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -119,5 +140,6 @@ class SawtoothBound:
             self._support = np.concatenate([self._support, support])
             self._masses = np.concatenate([self._masses, belief[support]])
             self._values = np.append(self._values, backed_up)
+            self._indicator = None
         self._excess = None
         return backed_up
