@@ -156,7 +156,8 @@ def mb_report(args: Args) -> list[str]:
                      "|---|---|---|---|---|"]
         results = json.loads(path.read_text())
         cells = []
-        for agent, thesis in zip(("atlpo-mb", "mb-all"), THESIS_MB[(set_name, domain)], strict=True):
+        model_based, atlpo_mb = THESIS_MB[(set_name, domain)]
+        for agent, thesis in (("atlpo-mb", atlpo_mb), ("mb-all", model_based)):
             if agent not in results:
                 cells.append("not trained")
                 continue
