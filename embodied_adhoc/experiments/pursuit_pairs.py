@@ -40,8 +40,8 @@ ATPO_SOLVER = {"tolerance": 0.01, "stop": "gain", "time_limit": None, "max_itera
 """Perseus for ATPO / perseus: Table 5.4's tolerance 0.01 with Perseus's own stopping rule (the largest gain of a
 backup), 5000 beliefs (Table 5.2, the library's), at most 200 iterations and no time limit, so the policies, and
 every trial, do not depend on the machine's load (a time-limited solve did: two sessions of one sweep solved
-different policies). Task 0 converged in 76 iterations (45 s of CPU); a task that does not stops at 200 (about
-2 min of CPU). The policies are cached on disk."""
+different policies). Task 0 converged in 76 iterations (45 s of CPU on a loaded machine); task 2 had run more
+than 5 min of CPU without finishing when last measured. The policies are cached on disk."""
 
 
 class PursuitPairsSession:
