@@ -66,7 +66,16 @@ def close_sessions() -> None:
 
 def execute_job(job: TrialJob) -> TrialResult:
     session = open_session(job.domain, job.backend, job.options)
-    return run_trial(session, _env(job.domain, job.backend, job.options, job.max_steps), job)
+    env = _env(job.domain, job.backend, job.options, job.max_steps)
+    threads = getattr(session, "blas_threads", None)
+    if threads is None:
+        return run_trial(session, env, job)
+    from threadpoolctl import threadpool_limits
+
+    # A session that asks for it runs its trials with that many BLAS threads (chapter 5: one; its per-step
+    # products are small, and a multi-threaded BLAS only spins against the other processes on a shared machine).
+    with threadpool_limits(limits=threads, user_api="blas"):
+        return run_trial(session, env, job)
 
 
 def available_cpus() -> int:
