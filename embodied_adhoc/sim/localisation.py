@@ -254,8 +254,9 @@ class LikelihoodField:
         are mapped onto it)."""
         ix = ((x - self.origin[0]) * self._inverse).astype(np.intp)
         iy = ((y - self.origin[1]) * self._inverse).astype(np.intp)
-        np.clip(ix, 0, self.shape[0] - 1, out=ix)
-        np.clip(iy, 0, self.shape[1] - 1, out=iy)
+        # clamped with the ufuncs in place (np.clip's Python wrapper cost as much as the arithmetic at 250 x 30)
+        np.minimum(np.maximum(ix, 0, out=ix), self.shape[0] - 1, out=ix)
+        np.minimum(np.maximum(iy, 0, out=iy), self.shape[1] - 1, out=iy)
         return (self._coarse if coarse else self._flat).take(ix * self.shape[1] + iy)
 
     def sample_free(self, rng: np.random.Generator, count: int) -> np.ndarray:
@@ -296,7 +297,8 @@ class MonteCarloLocaliser:
         self.updates = 0
         self.mode = "lidar"
         self._estimate = (0.0, 0.0, 0.0)
-        self._covariance = np.zeros((3, 3))
+        self._covariance: np.ndarray | None = np.zeros((3, 3))
+        self._summarised: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._odometry_at_update = (0.0, 0.0, 0.0)
         self._odometry_now = (0.0, 0.0, 0.0)
         self._last_update_time = 0.0
@@ -374,9 +376,10 @@ class MonteCarloLocaliser:
         noise = self.rng.standard_normal((n, 3))
         sigma_trans = a3 * distance + a4 * turn
         sigma_rot = a1 * turn + a2 * distance
-        dx = delta[0] + sigma_trans * noise[:, 0]
-        dy = delta[1] + sigma_trans * noise[:, 1]
-        dyaw = delta[2] + sigma_rot * noise[:, 2]
+        # delta + sigma * noise, per column, as two whole-array operations (each per-column op cost ~1 us)
+        noise *= (sigma_trans, sigma_trans, sigma_rot)
+        noise += delta
+        dx, dy, dyaw = noise[:, 0], noise[:, 1], noise[:, 2]
         yaw = self.particles[:, 2]
         c, s = np.cos(yaw), np.sin(yaw)
         self.particles[:, 0] += c * dx - s * dy
@@ -395,8 +398,14 @@ class MonteCarloLocaliser:
     ) -> np.ndarray:
         """Sum over beams of the field's log-likelihood at each pose's beam end points, shape (P,)."""
         c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-        x = poses[:, 0, None] + c * local_x - s * local_y
-        y = poses[:, 1, None] + s * local_x + c * local_y
+        # (x0 + c lx) - s ly and (y0 + s lx) + c ly, evaluated in that order with two scratch arrays
+        x = np.multiply(c, local_x)
+        x += poses[:, 0, None]
+        scratch = np.multiply(s, local_y)
+        x -= scratch
+        y = np.multiply(s, local_x, out=scratch)
+        y += poses[:, 1, None]
+        y += c * local_y
         return self.field.lookup(x, y, coarse).sum(axis=1, dtype=np.float64)
 
     def _measure(self, scan: LidarScan, valid: np.ndarray, time: float) -> None:
@@ -447,7 +456,8 @@ class MonteCarloLocaliser:
 
     def _roughen(self) -> None:
         metres, radians = self.config.roughening
-        jitter = self.rng.standard_normal(self.particles.shape) * [metres, metres, radians]
+        jitter = self.rng.standard_normal(self.particles.shape)
+        jitter *= (metres, metres, radians)
         self.particles += jitter
         self.particles[:, 2] = _wrap(self.particles[:, 2])
 
@@ -469,9 +479,10 @@ class MonteCarloLocaliser:
         p = self.particles
         mean_yaw = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
         mean = np.array([float(w @ p[:, 0]), float(w @ p[:, 1]), mean_yaw])
-        diff = p - mean
-        diff[:, 2] = _wrap(diff[:, 2])
-        self._covariance = (diff * w[:, None]).T @ diff
+        # the covariance is read once per macro step at most, the mean at every update: computed when read, from
+        # a snapshot of this update's particles (the filter moves them in place)
+        self._covariance = None
+        self._summarised = (p.copy(), w, mean)
         self._estimate = (float(mean[0]), float(mean[1]), float(mean[2]))
 
     # ------------------------------------------------------------------------------------------ outputs
@@ -482,6 +493,11 @@ class MonteCarloLocaliser:
 
     @property
     def covariance(self) -> np.ndarray:
+        if self._covariance is None:
+            p, w, mean = self._summarised
+            diff = p - mean
+            diff[:, 2] = _wrap(diff[:, 2])
+            self._covariance = (diff * w[:, None]).T @ diff
         return self._covariance.copy()
 
     def status(self) -> LocaliserStatus:
