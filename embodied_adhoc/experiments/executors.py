@@ -12,10 +12,13 @@ the command.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import json
 import multiprocessing
 import os
 import signal
+import threading
 from collections.abc import Iterator, Sequence
 
 from embodied_adhoc.errors import ConfigError
@@ -129,12 +132,17 @@ def _execute_pool(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResul
         initializer=_worker_signals,
     )
     finished = False
+    queued = iter(jobs)
     try:
-        pending = {pool.submit(execute_job, job) for job in jobs}
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for future in done:
-                yield future.result()
+        with _signals_at_safe_points() as deliver_pending_signal:
+            # At most a few trials per worker in flight: ``wait`` locks every future it is given.
+            pending = {pool.submit(execute_job, job) for job in itertools.islice(queued, 4 * workers)}
+            while pending:
+                done, pending = wait(pending, timeout=0.2, return_when=FIRST_COMPLETED)
+                deliver_pending_signal()
+                pending |= {pool.submit(execute_job, job) for job in itertools.islice(queued, len(done))}
+                for future in done:
+                    yield future.result()
         finished = True
     finally:
         # Stopped early (interrupt, SIGTERM, a failed trial, the consumer closed us): what was yielded is kept;
@@ -142,6 +150,44 @@ def _execute_pool(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResul
         if not finished:
             _terminate_workers(pool)
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+@contextlib.contextmanager
+def _signals_at_safe_points():
+    """While the pool runs, SIGINT and SIGTERM only set a flag; the handler they would have run (KeyboardInterrupt,
+    the CLI's SIGTERM exception) runs when the loop calls the yielded function, between ``wait`` calls.
+
+    An exception raised inside ``concurrent.futures.wait`` can leave futures' locks held (it acquires them one by
+    one), and the pool's shutdown then waits forever for its manager thread, which needs those locks: a SIGTERM
+    test hung this way. Outside the main thread (no handlers can be set there) signals are left alone."""
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    received: list[tuple[int, object]] = []
+    previous = {number: signal.getsignal(number) for number in (signal.SIGINT, signal.SIGTERM)}
+
+    def remember(number, frame):
+        received.append((number, frame))
+
+    def deliver():
+        if received:
+            number, frame = received[0]
+            received.clear()
+            handler = previous[number]
+            if callable(handler):
+                handler(number, frame)
+            elif handler == signal.SIG_DFL:
+                signal.signal(number, signal.SIG_DFL)
+                os.kill(os.getpid(), number)
+
+    for number in previous:
+        signal.signal(number, remember)
+    try:
+        yield deliver
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+        deliver()
 
 
 def _worker_signals() -> None:
