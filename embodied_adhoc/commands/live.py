@@ -8,9 +8,10 @@ and writes the study log under ``--out`` (docs/live.md).
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
-from embodied_adhoc.commands.arguments import output_folder, seed
+from embodied_adhoc.commands.arguments import bounded, output_folder, positive_int, seed
 from embodied_adhoc.gl import choose_gl_platform
 
 AGENTS = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
@@ -32,14 +33,7 @@ def _port(text: str) -> int:
     return value
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number; give a number > 0") from None
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"{value} must be > 0")
-    return value
+POSITIVE = bounded(float, math.ulp(0.0), "a finite number > 0")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -82,20 +76,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     toxic.add_argument(
         "--speed",
-        type=_positive,
+        type=POSITIVE,
         default=1.0,
         help="simulated seconds per wall second (default 1: real time)",
     )
     toxic.add_argument(
         "--reply-timeout",
-        type=_positive,
+        type=POSITIVE,
         default=30.0,
         metavar="S",
         help="seconds the robot waits for an answer before it hears none (default 30)",
     )
-    toxic.add_argument("--max-steps", type=int, default=100, metavar="N", help="step cap (default 100)")
+    toxic.add_argument("--max-steps", type=positive_int, default=100, metavar="N", help="step cap (default 100)")
     toxic.add_argument(
-        "--stream-fps", type=_positive, default=10.0, help="frames per second sent to the page (default 10)"
+        "--stream-fps", type=POSITIVE, default=10.0, help="frames per second sent to the page (default 10)"
     )
     toxic.set_defaults(func=handle_toxic_waste)
     parser.set_defaults(_parser=parser)
@@ -103,12 +97,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def handle_toxic_waste(args: argparse.Namespace) -> int:
     choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
-    from embodied_adhoc.errors import ConfigError
     from embodied_adhoc.live.server import serve
     from embodied_adhoc.live.session import LiveSettings
 
-    if args.max_steps < 1:
-        raise ConfigError(f"--max-steps {args.max_steps}: give at least 1")
     settings = LiveSettings(
         agent=args.agent,
         seed=args.seed,
