@@ -30,6 +30,7 @@ class ArenaRecording(EpisodeObserver):
     the simulated time. ``hud`` lines listed in ``hud_keys`` are drawn on the video, then the time."""
 
     hud_keys: tuple[str, ...] = ()
+    outcomes: tuple[str, str] = ("success", "failure")  # what the end of an episode is called: (success, not)
 
     def __init__(self, config, view, backend, clock: Callable[[], float], labels: Sequence[str],
                  colours: Sequence[tuple[int, int, int]], name: str, files: dict[str, Path]):
@@ -69,6 +70,13 @@ class ArenaRecording(EpisodeObserver):
         if force or sim_time + 1e-9 >= self._next_camera:
             self.rerun.log_camera("overhead", frame)
             self._next_camera = sim_time + self._camera_period
+
+    def episode_finished(self, trace) -> None:
+        """The outcome in the log and on the last frame, held ``config.video_hold`` seconds in the video."""
+        outcome = self.outcomes[0] if trace.success else self.outcomes[1]
+        self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
+        self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
+        self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
 
     def _on_tick(self, _seconds_into_step: float) -> None:
         self._frame()

@@ -97,6 +97,7 @@ class _Metrics(EpisodeObserver):
 class _Recording(ArenaRecording):
     """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the foraging HUD
     and the library posterior."""
+    outcomes = ("apple foraged", "not foraged")
 
     hud_keys = ("action", "truth", "posterior", "posterior more")
 
@@ -147,11 +148,6 @@ class _Recording(ArenaRecording):
         self._posterior()
         self._frame(force=True)
 
-    def episode_finished(self, trace: EpisodeTrace) -> None:
-        outcome = "apple foraged" if trace.success else "not foraged"
-        self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
-        self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
-        self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
 
 
 

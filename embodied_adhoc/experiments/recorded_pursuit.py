@@ -82,6 +82,7 @@ class _Metrics(EpisodeObserver):
 
 class _Recording(ArenaRecording):
     """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the pursuit HUD."""
+    outcomes = ("captured", "not captured")
 
     hud_keys = ("action", "observed", "posterior")
 
@@ -126,11 +127,6 @@ class _Recording(ArenaRecording):
         self._posterior(record.task_posterior, record.info)
         self._frame(force=True)
 
-    def episode_finished(self, trace: EpisodeTrace) -> None:
-        outcome = "captured" if trace.success else "not captured"
-        self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
-        self.hud["action"] = f"{self.config.agent} | done after {trace.steps} steps: {outcome}"
-        self._frame(force=True, repeat=max(1, round(self.config.video_hold * self.config.video_fps)))
 
 
 
