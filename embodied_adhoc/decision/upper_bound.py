@@ -27,25 +27,44 @@ def fast_informed_bound(
 ) -> np.ndarray:
     """``Q_FIB`` (S, A), an upper bound of ``Q*`` of the POMDP at every stage of its iteration."""
     q_values = value_iteration(pomdp.as_mdp(), tolerance=tolerance).q_values.copy()
-    n_states, n_obs = pomdp.n_states, pomdp.n_observations
-    # Per action, the (Z*S x S) matrix of T(s, a, s') O(z | s', a) with rows (z, s).
-    stacked = []
-    for transition, observation in zip(pomdp.transitions, pomdp.observations, strict=True):
-        columns = observation.T.tocsr()  # (Z, S')
-        blocks = [transition.multiply(columns[z].toarray().ravel()[None, :]).tocsr() for z in range(n_obs)]
-        stacked.append(sp.vstack(blocks, format="csr"))
+    n_states = pomdp.n_states
+    # Per action, only the possible (s, z) pairs: the sparse (pairs x S') matrix of T(s, a, s') O(z | s', a)
+    # and the start state of each pair. Pairs with P(z | s, a) = 0 add max_a' 0 = 0 to the sum over z, so they
+    # are left out (a dense (Z, S, A) array per action took 11.6 s on overcooked's 1,730 identity observations).
+    joined = [_joint_rows(transition, observation) for transition, observation in zip(pomdp.transitions, pomdp.observations, strict=True)]
     gamma = pomdp.discount
     for _ in range(max_iterations):
         new = np.empty_like(q_values)
-        for action, matrix in enumerate(stacked):
-            projected = (matrix @ q_values).reshape(n_obs, n_states, -1)  # (Z, S, A')
-            new[:, action] = pomdp.rewards[:, action] + gamma * projected.max(axis=2).sum(axis=0)
+        for action, (matrix, starts) in enumerate(joined):
+            best = (matrix @ q_values).max(axis=1) if matrix.shape[0] else np.empty(0)  # max_a' per (s, z)
+            new[:, action] = pomdp.rewards[:, action] + gamma * np.bincount(starts, best, minlength=n_states)
         new = np.minimum(new, q_values)  # both are upper bounds; keep the tighter one (monotone anyway)
         change = float(np.max(q_values - new))
         q_values = new
         if change <= tolerance or (deadline is not None and time.perf_counter() > deadline):
             break
     return q_values
+
+
+def _joint_rows(transition: sp.csr_matrix, observation: sp.csr_matrix) -> tuple[sp.csr_matrix, np.ndarray]:
+    """``M[(s, z), s'] = T(s, s') O(z | s')`` on the pairs ``(s, z)`` with a nonzero row, sorted by ``(s, z)``,
+    and ``s`` of each row. Built from the nonzeros: each entry of T joined with the entries of O's row ``s'``."""
+    transition, observation = sp.csr_matrix(transition), sp.csr_matrix(observation)
+    transition.sort_indices()
+    transition.eliminate_zeros()
+    observation.eliminate_zeros()
+    n_states, n_obs = transition.shape[0], observation.shape[1]
+    starts = np.repeat(np.arange(n_states), np.diff(transition.indptr))
+    ends = transition.indices
+    counts = np.diff(observation.indptr)[ends]
+    owner = np.repeat(np.arange(len(ends)), counts)  # the T entry of each joined entry
+    offset = np.arange(int(counts.sum())) - np.repeat(np.cumsum(counts) - counts, counts)
+    position = observation.indptr[ends][owner] + offset
+    keys = starts[owner] * n_obs + observation.indices[position]
+    values = transition.data[owner] * observation.data[position]
+    pairs, rows = np.unique(keys, return_inverse=True)
+    matrix = sp.csr_matrix((values, (rows.ravel(), ends[owner])), shape=(len(pairs), n_states))
+    return matrix, pairs // n_obs
 
 
 class SawtoothBound:

@@ -100,6 +100,51 @@ def test_upper_bound_is_above_the_optimum_and_below_qmdp():
     assert np.all(bound.values(beliefs) >= exact.values(beliefs) - 1e-9)
 
 
+def _naive_fast_informed_bound(pomdp, tolerance=1e-6):
+    """The fast informed bound's operator written out densely over every (s, z) pair, iterated from Q*."""
+    from embodied_adhoc.decision.value_iteration import value_iteration
+
+    q_values = value_iteration(pomdp.as_mdp(), tolerance=tolerance).q_values.copy()
+    joint = [  # (S, Z, S'): T(s, a, s') O(z | s', a)
+        t.toarray()[:, None, :] * o.toarray().T[None, :, :] for t, o in zip(pomdp.transitions, pomdp.observations, strict=True)
+    ]
+    while True:
+        new = np.stack(
+            [pomdp.rewards[:, a] + pomdp.discount * (m @ q_values).max(axis=2).sum(axis=1) for a, m in enumerate(joint)],
+            axis=1,
+        )
+        new = np.minimum(new, q_values)
+        change, q_values = float(np.max(q_values - new)), new
+        if change <= tolerance:
+            return q_values
+
+
+def _identity_observation_pomdp(n_states=40, n_actions=3, seed=5):
+    """A random sparse model that observes its state (overcooked's structure: Z = S, O = I)."""
+    from embodied_adhoc.decision.models import POMDP
+
+    rng = np.random.default_rng(seed)
+    transitions = []
+    for _ in range(n_actions):
+        matrix = rng.random((n_states, n_states)) * (rng.random((n_states, n_states)) < 0.1)
+        matrix[np.arange(n_states), rng.integers(n_states, size=n_states)] += 0.5
+        transitions.append(matrix / matrix.sum(axis=1, keepdims=True))
+    return POMDP(
+        transitions,
+        rng.normal(size=(n_states, n_actions)),
+        0.95,
+        observations=[np.eye(n_states)] * n_actions,
+        initial_belief=np.full(n_states, 1.0 / n_states),
+    )
+
+
+@pytest.mark.parametrize("name", ["tiger.95.POMDP", "4x3.95.POMDP", "identity-observations"])
+def test_fast_informed_bound_equals_the_dense_operator(name):
+    """The sparse bound (only the possible (s, z) pairs) is the dense operator's fixed point, to rounding."""
+    pomdp = _identity_observation_pomdp() if name == "identity-observations" else _model(name)
+    np.testing.assert_allclose(fast_informed_bound(pomdp), _naive_fast_informed_bound(pomdp), rtol=0, atol=1e-10)
+
+
 def test_gap_closes_and_sets_converged_on_tiger():
     pomdp = _model("tiger.95.POMDP")
     policy = perseus(pomdp, PerseusConfig(n_beliefs=100, expand=True, precision=0.05, time_limit=30.0))
