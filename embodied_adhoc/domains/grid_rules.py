@@ -169,6 +169,8 @@ class GridRules:
         wanted, inside = self.normalise(cells[:, None, :] + MOVES[None, :4, :])
         # neighbours[flat cell, action] = flat index of the cell that move leads to, or -1 (a wall)
         self.neighbours = np.where(inside, wanted[..., 0] * config.cols + wanted[..., 1], -1)
+        self.all_cells, self.flat_cells = cells, np.arange(len(cells))
+        self.valid_target_cells = np.flatnonzero(self.target_cells_valid(cells))  # flat, ascending
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def normalise(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -204,11 +206,9 @@ class GridRules:
     # -- spawning ---------------------------------------------------------------------------------------------
     def sample_state(self, rng: np.random.Generator) -> GridState:
         """A random initial state: targets on valid cells, agents on the remaining free cells."""
-        cfg = self.config
-        all_cells = np.stack(np.divmod(np.arange(cfg.rows * cfg.cols), cfg.cols), axis=-1)
-        valid = np.flatnonzero(self.target_cells_valid(all_cells))
-        target_idx = rng.choice(valid, size=cfg.n_targets, replace=False)
-        free = np.setdiff1d(np.arange(cfg.rows * cfg.cols), target_idx)
+        cfg, all_cells = self.config, self.all_cells
+        target_idx = rng.choice(self.valid_target_cells, size=cfg.n_targets, replace=False)
+        free = np.delete(self.flat_cells, target_idx)  # the cells without a target, ascending
         agent_idx = rng.choice(free, size=cfg.n_agents, replace=False)
         if cfg.domain == "foraging":
             agent_levels = rng.integers(1, cfg.max_agent_level + 1, size=cfg.n_agents)

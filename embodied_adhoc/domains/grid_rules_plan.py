@@ -6,11 +6,17 @@ env consume their Generators identically.
 Cell sets are bitsets (bit ``row * cols + col``), one integer per (env, member): a breadth-first search then
 costs a few whole-array shifts per layer. Grids of up to 64 cells use ``uint64``; larger grids use Python
 integers in object arrays (the same code, slower).
+
+Batches of at least ``TABLE_MIN_BATCH`` envs on small grids (the training vector env) look the searches' answers
+up instead: :class:`MoveTable` holds the best first moves from every start to every goal around every blocked set
+that can occur (up to ``n_agents - 1 + n_targets`` cells), computed once per grid by the same layer-by-layer
+search. A search is a few array operations per layer and about ten layers, a lookup two operations.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 
 import numpy as np
 
@@ -119,6 +125,76 @@ def best_moves(cellbits: CellBits, neighbour_bits: np.ndarray, goal_bits: np.nda
     return cellbits.has(first_touch[..., None], neighbour_bits).astype(np.int64) @ MOVE_WEIGHTS
 
 
+TABLE_MIN_BATCH = 8  # smaller batches (the single envs) search; larger ones build and use a MoveTable
+TABLE_MAX_ENTRIES = 12_000_000  # (blocked sets x goals x starts) bytes a MoveTable may take
+
+
+class MoveTable:
+    """``codes[set, goal, start]``: the 4-bit code of :func:`best_moves` from ``start`` to ``goal`` around every
+    blocked set of at most ``max_blocked`` cells (sets sorted by bitset, found by binary search)."""
+
+    def __init__(self, cellbits: CellBits, max_blocked: int) -> None:
+        cells = cellbits.cells
+        sets = [c for k in range(max_blocked + 1) for c in itertools.combinations(range(cells), k)]
+        self.keys = np.sort(np.array([sum(1 << i for i in c) for c in sets], dtype=np.uint64))
+        goal_bits = cellbits.bit[:cells]
+        open_cells = (cellbits.full ^ self.keys)[:, None]  # (sets, 1)
+        reach = np.broadcast_to(goal_bits, (len(self.keys), cells)).copy()  # (sets, goals)
+        # distance[set, goal, cell]: search layers from the goal to the cell (cells: never reached)
+        distance = np.full((len(self.keys), cells, cells + 1), cells, dtype=np.uint8)
+        for layer in range(cells):
+            inside = (reach[..., None] & goal_bits) != cellbits.zero  # (sets, goals, cells)
+            distance[..., :cells] = np.where(inside & (distance[..., :cells] == cells), layer, distance[..., :cells])
+            grown = reach | (cellbits.expand(reach) & open_cells)
+            if (grown == reach).all():
+                break
+            reach = grown
+        around = distance[:, :, cellbits.neighbours]  # (sets, goals, starts, 4); a wall reads column -1: never
+        nearest = around.min(axis=-1, keepdims=True)
+        best = (around == nearest) & (nearest < cells)
+        self.codes = best.astype(np.uint8) @ MOVE_WEIGHTS.astype(np.uint8)  # 4-bit codes as bytes
+
+    @staticmethod
+    def fits(cellbits: CellBits, max_blocked: int) -> bool:
+        if cellbits.dtype is not np.uint64:
+            return False
+        sets = sum(math.comb(cellbits.cells, k) for k in range(max_blocked + 1))
+        return sets * cellbits.cells ** 2 <= TABLE_MAX_ENTRIES
+
+    def lookup(self, start: np.ndarray, goal: np.ndarray, blocked: np.ndarray) -> np.ndarray | None:
+        """Codes of the moves from ``start`` to ``goal`` (flat cells) around ``blocked`` (bitsets); None if
+        some blocked set is not in the table."""
+        index = np.minimum(np.searchsorted(self.keys, blocked), len(self.keys) - 1)
+        if not (self.keys[index] == blocked).all():
+            return None
+        return self.codes[index, goal, start].astype(np.int64)
+
+
+_MOVE_TABLES: dict = {}
+
+
+def move_table(cellbits: CellBits, max_blocked: int) -> MoveTable | None:
+    """The (cached, per grid shape and wrap) :class:`MoveTable`, or None where it would be too large."""
+    cfg = cellbits.rules.config
+    key = (cfg.rows, cfg.cols, cfg.toroidal, max_blocked)
+    if key not in _MOVE_TABLES:
+        _MOVE_TABLES[key] = MoveTable(cellbits, max_blocked) if MoveTable.fits(cellbits, max_blocked) else None
+    return _MOVE_TABLES[key]
+
+
+def first_moves(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, blocked: np.ndarray) -> np.ndarray:
+    """:func:`best_moves` from flat cells ``start`` to ``goal`` (B, N) around each of ``blocked`` (K, B, N)
+    bitsets, (K, B, N): looked up in the grid's :class:`MoveTable` for batches of at least
+    ``TABLE_MIN_BATCH`` envs where it fits, else searched."""
+    if len(start) >= TABLE_MIN_BATCH:
+        cfg = cellbits.rules.config
+        table = move_table(cellbits, cfg.n_agents - 1 + cfg.n_targets)
+        codes = None if table is None else table.lookup(start, goal, blocked)
+        if codes is not None:
+            return codes
+    return best_moves(cellbits, cellbits.neighbour_bits[start], cellbits.of(goal), blocked)
+
+
 def navigate(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, static: np.ndarray, obstacles: np.ndarray,
              free: np.ndarray, greedy_axis: np.ndarray, uniforms: np.ndarray, unstick: float = 0.25) -> np.ndarray:
     """(B, N) first move of a shortest path from each member's flat cell ``start`` to its flat ``goal``
@@ -134,7 +210,7 @@ def navigate(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, static: np
     static = static[:, None]
     # a teammate standing on the goal may still leave it; a live target on it may not
     blocked = (static | obstacles) & (cellbits.full ^ goal_bits) | (static & goal_bits)
-    fields = best_moves(cellbits, neighbour_bits, goal_bits, np.stack([blocked, np.broadcast_to(static, blocked.shape)]))
+    fields = first_moves(cellbits, start, goal, np.stack([blocked, np.broadcast_to(static, blocked.shape)]))
     open_step = cellbits.has(free[:, None, None], neighbour_bits).astype(np.int64) @ MOVE_WEIGHTS
     moves = np.where(fields[0] > 0, fields[0], fields[1]) & open_step
     count = MOVE_COUNT[moves]
@@ -177,3 +253,4 @@ def ring_goal(rules: GridRules, agents: np.ndarray, targets: np.ndarray, offsets
         cell, inside = rules.normalise(targets + r * offsets)
         goal = np.where((inside & (r <= start))[..., None], cell, goal)
     return goal
+

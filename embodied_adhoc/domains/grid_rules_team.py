@@ -78,7 +78,10 @@ class TeamPlanner:
 
     def __init__(self, rules: GridRules) -> None:
         self.rules, self.cellbits = rules, CellBits(rules)
-        self.orders = permutations_table(rules.config.n_agents)
+        n = rules.config.n_agents
+        self.orders = permutations_table(n)
+        self.lower = np.tril(np.ones((n, n), dtype=bool), -1)  # lower[i, j]: j < i
+        self.others = ~np.eye(n, dtype=bool)
         # step_to[cell, action]: the cell an action aims at (its own cell for INTERACT and into walls)
         cells = np.arange(len(rules.neighbours))
         self.step_to = np.concatenate([np.where(rules.neighbours >= 0, rules.neighbours, cells[:, None]),
@@ -127,7 +130,7 @@ class TeamPlanner:
             # greedy: the closest slot, skipping slots another agent already stands on
             slot_flat = self.slot_cell[target_flat[:, :, None], columns[:, None, :]]  # (B, member, slot)
             on_slot = start[:, None, :, None] == slot_flat[:, :, None, :]  # (B, member, agent, slot)
-            taken = np.any(on_slot & ~np.eye(n, dtype=bool)[None, :, :, None], axis=2)
+            taken = np.any(on_slot & self.others[None, :, :, None], axis=2)
             closest = np.argmin(self.cellbits.distance[start[:, :, None], slot_flat] + 1000 * taken, axis=-1)
             cost = self.cellbits.distance[start[:, None, :, None], slot_flat[:, :, None, :]]
             slot = np.where(teams.slot_closest[:, None], closest, assign_slots(cost, self.orders))
@@ -148,12 +151,11 @@ class TeamPlanner:
         equally short moves and let a blocked member sidestep at random (see :func:`navigate`).
         """
         rules, bits = self.rules, self.cellbits
-        n = batch.agents.shape[1]
+        lower = self.lower
         start = rules.flat(batch.agents)
         goal = self.goals(batch, offsets, interchangeable, teams)
         settled = goal == start  # (B, N)
-        lower = np.tril(np.ones((n, n), dtype=bool), -1)  # lower[i, j]: j < i
-        obstacle = (settled[:, None, :] | (lower[None] & ~teams.greedy[:, None, None])) & ~np.eye(n, dtype=bool)
+        obstacle = (settled[:, None, :] | (lower[None] & ~teams.greedy[:, None, None])) & self.others
         agent_bits = bits.of(start)  # (B, N)
         obstacles = bits.union(np.where(obstacle, agent_bits[:, None, :], bits.zero), axis=2)
         static = bits.union(np.where(batch.alive, bits.of(rules.flat(batch.targets)), bits.zero), axis=1)

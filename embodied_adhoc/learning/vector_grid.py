@@ -9,6 +9,13 @@ the scripted team, then two per prey in pursuit). The rules, the scripted teams 
 the observations are the single env's own batched implementation (:meth:`GridRules.plan_batch`,
 :class:`TeamPlanner`, :func:`egocentric_batch`), called once for all sub-envs instead of once per env.
 
+Speed: a sub-env's step uniforms are drawn ``DRAW_BLOCK`` steps at a time (one ``random`` call per sub-env every
+``DRAW_BLOCK`` steps instead of every step; a Generator's doubles come out the same however the calls split
+them). When a sub-env resets with part of its block unused, its Generator is put back where the single env's
+would be (the state before the block, then the used draws drawn again), so the reset draws what the single env
+draws. Every step plans all sub-envs at once, the resetting ones included (their results are discarded), which
+avoids gathering a sub-batch.
+
 Autoreset: gymnasium's default ``AutoresetMode.NEXT_STEP``. The step that ends an episode returns its last
 observation with ``terminated``/``truncated`` set; the next ``step`` ignores that sub-env's action, resets it and
 returns the first observation of the new episode with reward 0 and both flags False. ``truncated`` comes from
@@ -32,6 +39,7 @@ from embodied_adhoc.domains.grid_rules_team import TEAM_DRAWS, TeamTable, planne
 from embodied_adhoc.errors import ConfigError
 
 GRID_IDS = {"foraging": "EmbodiedAdhoc/ForagingGrid-v0", "pursuit": "EmbodiedAdhoc/PursuitGrid-v0"}
+DRAW_BLOCK = 16  # steps of uniforms drawn per sub-env at once
 
 
 class GridVectorEnv(gymnasium.vector.VectorEnv):
@@ -80,7 +88,13 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.needs_reset = np.zeros(num_envs, bool)
         self.rngs: list[np.random.Generator] = []
         self.observers = np.zeros((num_envs, 1), np.int64)
-        self._episode_tables = None
+        # the current episode's task offsets and team parameters per sub-env, rewritten row by row at resets
+        self.episode_offsets = self.offsets[self.task_index]
+        self.episode_teams = self.team_table.take(self.team_index)
+        # DRAW_BLOCK steps of uniforms per sub-env, how many of them are used and the Generator state before them
+        self.uniforms = np.zeros((num_envs, DRAW_BLOCK, self.draws))
+        self.used = np.full(num_envs, DRAW_BLOCK, np.int64)
+        self.block_states: list[dict | None] = [None] * num_envs
         # optional (task, team) pairs drawn per episode instead of the product tasks x teams; one extra draw
         # from the sub-env's Generator before the single env's own (the step-for-step match holds without it)
         self.environments = None if environments is None else [(int(t), str(m)) for t, m in environments]
@@ -92,7 +106,28 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
                     raise ConfigError(f"environments: ({task}, {team!r}) is not a task 1..{len(self.core.tasks)} "
                                       f"with a team of {sorted(self.core.teams)}")
 
+    def _rewind(self, index: int) -> None:
+        """Put sub-env ``index``'s Generator where the single env's is: after the used steps of its block."""
+        used = int(self.used[index])
+        if used < DRAW_BLOCK and self.block_states[index] is not None:
+            rng = self.rngs[index]
+            rng.bit_generator.state = self.block_states[index]
+            rng.random(used * self.draws)
+        self.used[index], self.block_states[index] = DRAW_BLOCK, None
+
+    def _draw(self, stepping: np.ndarray) -> np.ndarray:
+        """(num_envs, draws) this step's uniforms (rows of sub-envs not in ``stepping`` are stale, unused)."""
+        for index in np.flatnonzero(stepping & (self.used >= DRAW_BLOCK)).tolist():
+            rng = self.rngs[index]
+            self.block_states[index] = rng.bit_generator.state
+            self.uniforms[index] = rng.random((DRAW_BLOCK, self.draws))
+            self.used[index] = 0
+        uniforms = self.uniforms[np.arange(self.num_envs), np.minimum(self.used, DRAW_BLOCK - 1)]
+        self.used += stepping
+        return uniforms
+
     def _reset_one(self, index: int, options: dict | None) -> None:
+        self._rewind(index)
         if self.environments is not None:
             task, team = self.environments[int(self.rngs[index].integers(len(self.environments)))]
             options = {"task": task, "team": team, **(options or {})}
@@ -103,7 +138,9 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.team_index[index] = self.team_names.index(episode.team)
         self.steps[index] = 0
         self.needs_reset[index] = False
-        self._episode_tables = None  # the per-env task offsets and team parameters changed
+        self.episode_offsets[index] = self.offsets[self.task_index[index]]
+        for name in ("target", "slot_closest", "ring", "greedy"):
+            getattr(self.episode_teams, name)[index] = getattr(self.team_table, name)[self.team_index[index]]
 
     def _observations(self) -> np.ndarray:
         return egocentric_batch(self.rules, self.batch, self.observers, self.view)[:, 0]
@@ -123,6 +160,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
                 raise ConfigError(f"seed: {len(seeds)} seeds for {self.num_envs} sub-envs; give one each or an int")
         if not self.rngs or seed is not None:
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
+            self.used[:], self.block_states = DRAW_BLOCK, [None] * self.num_envs
         for index in range(self.num_envs):
             self._reset_one(index, options)
         return self._observations(), self._infos()
@@ -135,42 +173,34 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
             raise ConfigError(f"actions {actions.tolist()!r}: need {self.num_envs} integers in 0..4 "
                               "(up, down, left, right, interact)")
         resetting = self.needs_reset.copy()
-        stepping = np.flatnonzero(~resetting)
-        rewards = np.zeros(self.num_envs, np.float64)
-        terminated = np.zeros(self.num_envs, bool)
-        truncated = np.zeros(self.num_envs, bool)
-        if stepping.size:
-            self._step_batch(stepping, actions[stepping].astype(np.int64), rewards, terminated, truncated)
-        for index in np.flatnonzero(resetting):
-            self._reset_one(int(index), None)
-        return self._observations(), rewards, terminated, truncated, self._infos()
+        stepping = ~resetting
+        terminated, truncated = np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool)
+        if stepping.any():
+            self._step_batch(stepping, actions.astype(np.int64), terminated, truncated)
+        for index in np.flatnonzero(resetting).tolist():
+            self._reset_one(index, None)
+        return self._observations(), terminated.astype(np.float64), terminated, truncated, self._infos()
 
-    def _step_batch(self, idx: np.ndarray, actions: np.ndarray, rewards, terminated, truncated) -> None:
+    def _step_batch(self, stepping: np.ndarray, actions: np.ndarray, terminated, truncated) -> None:
+        """One step of every sub-env in ``stepping``; the others are planned too but keep their state."""
         cfg = self.rules.config
-        n = cfg.n_agents
-        uniforms = np.stack([self.rngs[i].random(self.draws) for i in idx.tolist()])  # same order as one env
-        team_uniforms = uniforms[:, :TEAM_DRAWS * n].reshape(len(idx), n, TEAM_DRAWS)
-        prey_uniforms = uniforms[:, TEAM_DRAWS * n:].reshape(len(idx), cfg.n_targets, 2) if self.rules.prey_draws() else None
-        full = idx.size == self.num_envs
-        b = self.batch
-        sub = b if full else GridBatch(b.agents[idx], b.agent_levels[idx], b.targets[idx], b.target_levels[idx],
-                                       b.alive[idx])
-        if full:
-            if self._episode_tables is None:
-                self._episode_tables = (self.offsets[self.task_index], self.team_table.take(self.team_index))
-            offsets, teams = self._episode_tables
-        else:
-            offsets, teams = self.offsets[self.task_index[idx]], self.team_table.take(self.team_index[idx])
-        team = self.planner.actions(sub, offsets, self.interchangeable, teams, team_uniforms)
-        joint = np.concatenate([actions[:, None], team[:, 1:]], axis=1)
-        plan = self.rules.plan_batch(sub, offsets, self.interchangeable, joint, prey_uniforms)
-        b.agents[idx], b.targets[idx] = plan.agents, plan.targets
-        b.alive[idx] = sub.alive & ~plan.completed
-        self.steps[idx] += 1
-        done = ~b.alive[idx].any(axis=1)
-        terminated[idx], rewards[idx] = done, done.astype(np.float64)
-        truncated[idx] = self.steps[idx] >= self.max_episode_steps
-        self.needs_reset[idx] = done | truncated[idx]
+        n, b = cfg.n_agents, self.batch
+        uniforms = self._draw(stepping)
+        team_uniforms = uniforms[:, :TEAM_DRAWS * n].reshape(self.num_envs, n, TEAM_DRAWS)
+        prey_uniforms = (uniforms[:, TEAM_DRAWS * n:].reshape(self.num_envs, cfg.n_targets, 2)
+                         if self.rules.prey_draws() else None)
+        offsets, teams = self.episode_offsets, self.episode_teams
+        team = self.planner.actions(b, offsets, self.interchangeable, teams, team_uniforms)
+        team[:, 0] = actions
+        plan = self.rules.plan_batch(b, offsets, self.interchangeable, team, prey_uniforms)
+        keep = ~stepping
+        b.agents[...] = np.where(keep[:, None, None], b.agents, plan.agents)
+        b.targets[...] = np.where(keep[:, None, None], b.targets, plan.targets)
+        b.alive &= keep[:, None] | ~plan.completed
+        self.steps += stepping
+        terminated |= stepping & ~b.alive.any(axis=1)
+        truncated |= stepping & (self.steps >= self.max_episode_steps)
+        self.needs_reset |= terminated | truncated
 
     def close_extras(self, **kwargs) -> None:
         self.core.backend.close()

@@ -91,3 +91,26 @@ def test_vector_env_matches_the_single_env_on_random_configurations(domain, rows
         actions = actions_rng.integers(0, 5, 4)
         for mine, theirs in zip(fast.step(actions)[:4], slow.step(actions)[:4], strict=True):
             assert np.array_equal(mine, theirs)
+
+
+@pytest.mark.parametrize("toroidal", [False, True])
+def test_move_table_answers_like_the_search(toroidal):
+    """The vector env's lookup table (MoveTable) gives the breadth-first search's moves for random starts, goals
+    and blocked sets of up to n_agents - 1 + n_targets cells (the single env searches; both must agree)."""
+    from embodied_adhoc.domains.grid_rules import GridConfig, GridRules
+    from embodied_adhoc.domains.grid_rules_plan import CellBits, best_moves, move_table
+
+    rules = GridRules(GridConfig(toroidal=toroidal))
+    bits = CellBits(rules)
+    table = move_table(bits, 4)
+    rng = np.random.default_rng(3)
+    start, goal = rng.integers(0, 25, (2, 300, 4))
+    cells = rng.integers(0, 26, (300, 4, 4))  # 25: no cell
+    cells[0, 0] = np.where(rules.neighbours[start[0, 0]] >= 0, rules.neighbours[start[0, 0]], 25)  # boxed in
+    goal[0, 0] = (start[0, 0] + 12) % 25
+    blocked = bits.union(bits.of(np.where(cells == 25, -1, cells)), axis=2)
+    searched = best_moves(bits, bits.neighbour_bits[start], bits.of(goal), blocked)
+    assert np.array_equal(table.lookup(start, goal, blocked), searched)
+    assert (searched > 0).mean() > 0.5 and (searched == 0).any()  # both reachable and walled-off goals occur
+    assert table.lookup(start, goal, blocked | bits.of(np.full_like(goal, 24)) | bits.of(np.full_like(goal, 23))
+                        | bits.of(np.full_like(goal, 22)) | bits.of(np.full_like(goal, 21))) is None  # > 4 cells
