@@ -1,6 +1,6 @@
 """Shared torch building blocks for agents that learn online from a stream of transitions (thesis chapter 4's
-team, transition, reward and DQN networks): a plain MLP, a fixed-capacity replay buffer of numpy columns sampled
-by a seeded ``Generator``, and one Adam step on a loss.
+team, transition, reward and DQN networks): a plain MLP, its numpy inference forward (:class:`NumpyMlp`), a
+fixed-capacity replay buffer of numpy columns sampled by a seeded ``Generator``, and one Adam step on a loss.
 
 Seeding: :func:`seeded_module` builds a network under ``torch.random.fork_rng`` with a seed drawn from the
 caller's numpy ``Generator``, so initial weights depend on that Generator only (not on torch's global state).
@@ -28,6 +28,42 @@ def mlp(inputs: int, hidden: int, layers: int, outputs: int) -> nn.Sequential:
         width = hidden
     modules.append(nn.Linear(width, outputs))
     return nn.Sequential(*modules)
+
+
+class NumpyMlp:
+    """Inference of an :func:`mlp` in numpy, for planners that evaluate a network thousands of times per second
+    on small batches (a UCT wave: about 100 rows), where torch's per-call dispatch costs as much as the maths.
+
+    The layers are numpy *views* of the module's parameters (no copy): torch's optimisers and
+    ``load_state_dict`` write parameters in place, so an Adam step is seen by the next call without any export.
+    ``module`` must be an :func:`mlp` (Linear and ReLU layers only) of float32 CPU tensors."""
+
+    def __init__(self, module: nn.Sequential) -> None:
+        self.layers: list[tuple[np.ndarray, np.ndarray]] = []
+        for layer in module:
+            if isinstance(layer, nn.Linear):
+                self.layers.append((layer.weight.detach().numpy().T, layer.bias.detach().numpy()))
+            elif not isinstance(layer, nn.ReLU):
+                raise ConfigError(f"NumpyMlp: layer {layer!r} is not Linear or ReLU; give a module built by mlp()")
+
+    def __call__(self, inputs: np.ndarray) -> np.ndarray:
+        """(B, inputs) float32 -> (B, outputs) float32 pre-activations of the output layer."""
+        hidden = inputs
+        last = len(self.layers) - 1
+        for i, (weight, bias) in enumerate(self.layers):
+            hidden = hidden @ weight
+            hidden += bias
+            if i < last:
+                np.maximum(hidden, 0.0, out=hidden)
+        return hidden
+
+
+def softmax(logits: np.ndarray) -> np.ndarray:
+    """Softmax over the last axis in float64 (probabilities that sum to 1 to within 1e-12)."""
+    shifted = logits.astype(np.float64) - logits.max(-1, keepdims=True)
+    np.exp(shifted, out=shifted)
+    shifted /= shifted.sum(-1, keepdims=True)
+    return shifted
 
 
 def seeded_module(build: Callable[[], nn.Module], rng: np.random.Generator) -> nn.Module:

@@ -12,7 +12,9 @@
   Table 4.2: transition 2 x 256 ReLU, Adam 0.001; reward 2 x 64 ReLU, Adam 0.01; team 2 x 48 ReLU, Adam 0.001;
   replay buffers of 15,000 samples, minibatches of 32.
 
-Models are evaluated in batches (all leaves of a UCT wave at once) with ``torch.no_grad``.
+Models are evaluated in batches (all leaves of a UCT wave at once, one forward per network per depth) by a
+numpy forward over views of the torch parameters (:class:`~embodied_adhoc.learning.blocks.NumpyMlp`): no torch
+dispatch and no autograd in the planner, and no weight export after an Adam step (measured in docs/teamster.md).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from torch import nn
 from torch.nn import functional as F
 
 from embodied_adhoc.domains.pursuit4 import N_ACTIONS, N_AGENTS, N_PREDATORS, PREY, Pursuit4
-from embodied_adhoc.learning.blocks import ReplayBuffer, adam_step, mlp, seeded_module
+from embodied_adhoc.learning.blocks import NumpyMlp, ReplayBuffer, adam_step, mlp, seeded_module, softmax
 from embodied_adhoc.learning.weights import load_into, save_weights
 
 CAPACITY = 15_000
@@ -36,9 +38,15 @@ _OTHERS = np.array([[m for m in range(N_AGENTS) if m != n] for n in range(N_AGEN
 class Features:
     """One-hot encodings of chapter-4 pursuit states for the networks (batched numpy)."""
 
+    n_agents, n_mates, n_actors = N_AGENTS, 3, N_PREDATORS  # state columns, teammates, agents that act
+    step_reward, goal_reward = 0.0, 1.0  # reward = step_reward + goal_reward * P(goal | x') (1 per capture)
+
     def __init__(self, world: Pursuit4) -> None:
         self.world, self.size = world, world.size
         self.offset_width = 4 * 2 * world.size
+        self.team_width = 3 + self.offset_width
+        self.transition_width = N_AGENTS + self.offset_width + N_ACTIONS + N_PREDATORS * N_ACTIONS
+        self.reward_width = self.agent_width = self.offset_width
         half = world.size // 2
         # (C, C, 2 * size) one-hot of the toroidal offset (rows then columns) from one cell to another
         eye = np.eye(world.size, dtype=np.float32)
@@ -86,24 +94,27 @@ class LearnedTeam:
     """A team model learned online by Eq. 4.1 (negative log-likelihood of the observed teammates' actions)."""
 
     def __init__(self, world: Pursuit4, rng: np.random.Generator, hidden: int = 48, lr: float = 1e-3,
-                 name: str = "online") -> None:
-        self.features, self.rng, self.hidden, self.lr, self.name = Features(world), rng, hidden, lr, name
+                 name: str = "online", features=None) -> None:
+        """``features``: the world's network encodings (default pursuit's :class:`Features`; the navigation
+        maps pass theirs, ``learning/teamster_navigation.py``)."""
+        self.features = features if features is not None else Features(world)
+        self.rng, self.hidden, self.lr, self.name = rng, hidden, lr, name
         self.frozen = False
         self.reset()
 
     def _network(self) -> nn.Module:
-        return mlp(3 + self.features.offset_width, self.hidden, 2, N_ACTIONS)
+        return mlp(self.features.team_width, self.hidden, 2, N_ACTIONS)
 
     def reset(self) -> None:
         self.net = seeded_module(self._network, self.rng)
-        self.optimiser = torch.optim.Adam(self.net.parameters(), lr=self.lr)
-        self.buffer = ReplayBuffer(CAPACITY, {"state": ((N_AGENTS,), np.int64), "mates": ((3,), np.int64)})
+        self.forward = NumpyMlp(self.net)
+        self.optimiser = torch.optim.Adam(self.net.parameters(), lr=self.lr, fused=True)
+        f = self.features
+        self.buffer = ReplayBuffer(CAPACITY, {"state": ((f.n_agents,), np.int64), "mates": ((f.n_mates,), np.int64)})
         self.steps = 0
 
     def probs(self, states: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            logits = self.net(torch.from_numpy(self.features.team(states)))
-        return torch.softmax(logits, -1).numpy().astype(np.float64).reshape(states.shape[0], 3, N_ACTIONS)
+        return softmax(self.forward(self.features.team(states))).reshape(states.shape[0], self.features.n_mates, N_ACTIONS)
 
     def update(self, state: np.ndarray, mates: np.ndarray) -> float | None:
         """Line 12 of Algorithm 1: store the sample, one Adam step of Eq. 4.1 on a minibatch."""
@@ -122,6 +133,7 @@ class LearnedTeam:
         copy.name, copy.frozen, copy.steps = name or self.name, True, self.steps
         copy.net = self._network()
         copy.net.load_state_dict(self.net.state_dict())
+        copy.forward = NumpyMlp(copy.net)
         copy.buffer, copy.optimiser = None, None
         return copy
 
@@ -137,26 +149,27 @@ class LearnedEnvironment:
     """TEAMSTER's environment model: factored transition network (Eq. 4.3) and reward network."""
 
     def __init__(self, world: Pursuit4, rng: np.random.Generator, transition_hidden: int = 256,
-                 reward_hidden: int = 64) -> None:
-        self.world, self.rng, self.features = world, rng, Features(world)
-        inputs = N_AGENTS + self.features.offset_width + N_ACTIONS + N_PREDATORS * N_ACTIONS
-        self.transition_net = seeded_module(lambda: mlp(inputs, transition_hidden, 2, N_ACTIONS), rng)
-        self.reward_net = seeded_module(lambda: mlp(self.features.offset_width, reward_hidden, 2, 1), rng)
-        self.transition_opt = torch.optim.Adam(self.transition_net.parameters(), lr=1e-3)
-        self.reward_opt = torch.optim.Adam(self.reward_net.parameters(), lr=1e-2)
-        self.buffer = ReplayBuffer(CAPACITY, {"state": ((N_AGENTS,), np.int64), "action": ((N_PREDATORS,), np.int64),
-                                              "next": ((N_AGENTS,), np.int64), "reward": ((), np.float32)})
+                 reward_hidden: int = 64, features=None) -> None:
+        self.world, self.rng = world, rng
+        self.features = f = features if features is not None else Features(world)
+        self.transition_net = seeded_module(lambda: mlp(f.transition_width, transition_hidden, 2, N_ACTIONS), rng)
+        self.reward_net = seeded_module(lambda: mlp(f.reward_width, reward_hidden, 2, 1), rng)
+        self.transition_forward, self.reward_forward = NumpyMlp(self.transition_net), NumpyMlp(self.reward_net)
+        # fused: torch's one-kernel CPU Adam (1.40 vs 1.77 ms CPU per transition-network step, measured)
+        self.transition_opt = torch.optim.Adam(self.transition_net.parameters(), lr=1e-3, fused=True)
+        self.reward_opt = torch.optim.Adam(self.reward_net.parameters(), lr=1e-2, fused=True)
+        self.buffer = ReplayBuffer(CAPACITY, {"state": ((f.n_agents,), np.int64), "action": ((f.n_actors,), np.int64),
+                                              "next": ((f.n_agents,), np.int64), "reward": ((), np.float32)})
         self.steps = 0
 
     def transition_probs(self, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """(B, 5, 5) ``p_n(move | x, a)`` for every agent n (each row sums to 1: Eq. 4.3's factors)."""
-        with torch.no_grad():
-            logits = self.transition_net(torch.from_numpy(self.features.transition(states, actions)))
-        return torch.softmax(logits.double(), -1).numpy().reshape(states.shape[0], N_AGENTS, N_ACTIONS)
+        logits = self.transition_forward(self.features.transition(states, actions))
+        return softmax(logits).reshape(states.shape[0], self.features.n_agents, N_ACTIONS)
 
     def capture_probability(self, states: np.ndarray) -> np.ndarray:
-        with torch.no_grad():
-            return torch.sigmoid(self.reward_net(torch.from_numpy(self.features.reward(states)))).numpy()[:, 0]
+        logit = self.reward_forward(self.features.reward(states))[:, 0].astype(np.float64)
+        return 1.0 / (1.0 + np.exp(-logit))
 
     def step(self, states: np.ndarray, joint_actions: np.ndarray, rng: np.random.Generator):
         """Sample each agent's move from its factor, then the predicted reward ``P(capture | x')`` (terminal
@@ -165,14 +178,14 @@ class LearnedEnvironment:
         cdf = np.cumsum(probs, -1)
         moves = np.minimum((rng.random(probs.shape[:-1])[..., None] * cdf[..., -1:] >= cdf).sum(-1), N_ACTIONS - 1)
         nxt = self.world.neighbours[states, moves]
-        reward = self.capture_probability(nxt).astype(np.float64)
-        return nxt, reward, reward > 0.5
+        goal = self.capture_probability(nxt).astype(np.float64)
+        return nxt, self.features.step_reward + self.features.goal_reward * goal, goal > 0.5
 
     def update(self, state, joint_action, reward, next_state, terminal) -> tuple[float, float] | None:
         """Line 11 of Algorithm 1: store the transition, one Adam step of each network on a minibatch."""
         if (self.features.move_of[state, next_state] < 0).any():
             return None  # not one step apart (cannot happen on the true rules; kept out of the data if fed)
-        self.buffer.add(state=state, action=joint_action, next=next_state, reward=reward)
+        self.buffer.add(state=state, action=joint_action, next=next_state, reward=float(terminal))
         self.steps += 1
         batch = self.buffer.sample(BATCH, self.rng)
         target = torch.from_numpy(self.features.move_of[batch["state"], batch["next"]].reshape(-1))

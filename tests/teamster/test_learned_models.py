@@ -9,6 +9,7 @@ import torch
 from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.domains.pursuit4 import TEAMS, Pursuit4
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.blocks import NumpyMlp
 from embodied_adhoc.learning.dqn import Dqn
 from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
 from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, run_trial
@@ -107,3 +108,22 @@ def test_protocol_records_and_same_seed_same_result():
         ProtocolConfig(steps=15, points=10)
     with pytest.raises(ConfigError, match="agent"):
         run_trial("oracle", 0, config)
+
+
+def test_numpy_inference_follows_the_torch_network_through_adam_steps():
+    """The planner's numpy forward reads the parameters in place: after training it still equals torch's."""
+    env = LearnedEnvironment(WORLD, np.random.default_rng(0))
+    states = WORLD.sample_states(np.random.default_rng(3), 6)
+    actions = np.random.default_rng(4).integers(0, 5, size=(6, 4))
+    before = env.transition_probs(states, actions)
+    for row in _stream("teammate-aware", 30):
+        env.update(*row)
+    after = env.transition_probs(states, actions)
+    assert not np.allclose(before, after)  # the Adam steps reached the numpy forward without an export
+    with torch.no_grad():
+        logits = env.transition_net(torch.from_numpy(Features(WORLD).transition(states, actions)))
+        capture = torch.sigmoid(env.reward_net(torch.from_numpy(Features(WORLD).reward(states))))[:, 0]
+    assert np.allclose(after, torch.softmax(logits.double(), -1).numpy().reshape(6, 5, 5), atol=1e-6)
+    assert np.allclose(env.capture_probability(states), capture.numpy(), atol=1e-6)
+    with pytest.raises(ConfigError, match="Linear or ReLU"):
+        NumpyMlp(torch.nn.Sequential(torch.nn.Linear(3, 3), torch.nn.Tanh()))
