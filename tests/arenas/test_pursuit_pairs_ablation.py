@@ -1,0 +1,54 @@
+"""The Fig. 7.12 ablation: the original experiment's model emulated, differing from ours only in its torus wrap."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from embodied_adhoc.envs.pursuit_pomdp import pursuit_pair_library
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.pursuit_pairs_ablation import ablation_steps, original_library, wrap_offsets
+
+
+def test_original_wrap_brings_far_offsets_one_cell_too_close():
+    d = np.arange(-5, 6)
+    assert wrap_offsets(d, 5, "modular").tolist() == [0, 1, 2, -2, -1, 0, 1, 2, -2, -1, 0]
+    # the original's toroidal_check: +3 -> -1 and +4 -> -2 (should be -2 and -1), -3 -> 1, -4 -> 2
+    assert wrap_offsets(d, 5, "original").tolist() == [0, 2, 1, -2, -1, 0, 1, 2, -1, -2, 0]
+    with pytest.raises(ConfigError, match="wrap='sideways'"):
+        wrap_offsets(d, 5, "sideways")
+
+
+def test_emulated_generator_with_the_modular_wrap_is_our_library():
+    """The emulation of the original's generator differs from our library only by the wrap: with the correct one it
+    rebuilds every transition matrix, reward and start distribution of all four tasks exactly."""
+    library = pursuit_pair_library()
+    rebuilt = original_library(library, "modular")
+    for ours, emulated in zip(library.pomdps, rebuilt.pomdps, strict=True):
+        for a in range(ours.n_actions):
+            assert abs(ours.transitions[a] - emulated.transitions[a]).max() == 0.0
+        np.testing.assert_array_equal(ours.rewards, emulated.rewards)
+        np.testing.assert_array_equal(ours.initial_belief, emulated.initial_belief)
+
+
+def test_original_wrap_adds_false_captures_and_keeps_stochastic_rows():
+    library = pursuit_pair_library()
+    original = original_library(library, "original", n_tasks=2)
+    assert original.task_names == library.task_names[:2] and original.n_models == 2
+    for pomdp, goals in zip(original_library(library, "original").pomdps, (4, 4, 8, 8), strict=True):
+        assert int((pomdp.rewards[:, 0] > 0).sum()) == goals  # ours: 2 per task
+        for matrix in pomdp.transitions:
+            np.testing.assert_allclose(np.asarray(matrix.sum(axis=1)).ravel(), 1.0)
+    with pytest.raises(ConfigError, match="n_tasks=5"):
+        original_library(library, "original", n_tasks=5)
+
+
+def test_ablation_steps_are_seeded_and_count_the_capture_reward_step():
+    library = original_library(pursuit_pair_library(), "original", n_tasks=2)
+    first = ablation_steps(library, ("oracle", "known-task"), episodes=4, seed=3)
+    again = ablation_steps(library, ("oracle", "known-task"), episodes=4, seed=3)
+    for agent in first:
+        np.testing.assert_array_equal(first[agent], again[agent])
+        assert first[agent].min() >= 2  # one move into the capture state, one step taken from it
+    with pytest.raises(ConfigError, match="atpo"):
+        ablation_steps(library, ("atpo",), episodes=1)
