@@ -23,18 +23,22 @@ from embodied_adhoc.experiments.pursuit_pairs_ablation import (
     ABLATION_AGENTS,
     ablation_steps,
     original_library,
+    with_locate,
 )
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.tables import format_table, p_value
 
-ROWS = (  # (label, torus wrap, tasks, HOTSPOT reward gain)
-    ("ours (Fig. 7.12 as built)", "modular", 4, "conditional"),
-    ("ours, 2 tasks (N+S, W+E)", "modular", 2, "conditional"),
-    ("original wrap, 4 tasks", "original", 4, "conditional"),
-    ("original wrap, 2 tasks", "original", 2, "conditional"),
-    ("original wrap, 2 tasks, gain 'thesis'", "original", 2, "thesis"),
-    ("original wrap, 2 tasks, gain 'none' (original code)", "original", 2, "none"),
+ROWS = (  # (label, torus wrap, tasks, "locate" action for HOTSPOT and known-task, HOTSPOT reward gain)
+    ("ours (Fig. 7.12 as built)", "modular", 4, False, "conditional"),
+    ("ours, 2 tasks (N+S, W+E)", "modular", 2, False, "conditional"),
+    ("original wrap, 4 tasks", "original", 4, False, "conditional"),
+    ("original wrap, 2 tasks", "original", 2, False, "conditional"),
+    ("original wrap, 2 tasks, + locate", "original", 2, True, "conditional"),
+    ("original wrap, 2 tasks, gain 'thesis'", "original", 2, False, "thesis"),
+    ("original wrap, 2 tasks, + locate, gain 'thesis'", "original", 2, True, "thesis"),
+    ("original wrap, 2 tasks, gain 'none' (original code)", "original", 2, False, "none"),
 )
+"""The original ran oracle and random on its 5-action models and TEBOPA / known task on the 6-action ones."""
 
 
 @dataclass(frozen=True)
@@ -61,9 +65,12 @@ def main() -> None:
         raise SystemExit(f"--episodes {args.episodes}: at least 2 (a standard deviation)")
     library = pursuit_pair_library()
     rows = []
-    for label, wrap, n_tasks, gain in ROWS:
+    for label, wrap, n_tasks, locate, gain in ROWS:
         variant = original_library(library, wrap, n_tasks)
         steps = ablation_steps(variant, ABLATION_AGENTS, args.episodes, args.seed, reward_gain=gain)
+        if locate:
+            steps.update(ablation_steps(with_locate(variant), ("known-task", "hotspot"), args.episodes, args.seed,
+                                        reward_gain=gain))
         row = [label]
         for agent in ABLATION_AGENTS:
             sample = steps[agent]

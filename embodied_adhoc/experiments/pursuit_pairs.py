@@ -13,8 +13,9 @@ Episode spec (drawn once per episode from ``(seed, episode)``, shared by every a
 Agents: ``hotspot`` (TEBOPA), ``known-task`` (HOTSPOT told the task), ``oracle`` (value iteration on the true
 task's MDP, sees the state), ``atpo`` (ATPO with Perseus policies, solved once and cached on disk by
 :mod:`embodied_adhoc.experiments.policy_cache`; settings :data:`ATPO_SOLVER`), ``bopa`` (sees
-the state), ``random``, and ``perseus``: the true task's Perseus policy on its belief (ATPO told the task), the
-thesis's own "known task, acting optimally under partial observability" of Fig. 7.12.
+the state), ``random``, and ``perseus``: the true task's Perseus policy on its belief (ATPO told the task). The
+thesis's "known task, acting optimally under partial observability" bar was, in the original code, TEBOPA given the
+true task's model alone, i.e. ``known-task``; ``perseus`` is that sentence read literally.
 
 The plug-in for ``trials pursuit`` is :data:`DOMAIN` (the grid-arena domain, extended): with ``--pairs`` and any
 of these agents (or ``--rules pomdp``) the sweep runs here; ``--pairs`` with the arena's own agents

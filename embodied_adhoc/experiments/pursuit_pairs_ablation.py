@@ -25,8 +25,9 @@ The thesis's Fig. 7.12 numbers are exactly the four result files of the original
   ``"conditional"``.
 
 The original's known-task agent is TEBOPA with a one-model library (the true task's), i.e. our HOTSPOT with a
-one-hot prior (the same plan up to the entropy of the task posterior, which is 0 either way), and it had a sixth
-"locate" action (the teammate's direction at any distance) that our library has not: not ablated here.
+one-hot prior. The original's models for TEBOPA and the known-task agent had a sixth action, "locate" (the stay
+move; the teammate read at any distance as its direction), which our library has not: :func:`with_locate` adds
+it (the thesis's |A_0| = 6).
 """
 
 from __future__ import annotations
@@ -39,9 +40,8 @@ import scipy.sparse as sp
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["ABLATION_AGENTS", "MODELS", "ablation_steps", "original_library", "wrap_offsets"]
+__all__ = ["ABLATION_AGENTS", "ablation_steps", "locate_observations", "original_library", "with_locate", "wrap_offsets"]
 
-MODELS = ("ours", "original")
 WRAPS = ("modular", "original")
 ABLATION_AGENTS = ("oracle", "known-task", "hotspot", "random")
 MOVES = np.array([(-1, 0), (1, 0), (0, -1), (0, 1), (0, 0)])  # the library's actions (row, column)
@@ -61,6 +61,54 @@ def wrap_offsets(values: np.ndarray, size: int, wrap: str) -> np.ndarray:
     if size % 2 == 0:
         wrapped = np.where((d < 0) & (np.abs(d) == half), half, wrapped)
     return np.where(np.abs(d) == size, 0, wrapped)
+
+
+def locate_observations(library) -> sp.csr_matrix:
+    """The original's sixth action "locate" (its ``comms`` models): the stay move, observed as after any action
+    except that the teammate is read at any distance as its direction (the sign of its offset, a cell of the 3x3
+    neighbourhood) w.p. ``1 - eps`` (else the agent's own cell, as a miss)."""
+    size = int(library.settings.get("size", 5))
+    half, eps = size // 2, float(library.noise)
+    absorbing = library.absorbing_state
+    rows, cols, probabilities = [], [], []
+    for state in range(absorbing):
+        mate, prey = divmod(state, size * size)
+        mate_offset = np.array(divmod(mate, size)) - half
+        prey_offset = np.array(divmod(prey, size)) - half
+        if (mate_offset == 0).all():
+            mate_reading = {4: 1.0}
+        else:
+            sign = np.sign(mate_offset)
+            mate_reading = {int(3 * (sign[0] + 1) + sign[1] + 1): 1.0 - eps, 4: eps}
+        if (prey_offset == 0).all() or np.abs(prey_offset).max() > 1:
+            prey_reading = {4: 1.0}
+        else:
+            prey_reading = {int(3 * (prey_offset[0] + 1) + prey_offset[1] + 1): 1.0 - eps, 4: eps}
+        for t, p_t in mate_reading.items():
+            for q, p_q in prey_reading.items():
+                rows.append(state)
+                cols.append(9 * t + q)
+                probabilities.append(p_t * p_q)
+    last = library.pomdps[0].observations[4].getrow(absorbing).tocoo()
+    rows += [absorbing] * last.nnz
+    cols += last.col.tolist()
+    probabilities += last.data.tolist()
+    matrix = sp.csr_matrix((probabilities, (rows, cols)), shape=(absorbing + 1, library.n_observations))
+    matrix.sum_duplicates()
+    return matrix
+
+
+def with_locate(library):
+    """``library`` with the original's "locate" action (:func:`locate_observations`) added to every model."""
+    from embodied_adhoc.decision.models import POMDP
+
+    observation = locate_observations(library)
+    pomdps = tuple(
+        POMDP(tuple(p.transitions) + (p.transitions[4],), np.hstack([p.rewards, p.rewards[:, 4:5]]), p.discount,
+              p.state_names, tuple(p.action_names) + ("locate",), tuple(p.observations) + (observation,),
+              p.initial_belief, p.observation_names)
+        for p in library.pomdps)
+    return dataclasses.replace(library, domain=f"{library.domain}-locate", pomdps=pomdps)
 
 
 def original_library(library, wrap: str = "original", n_tasks: int | None = None):

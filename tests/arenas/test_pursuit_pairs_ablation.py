@@ -7,7 +7,12 @@ import pytest
 
 from embodied_adhoc.envs.pursuit_pomdp import pursuit_pair_library
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.pursuit_pairs_ablation import ablation_steps, original_library, wrap_offsets
+from embodied_adhoc.experiments.pursuit_pairs_ablation import (
+    ablation_steps,
+    original_library,
+    with_locate,
+    wrap_offsets,
+)
 
 
 def test_original_wrap_brings_far_offsets_one_cell_too_close():
@@ -52,3 +57,17 @@ def test_ablation_steps_are_seeded_and_count_the_capture_reward_step():
         assert first[agent].min() >= 2  # one move into the capture state, one step taken from it
     with pytest.raises(ConfigError, match="atpo"):
         ablation_steps(library, ("atpo",), episodes=1)
+
+
+def test_locate_reads_the_teammate_direction_at_any_distance():
+    library = pursuit_pair_library()
+    located = with_locate(library)
+    pomdp = located.pomdps[0]
+    assert pomdp.n_actions == 6 and pomdp.action_names[-1] == "locate"
+    assert abs(pomdp.transitions[5] - pomdp.transitions[4]).max() == 0.0
+    np.testing.assert_allclose(np.asarray(pomdp.observations[5].sum(axis=1)).ravel(), 1.0)
+    # teammate two rows up and two columns right (out of view), prey far: read as "up-right" w.p. 1 - eps
+    state = ((-2 + 2) * 5 + (2 + 2)) * 25 + (2 + 2) * 5 + (2 + 2)
+    row = pomdp.observations[5].getrow(state).toarray().ravel()
+    assert row[9 * 2 + 4] == pytest.approx(1.0 - library.noise) and row[9 * 4 + 4] == pytest.approx(library.noise)
+    assert pomdp.observations[0].getrow(state).toarray().ravel()[9 * 4 + 4] == pytest.approx(1.0)  # unseen
