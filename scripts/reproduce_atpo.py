@@ -27,11 +27,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import stats
 
 from embodied_adhoc.experiments.chapter5 import CHAPTER5_AGENTS, TABLE_5_5_DOMAINS, sweep_config, table_agents
 from embodied_adhoc.experiments.runner import SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
+from embodied_adhoc.experiments.stats import welch_test_from_stats
 from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd, p_value
 
 DOMAINS = TABLE_5_5_DOMAINS
@@ -113,7 +113,9 @@ def sweep(args: Args, domain: str, library: dict, agents: tuple[str, ...], folde
     config = sweep_config(
         domain, library, agents, args.episodes, args.seed, args.solve_seconds, args.beliefs or None
     )
-    return run_sweep(config, out=args.out / folder, workers=args.workers, executor=args.executor, progress=True)
+    return run_sweep(
+        config, out=args.out / folder, workers=args.workers, executor=args.executor, progress=True
+    )
 
 
 def returns(result: SweepResult, agent: str) -> list[float]:
@@ -141,9 +143,7 @@ def table_5_5(results: dict[str, SweepResult], markdown: bool) -> str:
             thesis = THESIS[domain][k]
             p = math.nan
             if thesis is not None and " " not in label:
-                _, p = stats.ttest_ind_from_stats(
-                    sample.mean, sample.sd, sample.n, thesis[0], thesis[1], THESIS_TRIALS, equal_var=False
-                )
+                _, p = welch_test_from_stats(sample.mean, sample.sd, sample.n, *thesis, THESIS_TRIALS)
             thesis_text = "n/a" if thesis is None else f"{thesis[0]:.2f} ± {thesis[1]:.2f}"
             rows.append(
                 [

@@ -21,11 +21,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from scipy import stats
-
 from embodied_adhoc.experiments.runner import SweepConfig, SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
-from embodied_adhoc.experiments.stats import welch_test
+from embodied_adhoc.experiments.stats import welch_test, welch_test_from_stats
 from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd, p_value
 
 AGENTS = {"greedy": "value-iteration", "bopa": "bopa", "random": "random"}
@@ -83,8 +81,8 @@ def table(results: dict[tuple[int, str], SweepResult], markdown: bool) -> str:
         for label, agent in AGENTS.items():
             steps = summary[agent].steps
             thesis_mean, thesis_sd = THESIS[(size, label)][TEAMMATES.index(teammate)]
-            _, p = stats.ttest_ind_from_stats(
-                steps.mean - 1, steps.sd, steps.n, thesis_mean, thesis_sd, THESIS_TRIALS, equal_var=False
+            _, p = welch_test_from_stats(
+                steps.mean - 1, steps.sd, steps.n, thesis_mean, thesis_sd, THESIS_TRIALS
             )
             rows.append([
                 f"{size}x{size}", teammate, label, mean_sd(steps), interval(steps), fmt(steps.mean - 1),

@@ -18,13 +18,11 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from scipy import stats
-
 from embodied_adhoc.experiments.plots import plot_entropy, plot_settings, plot_steps
 from embodied_adhoc.experiments.registry import get_trial_domain
 from embodied_adhoc.experiments.runner import SweepConfig, SweepResult, run_sweep
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
-from embodied_adhoc.experiments.stats import welch_test
+from embodied_adhoc.experiments.stats import welch_test, welch_test_from_stats
 from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd, p_value
 
 AGENTS = ("hotspot", "known-task", "oracle", "random")
@@ -79,15 +77,7 @@ def comparison_table(results: dict[str, SweepResult], markdown: bool) -> str:
             thesis = THESIS.get((setting, name))
             p = math.nan
             if thesis:
-                _, p = stats.ttest_ind_from_stats(
-                    s.steps.mean + 1,
-                    s.steps.sd,
-                    s.steps.n,
-                    thesis[0],
-                    thesis[1],
-                    THESIS_TRIALS,
-                    equal_var=False,
-                )
+                _, p = welch_test_from_stats(s.steps.mean + 1, s.steps.sd, s.steps.n, *thesis, THESIS_TRIALS)
             rows.append([
                 setting, name, mean_sd(s.steps), interval(s.steps), fmt(s.steps.mean + 1) if thesis else "-", fmt(s.success_rate),
                 mean_sd(s.identify), fmt(s.final_entropy.mean),

@@ -239,7 +239,7 @@ class Chapter5Domain:
         group.add_argument(
             "--task", type=int, default=None, metavar="K", help="fix the true model to K (default: uniform)"
         )
-        if self.name not in ("panic-buttons", "power-plant"):  # panic buttons: --teammate picks the library's
+        if self.name != "panic-buttons":  # panic buttons: --teammate picks the library's
             group.add_argument(
                 "--teammate",
                 default=None,
@@ -280,7 +280,7 @@ class Chapter5Domain:
             "solve_seconds": args.solve_seconds,
             "cache": not args.no_cache,
         }
-        if self.name not in ("panic-buttons", "power-plant"):
+        if self.name != "panic-buttons":
             options["teammate"] = args.teammate
         session = self._session(options)
         n_models = session.library.n_models
@@ -366,6 +366,8 @@ _TEAMMATE_HELP = {
     ),
     "overcooked": "the library's four cooks: optimal; upper / lower: insists on the top / bottom counter w.p. "
     "0.9; random: uniform",
+    "power-plant": "optimal: the library's human, the MMDP's; random: uniform over its moves and stay; a "
+    "CALLABLE's S is the task's own states, 105 explore / 97 clean",
 }
 
 
@@ -390,12 +392,15 @@ def _named_teammate(name: str):
 
 def world_with_teammate(library, reference: str) -> tuple:
     """The library's models with the teammate replaced by ``reference``: a name of ``NAMED_TEAMMATES`` or
-    ``module:callable``, where ``CALLABLE(library, m)`` gives ``pi(b | x)`` (S x B) for model ``m``. Fig. 5.2's
-    reduction turns it into the world's transitions (same rewards, observations and start)."""
+    ``module:callable``, where ``CALLABLE(library, m)`` gives ``pi(b | x)`` (S x B, S the states of model ``m``'s
+    MMDP) for model ``m``. Fig. 5.2's reduction turns it into the world's transitions (same rewards, observations
+    and start). The power plant's tasks have their own state spaces (105 and 97 states): the reduction runs on the
+    task's own model, which is then padded as the library's is."""
     import importlib
 
     from embodied_adhoc.decision.models import POMDP
     from embodied_adhoc.domains.chapter5.library import reduce_joint
+    from embodied_adhoc.domains.chapter5.power_plant import pad_pomdp
 
     module_name, _, attribute = reference.partition(":")
     if reference in library.teammates:
@@ -417,7 +422,7 @@ def world_with_teammate(library, reference: str) -> tuple:
         except (ImportError, AttributeError) as error:
             raise ConfigError(f"--teammate {reference!r}: cannot import it ({error})") from None
     world = []
-    for m, pomdp in enumerate(library.pomdps):
+    for m, pomdp in enumerate(library.native_pomdps or library.pomdps):
         mmdp = library.mmdps[m]
         n_teammate = mmdp.n_actions // pomdp.n_actions
         policy = np.asarray(factory(library, m), dtype=np.float64)
@@ -433,18 +438,17 @@ def world_with_teammate(library, reference: str) -> tuple:
         joint = [
             [mmdp.transitions[a * n_teammate + b] for b in range(n_teammate)] for a in range(pomdp.n_actions)
         ]
-        world.append(
-            POMDP(
-                reduce_joint(joint, policy),
-                pomdp.rewards,
-                pomdp.discount,
-                pomdp.state_names,
-                pomdp.action_names,
-                pomdp.observations,
-                pomdp.initial_belief,
-                pomdp.observation_names,
-            )  # fmt: skip
-        )
+        model = POMDP(
+            reduce_joint(joint, policy),
+            pomdp.rewards,
+            pomdp.discount,
+            pomdp.state_names,
+            pomdp.action_names,
+            pomdp.observations,
+            pomdp.initial_belief,
+            pomdp.observation_names,
+        )  # fmt: skip
+        world.append(pad_pomdp(model, library.n_states))
     return tuple(world)
 
 
@@ -506,10 +510,12 @@ def sweep_config(
         "solve_seconds": solve_seconds,
         "cache": True,
     }
-    if domain_name not in ("panic-buttons", "power-plant"):
+    if domain_name != "panic-buttons":
         options["teammate"] = None
     agents = table_agents(domain_name) if agents is None else tuple(agents)
-    return SweepConfig(domain_name, "abstract", options, agents, episodes, seed, TABLE_5_2_HORIZON[domain_name])
+    return SweepConfig(
+        domain_name, "abstract", options, agents, episodes, seed, TABLE_5_2_HORIZON[domain_name]
+    )
 
 
 def forget_sessions() -> None:

@@ -135,7 +135,9 @@ def test_a_users_teammate_replaces_the_worlds(tmp_path, monkeypatch):
         assert all(names[y].endswith("-tr4c4") for y in row.indices)  # the teammate never moves
     with pytest.raises(ConfigError, match=r"my_teammates:broken: returned shape \(3, 5\)"):
         world_with_teammate(library, "my_teammates:broken")
-    with pytest.raises(ConfigError, match="unknown teammate of ntu; give one of optimal, random, or MODULE:CALLABLE"):
+    with pytest.raises(
+        ConfigError, match="unknown teammate of ntu; give one of optimal, random, or MODULE:CALLABLE"
+    ):
         world_with_teammate(library, "frozen")
     # named teammates: the optimal one is the library's own (maps), the random one moves uniformly
     optimal = world_with_teammate(library, "optimal")
@@ -168,6 +170,62 @@ def test_cli_map_domains_take_a_users_teammate(tmp_path):
     assert result.returncode == 2 and "--teammate 'nowhere:still': cannot import it" in result.stderr
 
 
+def test_power_plant_takes_a_world_teammate(tmp_path, monkeypatch):
+    import os
+
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.chapter5 import world_with_teammate
+
+    (tmp_path / "plant_humans.py").write_text(
+        "import numpy as np\n"
+        "def idle(library, model):  # the human always stays (its action 3), in the task's own states\n"
+        "    policy = np.zeros((library.mmdps[model].n_states, 4))\n"
+        "    policy[:, 3] = 1.0\n"
+        "    return policy\n"
+        "def padded(library, model):\n"
+        "    return np.full((library.n_states, 4), 0.25)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    plant = build_library("power-plant")  # explore (105 states) and clean (97, padded to 105)
+    optimal = world_with_teammate(plant, "optimal")  # the library's own human
+    assert all(_same_world(w, p) for w, p in zip(optimal, plant.pomdps, strict=True))
+    idle = world_with_teammate(plant, "plant_humans:idle")
+    assert [w.n_states for w in idle] == [105, 105]
+    for m, world in enumerate(idle):
+        names = plant.native_pomdps[m].state_names
+        for x, name in enumerate(names[:-1]):  # the human's room (h<k>) never changes
+            successors = {
+                names[y].split("-")[0][2:] for y in world.transitions[3][x].indices if y < len(names) - 1
+            }
+            assert successors <= {name.split("-")[0][2:]}
+        assert not _same_world(world, plant.pomdps[m])
+    random_world = world_with_teammate(plant, "random")
+    start = int(np.flatnonzero(plant.pomdps[0].initial_belief)[0])
+    assert len(random_world[0].transitions[3][start].indices) > len(
+        plant.pomdps[0].transitions[3][start].indices
+    )
+    with pytest.raises(
+        ConfigError, match=r"plant_humans:padded: returned shape \(105, 4\) for model 1; expected \(97, 4\)"
+    ):
+        world_with_teammate(plant, "plant_humans:padded")
+    env = {**os.environ, "PYTHONPATH": str(tmp_path), "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    result = _cli("power-plant", "--help", env=env)
+    assert result.returncode == 0 and "test): optimal, random (optimal: the library's human" in " ".join(
+        result.stdout.split()
+    )
+    result = _cli(
+        "power-plant", "--agents", "value-iteration", "--episodes", "2", "--teammate", "plant_humans:idle",
+        "--json", env=env,
+    )  # fmt: skip
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["config"]["options"]["teammate"] == "plant_humans:idle"
+    result = _cli("power-plant", "--episodes", "1", "--teammate", "lazy", env=env)
+    assert (
+        result.returncode == 2
+        and "unknown teammate of power-plant; give one of optimal, random" in result.stderr
+    )
+
+
 def test_policy_cache_key_covers_every_solver_module(tmp_path, monkeypatch):
     from embodied_adhoc.experiments import policy_cache
 
@@ -185,9 +243,7 @@ def test_policy_cache_key_covers_every_solver_module(tmp_path, monkeypatch):
 
 
 def _same_world(first, second) -> bool:
-    return all(
-        abs(a - b).max() < 1e-12 for a, b in zip(first.transitions, second.transitions, strict=True)
-    )
+    return all(abs(a - b).max() < 1e-12 for a, b in zip(first.transitions, second.transitions, strict=True))
 
 
 def test_named_world_teammates_are_the_domains_own_models():
@@ -210,7 +266,9 @@ def test_named_world_teammates_are_the_domains_own_models():
     small = grid.subset([2, 0])
     assert _same_world(world_with_teammate(small, "greedy")[0], grid.pomdps[2])
     assert build_library("ntu").teammates == {}
-    with pytest.raises(ConfigError, match="unknown teammate of overcooked; give one of optimal, upper, lower, random"):
+    with pytest.raises(
+        ConfigError, match="unknown teammate of overcooked; give one of optimal, upper, lower, random"
+    ):
         world_with_teammate(cooks, "stubborn")
 
 
@@ -235,12 +293,16 @@ def test_a_blind_perseus_policy_is_refused_and_not_cached(private_cache, monkeyp
 
     def timed_out(pomdp, config):  # what Perseus returns when its limit falls before the first stage
         solved.append(config.time_limit)
-        stats = SolverStats("perseus", iterations=0, seconds=config.time_limit, converged=False, residual=np.inf)
+        stats = SolverStats(
+            "perseus", iterations=0, seconds=config.time_limit, converged=False, residual=np.inf
+        )
         return AlphaVectorPolicy(np.zeros((1, pomdp.n_states)), np.zeros(1, dtype=np.int64), stats=stats)
 
     real = __import__("embodied_adhoc.decision.perseus", fromlist=["perseus"]).perseus
     monkeypatch.setattr("embodied_adhoc.decision.perseus.perseus", timed_out)
-    session = Chapter5Session("panic-buttons", {**_options(cache=True), "library": {"size": 3, "teammate": "optimal"}})
+    session = Chapter5Session(
+        "panic-buttons", {**_options(cache=True), "library": {"size": 3, "teammate": "optimal"}}
+    )
     with pytest.raises(ConfigError, match=r"before its first backup for model\(s\) .*raise --solve-seconds"):
         session.policies()
     assert len(solved) == 3 and not list(private_cache.rglob("*.npz"))

@@ -18,6 +18,7 @@ from embodied_adhoc.experiments.stats import (
     probability_of_improvement,
     summarise_sample,
     welch_test,
+    welch_test_from_stats,
 )
 
 
@@ -118,6 +119,26 @@ def test_welch_undefined_cases_are_nan():
     assert all(math.isnan(v) for v in welch_test([1], [2, 3]))
     t, p = welch_test([11, 11, 11, 11], [12, 14, 13, 15])  # one constant side is fine
     assert t < 0 and 0 < p < 0.05
+
+
+def test_welch_from_summary_statistics_matches_scipy():
+    # Table 5.5's gridworld ATPO row against the thesis's (mean, sd, n per side)
+    ours, thesis = (86.66, 7.09, 32), (86.53, 9.12, 32)
+    reference = stats.ttest_ind_from_stats(*ours, *thesis, equal_var=False)
+    assert welch_test_from_stats(*ours, *thesis) == pytest.approx((reference.statistic, reference.pvalue))
+    # unequal sizes and spreads: the same (t, p) as scipy's test on the samples themselves
+    a, b = [12, 13, 11, 14, 12, 15], [20, 25, 18, 30, 22]
+    from_samples = stats.ttest_ind(a, b, equal_var=False)
+    summary = (np.mean(a), np.std(a, ddof=1), 6, np.mean(b), np.std(b, ddof=1), 5)
+    assert welch_test_from_stats(*summary) == pytest.approx((from_samples.statistic, from_samples.pvalue))
+    t, p = welch_test_from_stats(98.0, 0.0, 32, 97.19, 0.53, 32)  # one constant side (value iteration on ntu)
+    assert t > 0 and p < 1e-6
+
+
+def test_welch_from_summary_statistics_undefined_cases_are_nan():
+    assert all(math.isnan(v) for v in welch_test_from_stats(98.0, 0.0, 32, 98.0, 0.0, 32))  # both constant
+    assert all(math.isnan(v) for v in welch_test_from_stats(5.0, 1.0, 1, 6.0, 1.0, 32))  # one value
+    assert all(math.isnan(v) for v in welch_test_from_stats(5.0, math.nan, 32, 6.0, 1.0, 32))
 
 
 def test_compare_pairs_covers_every_pair_in_order():
