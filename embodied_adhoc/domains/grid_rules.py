@@ -170,7 +170,8 @@ class GridRules:
         # neighbours[flat cell, action] = flat index of the cell that move leads to, or -1 (a wall)
         self.neighbours = np.where(inside, wanted[..., 0] * config.cols + wanted[..., 1], -1)
         self.all_cells, self.flat_cells = cells, np.arange(len(cells))
-        self.valid_target_cells = np.flatnonzero(self.target_cells_valid(cells))  # flat, ascending
+        self.target_cell_ok = self.target_cells_valid(cells)  # per flat cell
+        self.valid_target_cells = np.flatnonzero(self.target_cell_ok)  # flat, ascending
 
     # -- geometry ---------------------------------------------------------------------------------------------
     def normalise(self, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -280,8 +281,9 @@ class GridRules:
             stay = prey_uniforms[..., 0] < self.config.prey_stay_probability
             direction = np.minimum((prey_uniforms[..., 1] * 4).astype(np.int64), 3)
             moves = np.where((stay | ~alive)[..., None], 0, MOVES[direction])
-            wanted, _ = self.normalise(targets + moves)
-            moves = np.where(self.target_cells_valid(wanted)[..., None], moves, 0)
+            wanted, inside = self.normalise(targets + moves)
+            valid = inside & self.target_cell_ok[np.where(inside, self.flat(wanted), 0)]  # target_cells_valid
+            moves = np.where(valid[..., None], moves, 0)
             blocked = blocked.copy()
             blocked[np.arange(len(agents))[:, None], self.flat(agents)] = True
             targets = self.resolve_moves(targets, moves, blocked)

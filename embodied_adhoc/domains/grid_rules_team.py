@@ -119,12 +119,15 @@ class TeamPlanner:
         rules, agents = self.rules, batch.agents
         n = agents.shape[1]
         env = np.arange(len(agents))[:, None]
-        start = rules.flat(agents)
-        distance = self.cellbits.distance[start[:, :, None], rules.flat(batch.targets)[:, None, :]]  # (B, m, t)
-        cost = np.where(teams.target[:, None, None] == 0, distance, -batch.target_levels[:, None, :])
-        cost = np.where(teams.target[:, None, None] == 2, distance.sum(axis=1, keepdims=True), cost)
-        target = np.argmin(np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1)  # (B, N)
-        target_flat = rules.flat(batch.targets)[env, target]  # (B, N)
+        start, targets_flat = rules.flat(agents), rules.flat(batch.targets)
+        if targets_flat.shape[1] == 1:  # one apple/prey: every rule picks it
+            target_flat = np.broadcast_to(targets_flat, start.shape)
+        else:
+            distance = self.cellbits.distance[start[:, :, None], targets_flat[:, None, :]]  # (B, member, target)
+            cost = np.where(teams.target[:, None, None] == 0, distance, -batch.target_levels[:, None, :])
+            cost = np.where(teams.target[:, None, None] == 2, distance.sum(axis=1, keepdims=True), cost)
+            target = np.argmin(np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1)  # (B, N)
+            target_flat = targets_flat[env, target]  # (B, N)
         columns = self._offset_columns(offsets)  # (B, slot)
         if interchangeable:
             # greedy: the closest slot, skipping slots another agent already stands on
