@@ -1,5 +1,7 @@
 """``embodied-adhoc teamster DOMAIN``: the sequential-teams protocol of thesis section 4.1.4 (TEAMSTER and its
-baselines, chapter 4) on DOMAIN (pursuit: 5x5 toroidal, four predators, fully observable).
+baselines, chapter 4) on DOMAIN (pursuit: 5x5 toroidal, four predators; ntu, isr, pentagon: 4, 3, 3 agents
+leaving a facility by its exits, teams altruistic, selfish, weighted-altruistic, evaluated by the mean reward of
+``--eval-episodes`` episodes; all fully observable).
 
 Each agent is paired with the teammate-aware, greedy and probabilistic-destinations teams in turn for ``--steps``
 steps each, learning, evaluated (``--eval-steps`` steps, learning paused) before and after every 10 % of the
@@ -24,26 +26,31 @@ from embodied_adhoc.errors import ConfigError
 DEFAULT_AGENTS = AGENTS[:7]
 
 
-def _agents(text: str) -> list[str]:
+def _agents(text: str, domain: str = "pursuit") -> list[str]:
+    from embodied_adhoc.domains.navigation4 import TEAMS as NAVIGATION_TEAMS
+
+    allowed = AGENTS if domain == "pursuit" else DEFAULT_AGENTS + NAVIGATION_TEAMS
     names = [name.strip() for name in text.split(",") if name.strip()]
-    unknown = [name for name in names if name not in AGENTS]
+    unknown = [name for name in names if name not in allowed]
     if unknown or not names:
-        raise ConfigError(f"--agents {text!r}: unknown {', '.join(unknown) or '(none given)'}; choose from "
-                          f"{', '.join(AGENTS)}")
+        raise ConfigError(f"--agents {text!r}: unknown {', '.join(unknown) or '(none given)'} on {domain}; choose "
+                          f"from {', '.join(allowed)}")
     return list(dict.fromkeys(names))
 
 
 def handle(args: argparse.Namespace) -> int:
-    agents = _agents(args.agents)
+    agents = _agents(args.agents, args.domain)
     if args.steps % args.points:
         raise ConfigError(f"--steps {args.steps}: must be a multiple of --points {args.points}")
     if args.changed >= 1.0:
         raise ConfigError(f"--changed {args.changed}: a move-failure probability in [0, 1)")
     from embodied_adhoc.experiments.teamster import final_table, summarise, write_outputs
-    from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, run_trial
+    from embodied_adhoc.learning.teamster_protocol import TABLE_4_1, ProtocolConfig, run_trial
 
+    iterations, depth = TABLE_4_1[args.domain]
     config = ProtocolConfig(steps=args.steps, eval_steps=args.eval_steps, points=args.points,
-                            changed=args.changed, seed=args.seed, iterations=args.iterations, depth=args.depth)
+                            changed=args.changed, seed=args.seed, iterations=args.iterations or iterations,
+                            depth=args.depth or depth, domain=args.domain, eval_episodes=args.eval_episodes)
     out = args.out
     records = []
     jobs = [(agent, trial) for agent in agents for trial in range(args.trials)]
@@ -85,19 +92,25 @@ def handle(args: argparse.Namespace) -> int:
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("teamster", help="chapter 4: TEAMSTER, PLASTIC-Model/-Policy, sequential teams",
                                    description=__doc__)
-    parser.add_argument("domain", choices=("pursuit",), help="pursuit (the navigation maps are not built yet)")
+    parser.add_argument("domain", choices=("pursuit", "ntu", "isr", "pentagon"),
+                        help="pursuit (5x5, 4 predators) or a navigation map (ntu, isr, pentagon)")
     parser.add_argument("--agents", default=",".join(DEFAULT_AGENTS), metavar="A,B,...",
                         help=f"comma-separated from {{{', '.join(AGENTS)}}} (default {','.join(DEFAULT_AGENTS)})")
     parser.add_argument("--steps", type=positive_int, default=5000,
                         help="interaction steps per team, a multiple of --points (default 5000)")
     parser.add_argument("--trials", type=positive_int, default=8, help="trials per agent (default 8)")
-    parser.add_argument("--eval-steps", type=positive_int, default=500, help="steps per evaluation (default 500)")
+    parser.add_argument("--eval-steps", type=positive_int, default=500,
+                        help="pursuit: steps per evaluation (default 500)")
+    parser.add_argument("--eval-episodes", type=positive_int, default=8,
+                        help="navigation: episodes (of at most 100 steps) per evaluation (default 8)")
     parser.add_argument("--points", type=positive_int, default=10,
                         help="evaluations per interaction (default 10: every 10 %%)")
     parser.add_argument("--changed", type=bounded(float, 0.0, "a probability in [0, 1)"), default=0.0,
                         help="add the changed-environment phase: predator moves fail with this probability")
-    parser.add_argument("--iterations", type=positive_int, default=100, help="UCT iterations (Table 4.1: 100)")
-    parser.add_argument("--depth", type=positive_int, default=5, help="UCT rollout depth (Table 4.1: 5)")
+    parser.add_argument("--iterations", type=positive_int, default=None,
+                        help="UCT iterations (default Table 4.1's: pursuit and ntu 100, isr and pentagon 300)")
+    parser.add_argument("--depth", type=positive_int, default=None,
+                        help="UCT rollout depth (default Table 4.1's: pursuit 5, ntu 10, isr 50, pentagon 25)")
     parser.add_argument("--seed", type=seed, default=0, help="seed, >= 0 (default 0)")
     parser.add_argument("--out", type=output_folder, default=None, metavar="DIR",
                         help="store (and resume) the trials in DIR, with summary.json, table.md, curves.png")

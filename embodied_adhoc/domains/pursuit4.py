@@ -52,6 +52,7 @@ class Pursuit4:
 
     size: int = 5
     slip: float = 0.0  # the changed environment: each predator's move fails (it stays) with this probability
+    teams = TEAMS
 
     def __post_init__(self) -> None:
         if not isinstance(self.size, int) or self.size < 3:
@@ -166,21 +167,8 @@ class Pursuit4:
         return np.where(total > 0, moves / np.maximum(total, 1), self.good_moves[mine, dest])
 
     def path_lengths(self, goals: np.ndarray, blocked: np.ndarray) -> np.ndarray:
-        """(R, C) breadth-first path lengths to ``goals`` (R,) through cells not ``blocked`` (R, C); the goal
-        counts as reachable; unreachable cells get ``C`` (longer than any path)."""
-        rows = np.arange(goals.size)
-        big = self.cells
-        field = np.full((goals.size, self.cells), big, dtype=np.int64)
-        field[rows, goals] = 0
-        passable = ~blocked
-        passable[rows, goals] = True
-        neighbours = self.neighbours[:, :4]
-        for _ in range(self.cells):
-            grown = np.where(passable, np.minimum(field, field[:, neighbours].min(-1) + 1), big)
-            if (grown == field).all():
-                break
-            field = grown
-        return field
+        """(R, C) breadth-first path lengths to ``goals`` (R,) through cells not ``blocked`` (R, C)."""
+        return path_lengths(self.neighbours, goals, blocked)
 
     def _probabilistic_destinations(self, states: np.ndarray) -> np.ndarray:
         count = states.shape[0]
@@ -198,12 +186,32 @@ class Pursuit4:
         return out
 
 
-class ExactTeam:
-    """The exact team model of one team (PLASTIC-Model's library entry): ``probs`` for the teammates 1-3."""
+def path_lengths(neighbours: np.ndarray, goals: np.ndarray, blocked: np.ndarray) -> np.ndarray:
+    """(R, C) breadth-first path lengths to ``goals`` (R,) on the cell graph ``neighbours`` (C, 5: the cell each
+    action leads to) through cells not ``blocked`` (R, C); the goal counts as reachable; unreachable cells get
+    ``C`` (longer than any path). Shared by pursuit's teammate-aware team and the navigation teams."""
+    cells = neighbours.shape[0]
+    rows = np.arange(goals.size)
+    field = np.full((goals.size, cells), cells, dtype=np.int64)
+    field[rows, goals] = 0
+    passable = ~blocked
+    passable[rows, goals] = True
+    step = neighbours[:, :4]
+    for _ in range(cells):
+        grown = np.where(passable, np.minimum(field, field[:, step].min(-1) + 1), cells)
+        if (grown == field).all():
+            break
+        field = grown
+    return field
 
-    def __init__(self, world: Pursuit4, team: str) -> None:
-        if team not in TEAMS:
-            raise ConfigError(f"team={team!r}: choose one of {', '.join(TEAMS)}")
+
+class ExactTeam:
+    """The exact team model of one team (PLASTIC-Model's library entry): ``probs`` for the teammates (1-3 on
+    pursuit); any chapter-4 world with ``teams`` and ``team_policy`` (pursuit, the navigation maps)."""
+
+    def __init__(self, world, team: str) -> None:
+        if team not in world.teams:
+            raise ConfigError(f"team={team!r}: choose one of {', '.join(world.teams)}")
         self.world, self.team, self.name = world, team, team
 
     def probs(self, states: np.ndarray) -> np.ndarray:

@@ -1,5 +1,6 @@
 """Summaries of the chapter-4 sequential-teams protocol (records of ``learning/teamster_protocol.py``): per
-agent and team the accumulated reward (prey captures) at each evaluation point with percentile-bootstrap CIs over
+agent and team the accumulated reward (prey captures on pursuit; the mean episode reward on the navigation
+maps, Tables 4.5-4.7) at each evaluation point with percentile-bootstrap CIs over
 trials, the after-learning matrix of Table 4.4, the changed-environment curve, captures per 500 steps, the
 learning-curve figure (Fig. 4.7's layout) and the text table. No torch here: records are plain JSON.
 """
@@ -38,30 +39,42 @@ def load_records(folder: str | Path) -> list[dict]:
 
 
 def summarise(records: list[dict]) -> dict:
-    """The JSON summary: per agent, per team, curve points {step, captures (mean, CI), per 500}, the
-    after-learning matrix and the changed-environment curve."""
+    """The JSON summary: per agent, per team, curve points {step, captures (mean, CI), per 500} on pursuit or
+    {step, reward (mean episode reward: mean, CI)} on a navigation map, the after-learning matrix and the
+    changed-environment curve; ``metric`` names the key the tables and figure read."""
     out: dict = {}
     for agent in dict.fromkeys(r["agent"] for r in records):
         mine = [r for r in records if r["agent"] == agent]
         eval_steps = mine[0]["config"]["eval_steps"]
+        navigation = mine[0]["config"].get("domain", "pursuit") != "pursuit"
         scale = PER / eval_steps
-        entry: dict = {"trials": len(mine), "eval_steps": eval_steps, "curves": {}, "after": {}}
+
+        def cells(values, scale=scale, navigation=navigation) -> dict:
+            if navigation:
+                return {"reward": _cell(values, 1.0)}
+            return {"captures": _cell(values, 1.0), "per_500": _cell(values, scale)}
+
+        entry: dict = {"trials": len(mine), "eval_steps": eval_steps, "curves": {}, "after": {},
+                       "metric": "reward" if navigation else "per_500"}
         for team in mine[0]["curves"]:
             points = np.array([[c for _, c in r["curves"][team]] for r in mine])
             steps = [s for s, _ in mine[0]["curves"][team]]
-            entry["curves"][team] = [{"step": s, "captures": _cell(points[:, i], 1.0),
-                                      "per_500": _cell(points[:, i], scale)} for i, s in enumerate(steps)]
+            entry["curves"][team] = [{"step": s, **cells(points[:, i])} for i, s in enumerate(steps)]
         for learned in mine[0]["after"]:
-            entry["after"][learned] = {team: {"captures": _cell([r["after"][learned][team] for r in mine], 1.0),
-                                              "per_500": _cell([r["after"][learned][team] for r in mine], scale)}
+            entry["after"][learned] = {team: cells([r["after"][learned][team] for r in mine])
                                        for team in mine[0]["after"][learned]}
         if "changed" in mine[0]:
             points = np.array([[c for _, c in r["changed"]] for r in mine])
-            entry["changed"] = [{"step": s, "per_500": _cell(points[:, i], scale)}
+            entry["changed"] = [{"step": s, entry["metric"]: cells(points[:, i])[entry["metric"]]}
                                 for i, (s, _) in enumerate(mine[0]["changed"])]
         entry["seconds"] = float(np.mean([r.get("seconds", np.nan) for r in mine]))
         out[agent] = entry
     return out
+
+
+def _metric(entry: dict) -> str:
+    """The summary key of an agent's evaluations: ``per_500`` (pursuit captures) or ``reward`` (navigation)."""
+    return entry.get("metric", "per_500")
 
 
 def _fmt(cell: dict) -> str:
@@ -78,15 +91,15 @@ def after_table(summary: dict, markdown: bool = False) -> str:
     rows = []
     for agent, entry in summary.items():
         for learned, evals in entry["after"].items():
-            rows.append([agent, learned] + [_fmt(evals[team]["per_500"]) for team in teams])
+            rows.append([agent, learned] + [_fmt(evals[team][_metric(entry)]) for team in teams])
     return format_table(["agent", "after learning"] + [f"eval {t}" for t in teams], rows, markdown)
 
 
 def final_table(summary: dict, markdown: bool = False) -> str:
     """One row per agent: captures per 500 steps at the end of each team's interaction."""
     teams = next(iter(summary.values()))["curves"]
-    rows = [[agent] + [_fmt(entry["curves"][t][-1]["per_500"]) for t in teams]
-            + ([_fmt(entry["changed"][-1]["per_500"])] if "changed" in entry else [])
+    rows = [[agent] + [_fmt(entry["curves"][t][-1][_metric(entry)]) for t in teams]
+            + ([_fmt(entry["changed"][-1][_metric(entry)])] if "changed" in entry else [])
             + [f"{entry['seconds']:.0f}"] for agent, entry in summary.items()]
     changed = ["changed env"] if any("changed" in e for e in summary.values()) else []
     return format_table(["agent"] + [f"end of {t}" for t in teams] + changed + ["s/trial"], rows, markdown)
@@ -101,15 +114,17 @@ def plot_curves(summary: dict, path: str | Path) -> Path:
         for agent, entry in summary.items():
             points = entry["curves"][team]
             x = [p["step"] for p in points]
-            mean = np.array([p["per_500"]["mean"] for p in points])
-            low = np.array([p["per_500"]["ci"][0] for p in points])
-            high = np.array([p["per_500"]["ci"][1] for p in points])
+            key = _metric(entry)
+            mean = np.array([p[key]["mean"] for p in points])
+            low = np.array([p[key]["ci"][0] for p in points])
+            high = np.array([p[key]["ci"][1] for p in points])
             axis.plot(x, mean, label=agent)
             if not np.isnan(low).all():
                 axis.fill_between(x, low, high, alpha=0.2)
         axis.set_title(team)
         axis.set_xlabel("interaction steps")
-    np.atleast_1d(axes)[0].set_ylabel("prey captures per 500 steps")
+    navigation = _metric(next(iter(summary.values()))) == "reward"
+    np.atleast_1d(axes)[0].set_ylabel("accumulated episode reward" if navigation else "prey captures per 500 steps")
     np.atleast_1d(axes)[-1].legend(fontsize=7)
     return _save(figure, Path(path))
 

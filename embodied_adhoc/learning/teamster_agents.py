@@ -30,10 +30,11 @@ from embodied_adhoc.decision.agents.teamwork import (
     TeamTracking,
 )
 from embodied_adhoc.decision.uct import UctConfig
-from embodied_adhoc.domains.pursuit4 import N_ACTIONS, TEAMS, ExactEnvironment, ExactTeam, Pursuit4
+from embodied_adhoc.domains.pursuit4 import N_ACTIONS, ExactEnvironment, ExactTeam, Pursuit4
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.dqn import Dqn, DqnConfig
-from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
+from embodied_adhoc.learning.teamster import LearnedEnvironment, LearnedTeam
+from embodied_adhoc.learning.teamster_navigation import dqn_config, features_for
 
 AGENTS = CHAPTER4_AGENTS  # its last three are the teams' own policies (TEAMS) in the ad hoc seat
 
@@ -45,14 +46,14 @@ class PlasticPolicy(TeamTracking):
     def __init__(self, world: Pursuit4, rng: np.random.Generator, horizon: int, eta: float = 0.1,
                  rule: str = "plastic", config: DqnConfig | None = None) -> None:
         self.name, self.world, self.rng, self.horizon = "plastic-policy", world, rng, horizon
-        self.features = Features(world)
+        self.features = features_for(world)
         self.eta, self.rule, self.config = eta, rule, config
         self.library: list[tuple[LearnedTeam, Dqn]] = []
-        self.online = LearnedTeam(world, rng)
+        self.online = LearnedTeam(world, rng, features=self.features)
         self.dqn = self._new_dqn()
 
     def _new_dqn(self) -> Dqn:
-        return Dqn(self.features.offset_width, N_ACTIONS, self.rng, self.config, decay_steps=self.horizon)
+        return Dqn(self.features.agent_width, N_ACTIONS, self.rng, self.config, decay_steps=self.horizon)
 
     @property
     def pairs(self) -> list[tuple[LearnedTeam, Dqn]]:
@@ -85,26 +86,29 @@ class PlasticPolicy(TeamTracking):
 
     def finish_team(self, team: str) -> None:
         self.library.append((self.online.frozen_copy(name=team), self.dqn))
-        self.online = LearnedTeam(self.world, self.rng)
+        self.online = LearnedTeam(self.world, self.rng, features=self.features)
 
 
 def build_agent(name: str, world: Pursuit4, rng: np.random.Generator, horizon: int,
                 uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic"):
-    """A fresh agent ``name`` (see the module table); ``horizon`` is the interaction length per team (the
-    DQN's epsilon decays over it)."""
-    exact = {team: ExactTeam(world, team) for team in TEAMS}
+    """A fresh agent ``name`` (see the module table) for ``world`` (pursuit or a navigation map: its teams,
+    exact models and network encodings); ``horizon`` is the interaction length per team (the DQN's epsilon
+    decays over it)."""
+    exact = {team: ExactTeam(world, team) for team in world.teams}
     if name in MODEL_BASED:
         learned_env = name in ("teamster", "learns-environment")
-        environment = LearnedEnvironment(world, rng) if learned_env else ExactEnvironment(world)
+        features = features_for(world)
+        environment = LearnedEnvironment(world, rng, features=features) if learned_env else ExactEnvironment(world)
         exact_library = exact if name in ("plastic-model", "learns-environment") else None
-        return ModelBasedAgent(name, environment, LearnedTeam(world, rng), exact_library, uct, eta, rule)
+        return ModelBasedAgent(name, environment, LearnedTeam(world, rng, features=features), exact_library, uct,
+                               eta, rule)
     if name == "plastic-policy":
-        return PlasticPolicy(world, rng, horizon, eta, rule)
+        return PlasticPolicy(world, rng, horizon, eta, rule, dqn_config(world, horizon))
     if name == "random":
         return RandomAgent(N_ACTIONS)
     policies = {team: model.seat for team, model in exact.items()}
     if name == "original":
         return OriginalTeammate(policies)
-    if name in TEAMS:
+    if name in world.teams:
         return OriginalTeammate(policies, name=name, fixed=name)
-    raise ConfigError(f"agent {name!r}: choose from {', '.join(AGENTS)}")
+    raise ConfigError(f"agent {name!r}: choose from {', '.join(AGENTS[:7] + tuple(world.teams))}")

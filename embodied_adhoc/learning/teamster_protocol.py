@@ -11,18 +11,23 @@ For each team tau_i in order (teammate-aware, greedy, probabilistic destinations
 5. it is evaluated on every team;
 6. the next team.
 
-Optionally (``changed`` > 0) a last phase repeats steps 1-3 with the teammate-aware team in a changed
-environment whose predators' moves fail with probability ``changed`` (the robustness experiment: a learned
-environment model adapts, the exact one stays the old rules).
+Optionally (``changed`` > 0) a last phase repeats steps 1-3 with the first team in a changed environment whose
+moves (the predators', or every agent's on a map) fail with probability ``changed`` (the robustness experiment: a
+learned environment model adapts, the exact one stays the old rules).
 
 The metric is the accumulated reward of an evaluation, which on pursuit is the number of prey captures (reward 1
-each); :func:`run_trial` returns JSON-able records. Seeds: one ``SeedSequence`` per (seed, trial, agent) for the
+each) in ``eval_steps`` steps; on the navigation maps (ntu, isr, pentagon: ``domains/navigation4.py``) it is the
+mean accumulated reward of ``eval_episodes`` episodes of at most 100 steps (``100 - steps`` when the team gets
+out, -100 when it does not), as in the thesis's Tables 4.5-4.7. The teams are the domain's (pursuit:
+teammate-aware, greedy, probabilistic destinations; navigation: altruistic, selfish, weighted-altruistic), in
+that order. :func:`run_trial` returns JSON-able records. Seeds: one ``SeedSequence`` per (seed, trial, agent) for the
 agent and the interaction, one per evaluation, so that evaluations are reproducible and independent of the
 agents' draws.
 """
 
 from __future__ import annotations
 
+import itertools
 import time
 import zlib
 from collections.abc import Callable
@@ -33,9 +38,10 @@ import torch
 
 from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.decision.uct import UctConfig
-from embodied_adhoc.domains.pursuit4 import TEAMS, ExactTeam, Pursuit4
+from embodied_adhoc.domains.navigation4 import MAPS, Navigation4
+from embodied_adhoc.domains.pursuit4 import ExactTeam, Pursuit4
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.learning.teamster_agents import AGENTS, build_agent
+from embodied_adhoc.learning.teamster_agents import build_agent
 
 
 @dataclass(frozen=True)
@@ -48,9 +54,13 @@ class ProtocolConfig:
     seed: int = 0
     iterations: int = 100
     depth: int = 5
+    domain: str = "pursuit"  # or a navigation map: ntu, isr, pentagon
+    eval_episodes: int = 8  # navigation: episodes per evaluation (the original's 8)
 
     def __post_init__(self) -> None:
-        for name in ("steps", "eval_steps", "points", "iterations", "depth"):
+        if self.domain not in DOMAINS:
+            raise ConfigError(f"teamster domain={self.domain!r}: choose one of {', '.join(DOMAINS)}")
+        for name in ("steps", "eval_steps", "points", "iterations", "depth", "eval_episodes"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise ConfigError(f"teamster {name}={value!r}: give a positive integer")
@@ -60,7 +70,23 @@ class ProtocolConfig:
             raise ConfigError(f"teamster changed={self.changed}: give a move-failure probability in [0, 1)")
 
     def as_dict(self) -> dict:
-        return asdict(self)
+        """The settings a record is stored with; pursuit's omit the navigation fields (so folders written
+        before the navigation maps existed still resume)."""
+        settings = asdict(self)
+        if self.domain == "pursuit":
+            del settings["domain"], settings["eval_episodes"]
+        return settings
+
+
+DOMAINS = ("pursuit",) + MAPS
+TABLE_4_1 = {"pursuit": (100, 5), "ntu": (100, 10), "isr": (300, 50), "pentagon": (300, 25)}
+"""Table 4.1: UCT (iterations, maximum rollout depth) per domain (exploration sqrt(2), discount 0.95)."""
+
+
+def make_world(domain: str, size: int = 5, slip: float = 0.0):
+    """The chapter-4 world of ``domain``: 5x5 (``size``) pursuit or a navigation map; ``slip`` > 0 is the
+    changed environment (moves fail with that probability)."""
+    return Pursuit4(size, slip=slip) if domain == "pursuit" else Navigation4(domain, slip=slip)
 
 
 def _stream(config: ProtocolConfig, trial: int, *words: int | str) -> np.random.Generator:
@@ -68,26 +94,53 @@ def _stream(config: ProtocolConfig, trial: int, *words: int | str) -> np.random.
     return np.random.default_rng(np.random.SeedSequence(keys))
 
 
-def play(agent, world: Pursuit4, team: ExactTeam, steps: int, rng: np.random.Generator) -> int:
-    """``steps`` steps of the agent with ``team`` from a random configuration; returns the captures."""
+def _stream_of_steps(agent, world, team: ExactTeam, rng: np.random.Generator):
+    """The agent with ``team`` from a random configuration, step after step without end: yields (reward,
+    terminal, episode ended) per step; a new episode starts from a random configuration after a terminal step
+    or after the world's ``episode_cap`` steps (navigation; pursuit has none)."""
     if hasattr(agent, "bind"):
         agent.bind(team.team)
+    cap = getattr(world, "episode_cap", None)
     state = world.sample_states(rng, 1)[0]
-    captures = 0
-    for _ in range(steps):
+    length = 0
+    while True:
         action = agent.act(state)
         joint = np.concatenate([[action], sample_rows(team.probs(state[None])[0], rng)])
         nxt, reward, done = world.step(state[None], joint[None], rng)
         agent.observe(state, joint, float(reward[0]), nxt[0], bool(done[0]))
-        captures += int(done[0])
-        state = world.sample_states(rng, 1)[0] if done[0] else nxt[0]
-    return captures
+        length += 1
+        ended = bool(done[0]) or (cap is not None and length >= cap)
+        state, length = (world.sample_states(rng, 1)[0], 0) if ended else (nxt[0], length)
+        yield float(reward[0]), bool(done[0]), ended
 
 
-def _evaluate(agent, world, team, config, trial, *words) -> int:
+def play(agent, world, team: ExactTeam, steps: int, rng: np.random.Generator) -> int:
+    """``steps`` steps of the agent with ``team`` from a random configuration; returns the episodes finished
+    (the prey captures on pursuit)."""
+    return sum(done for _, done, _ in itertools.islice(_stream_of_steps(agent, world, team, rng), steps))
+
+
+def play_episodes(agent, world, team: ExactTeam, episodes: int, rng: np.random.Generator) -> list[float]:
+    """Each of ``episodes`` episodes' accumulated reward (an episode stopped by the cap keeps what it got)."""
+    returns, total = [], 0.0
+    for reward, _, ended in _stream_of_steps(agent, world, team, rng):
+        total += reward
+        if ended:
+            returns.append(total)
+            total = 0.0
+            if len(returns) == episodes:
+                return returns
+    raise AssertionError("unreachable: the stream of steps is endless")
+
+
+def _evaluate(agent, world, team, config, trial, *words) -> float:
+    """Captures in ``eval_steps`` steps (pursuit) or the mean episode reward of ``eval_episodes`` episodes."""
     agent.set_evaluation(True)
     try:
-        return play(agent, world, team, config.eval_steps, _stream(config, trial, "eval", *words))
+        rng = _stream(config, trial, "eval", *words)
+        if config.domain != "pursuit":
+            return round(float(np.mean(play_episodes(agent, world, team, config.eval_episodes, rng))), 4)
+        return play(agent, world, team, config.eval_steps, rng)
     finally:
         agent.set_evaluation(False)
 
@@ -107,25 +160,24 @@ def _interact(agent, world, team, config, trial, phase: str) -> list[list[int]]:
 def run_trial(agent_name: str, trial: int, config: ProtocolConfig,
               tick: Callable[[], None] | None = None) -> dict:
     """The whole protocol for one agent and one trial (see the module docstring); ``tick`` after each phase."""
-    if agent_name not in AGENTS:
-        raise ConfigError(f"agent {agent_name!r}: choose from {', '.join(AGENTS)}")
     torch.set_num_threads(1)
     start = time.perf_counter()
-    world = Pursuit4(config.size)
-    teams = {name: ExactTeam(world, name) for name in TEAMS}
+    world = make_world(config.domain, config.size)
+    teams = {name: ExactTeam(world, name) for name in world.teams}
     uct = UctConfig(iterations=config.iterations, depth=config.depth)
     agent = build_agent(agent_name, world, _stream(config, trial, agent_name, "agent"), config.steps, uct)
     record = {"agent": agent_name, "trial": trial, "config": config.as_dict(), "curves": {}, "after": {}}
-    for i, name in enumerate(TEAMS):
+    for i, name in enumerate(world.teams):
         record["curves"][name] = _interact(agent, world, teams[name], config, trial, name)
         agent.finish_team(name)
         record["after"][name] = {other: _evaluate(agent, world, teams[other], config, trial, "after", i, other)
-                                 for other in TEAMS}
+                                 for other in world.teams}
         if tick is not None:
             tick()
     if config.changed > 0:
-        changed = Pursuit4(config.size, slip=config.changed)
-        record["changed"] = _interact(agent, changed, ExactTeam(changed, TEAMS[0]), config, trial, "changed")
+        changed = make_world(config.domain, config.size, slip=config.changed)
+        record["changed"] = _interact(agent, changed, ExactTeam(changed, changed.teams[0]), config, trial,
+                                      "changed")
         if tick is not None:
             tick()
     record["seconds"] = round(time.perf_counter() - start, 1)
