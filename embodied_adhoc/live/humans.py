@@ -120,7 +120,7 @@ class ScriptedHuman:
         world = env.world
         if world.human.finished and world.data.time >= self._busy_until - 1e-9:
             command = self._decide(env)
-            world.human.start(command, world._senses())
+            world.human.start(command, world.senses())
             if command.kind == "stay":
                 self._busy_until = world.data.time + self.pause
         env.tick_walker(dt)
@@ -241,7 +241,7 @@ class Participant:
         node = env.layout.node_at(walker.xy)
         if node is not None:
             walker.node = node
-        env.world._apply_human()
+        env.world.apply_human()
         if moved and self._pending_motion is not None:
             self.log.motion_latency_s.append(time.perf_counter() - self._pending_motion[1])
             self._pending_motion = None
@@ -277,7 +277,7 @@ class Participant:
             robot_node = env.true_robot_node(truth)
             if robot_node != walker.node:
                 return self._say("the robot must be in your area to drop the ball into its container")
-            walker.start(HumanCommand.drop_into_container(walker.holding), world._senses())
+            walker.start(HumanCommand.drop_into_container(walker.holding), world.senses())
             return self._say(f"dropping ball {walker.holding}")
         candidates = [
             (float(np.hypot(p[0] - walker.xy[0], p[1] - walker.xy[1])), ball)
@@ -287,7 +287,7 @@ class Participant:
         if not candidates or min(candidates)[0] > REACH:
             return self._say(f"no ball on the floor within {REACH} m in your area")
         ball = min(candidates)[1]
-        walker.start(HumanCommand.pick(ball), world._senses())
+        walker.start(HumanCommand.pick(ball), world.senses())
         return self._say(f"picking up ball {ball}")
 
     def _say(self, notice: str) -> str:

@@ -30,7 +30,6 @@ from collections.abc import Callable
 import numpy as np
 
 from embodied_adhoc import checks
-from embodied_adhoc.control.reference import wrap_angle
 from embodied_adhoc.domains.lab_graph import DISPOSED
 from embodied_adhoc.envs import contract
 from embodied_adhoc.envs.toxic_waste import BALL_STATUS, ToxicWasteEnv, _area
@@ -119,10 +118,6 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         self.tick_listener = tick_listener
         self.current_action: int | None = None
         self.question_open = False
-        self._events: list[int] = []
-        self._wall_contact = False
-        self._ticks = 0
-        self._next_record_frame = 0.0
         self._warnings_mark = 0
 
     # ------------------------------------------------------------------ what the human drivers read
@@ -143,20 +138,13 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
 
     def tick_walker(self, dt: float) -> None:
         """Advance the walker's motion script one tick and apply its grasp/release events and pose."""
-        world = self.world
-        if world.human.finished:
-            return
-        for kind, ball in world.human.tick(dt, world._senses()):
-            world.data.eq_active[world.ids.grasp_welds[ball]] = kind == "grasp"
-        world._apply_human()
+        self.world.tick_human(dt)
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, info = super().reset(seed=seed, options=options)
         self.current_action, self.question_open = None, False
-        self._events, self._wall_contact, self._ticks = [], False, 0
-        self._next_record_frame = self.world.data.time
-        self._warnings_mark = _warnings(self.world.data)
+        self._warnings_mark = self.world.warning_count()
         self.human_driver.reset(self)
         self.clock.start(self.world.data.time)
         return observation, info
@@ -170,22 +158,15 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         reward = float(lib.config.reward.of(np.array(self._status)))
         decided_at = data.time
         while self.clock.check(data.time) > 0:  # the robot stood still while its agent decided
-            self._tick(None)
+            self._tick(drive=False)
         decision_wait = data.time - decided_at
         target = self.move_target(action)
         self._step_index += 1
         self.current_action = action
         controller = world.controller
-        if target is not None:
-            estimate = world.pose_estimate()
-            world.current_route = tuple(self.layout.route_from(estimate[:2], target))
-            controller.start(estimate, world.current_route)
-        else:
-            world.current_route = ()
-            controller.finished, controller.arrived = True, True
+        world.start_action(target)
         start = data.time
         kidnaps_before = 0 if world.localiser is None else world.localiser.kidnaps
-        self._stall = (world.pose_estimate(), start, False)
         asking = self.speech is not None and action == lib.locate_action
         reply = None
         if asking:
@@ -200,7 +181,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
                     answered and controller.finished and elapsed >= world.config.min_macro_seconds
                 ):
                     break
-                self._tick(elapsed)
+                self._tick(drive=True)
                 if asking and reply is None:
                     reply = self.human_driver.reply(self)
                 self.clock.wait_for(data.time)
@@ -212,44 +193,20 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         return self._finish_step(action, target, reward, start, kidnaps_before, asking, reply, decision_wait)
 
     # ------------------------------------------------------------------ internals
-    def _tick(self, elapsed: float | None) -> None:
-        """One control tick: robot controller (``elapsed`` since its macro action began; None = idle), human
-        driver, physics, sensing, RFID, frames. The loop body of ``LabWorld.step_macro``, one tick at a time."""
-        world, data, config = self.world, self.world.data, self.world.config
-        controller = world.controller
-        wheels = (0.0, 0.0)
-        if elapsed is not None and not controller.finished:
-            estimate = world.pose_estimate()
-            pose, since, _ = self._stall
-            if data.time - since >= config.stall_seconds:
-                moved = (
-                    np.hypot(estimate[0] - pose[0], estimate[1] - pose[1]) >= 0.1
-                    or abs(wrap_angle(estimate[2] - pose[2])) >= 0.2
-                )
-                if not moved:
-                    controller.finished, controller.arrived = True, False
-                self._stall = (estimate, data.time, not moved)
-            wheels = controller.update(elapsed, estimate)
-        data.ctrl[world.ids.wheel_actuators] = wheels
-        self.human_driver.tick(self, config.control_period)
-        world._physics(world.substeps)
-        world._sense()
-        self._ticks += 1
-        if self._ticks % world.sensor_ticks == 0:
-            self._events.extend(world.rfid.poll(data))
-            self._wall_contact = self._wall_contact or _wall_contact(world)
-        while self._frame_sink is not None and data.time >= self._next_record_frame - 1e-9:
-            self._on_frame(world)
-            self._next_record_frame += 1.0 / config.video_fps
+    def _tick(self, drive: bool) -> None:
+        """One control tick of the world (``LabWorld.tick``: the robot's current macro action when ``drive``,
+        else standing still while its agent decides) with the human moved by its driver, then the listener."""
+        self.world.tick(drive, self._drive_human, self._on_frame if self._frame_sink is not None else None)
         if self.tick_listener is not None:
             self.tick_listener(self)
 
+    def _drive_human(self, dt: float) -> None:
+        self.human_driver.tick(self, dt)
+
     def _finish_step(self, action, target, reward, start, kidnaps_before, asking, reply, decision_wait):
         world, data = self.world, self.world.data
-        self._events.extend(world.rfid.poll(data))
-        wall_contact = self._wall_contact or _wall_contact(world)
-        events, self._events, self._wall_contact = tuple(self._events), [], False
-        warnings_mark, self._warnings_mark = self._warnings_mark, _warnings(data)
+        events, wall_contact = world.sensed()
+        warnings_mark, self._warnings_mark = self._warnings_mark, world.warning_count()
         truth = world.ground_truth()
         reading = world.robot_node_reading()
         if reading is not None:
@@ -289,7 +246,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
             odometry_error=world.odometry_error(),
             mujoco_warnings=self._warnings_mark - warnings_mark,  # since the previous decision
             robot_node_reading=reading,
-            blocked=target is not None and not controller.arrived,
+            blocked=world.action_blocked(),
             pose_error=float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
             localisation_mode="off" if world.localiser is None else world.localiser.mode,
             kidnaps=0 if world.localiser is None else world.localiser.kidnaps - kidnaps_before,
@@ -301,14 +258,3 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         info["decision_wait_s"] = round(float(decision_wait), 3)
         info["mujoco_warnings"] = result.mujoco_warnings
         return observation.to_vector(), reward, terminated, False, info
-
-
-def _warnings(data) -> int:
-    """MuJoCo warnings raised so far (0 in a healthy run)."""
-    return int(sum(w.number for w in data.warning))
-
-
-def _wall_contact(world) -> bool:
-    from embodied_adhoc.sim.sensing import robot_wall_contact
-
-    return robot_wall_contact(world.data, world.ids)

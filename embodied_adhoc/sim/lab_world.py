@@ -19,6 +19,7 @@ derives from the reset seed: same seed, same run.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -34,7 +35,7 @@ from embodied_adhoc.sim.lab_model import CAMERA_ALIASES, LabIds, load_lab_model,
 from embodied_adhoc.sim.lidar import Lidar, LidarConfig
 from embodied_adhoc.sim.localisation import LikelihoodField, LocalisationConfig, MonteCarloLocaliser
 from embodied_adhoc.sim.odometry import OdometryConfig, WheelOdometry
-from embodied_adhoc.sim.sensing import RfidReader, robot_wall_contact
+from embodied_adhoc.sim.sensing import RfidReader, WallContact
 
 __all__ = ["GroundTruth", "HumanCommand", "LabWorld", "LabWorldConfig", "MacroStepResult"]
 
@@ -135,7 +136,9 @@ class MacroStepResult:
     robot_node_reading: int | None = None  # the robot's area reading: localiser (None: unknown) or odometry
     blocked: bool = False  # the robot could not reach its waypoint (stalled, or the controller gave up)
     pose_error: float = 0.0  # metres between the pose estimate the controller tracks and the true position
-    localisation_mode: str = "odometry"  # "lidar", "odometry" (localiser without scans) or "off" (no localiser)
+    localisation_mode: str = (
+        "odometry"  # "lidar", "odometry" (localiser without scans) or "off" (no localiser)
+    )
     kidnaps: int = 0  # times the localiser declared itself lost during this step
 
 
@@ -184,6 +187,15 @@ class LabWorld:
         self._scene_option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
         self._next_frame = 0.0
         self._reset_done = False
+        self.wall_contact = WallContact(self.ids)
+        # control ticks since the reset: the sensors run at their period regardless of actions
+        self._ticks = 0
+        self._sensed_events: list[int] = []
+        self._sensed_wall_contact = False
+        self._action_target: int | None = None
+        self._action_start = self._progress_time = 0.0
+        self._progress_pose = (0.0, 0.0, 0.0)
+        self._stalled = False
         self.current_route: tuple[tuple[float, float], ...] = ()
         """Waypoints (xy) the robot follows in the current/last macro step (empty when it stays)."""
 
@@ -216,17 +228,22 @@ class LabWorld:
         self.data.eq_active[:] = 0
         self.human.reset(human_node)
         self.human._face_now(layout.node_waypoints[human_node])
-        self._apply_human()
+        self.apply_human()
         self.controller.finished = True
         mujoco.mj_forward(self.model, self.data)
         self._physics(int(round(0.3 / self.config.timestep)))  # let wheels and balls settle on the floor
         self.odometry.reset(self.true_robot_pose(), self.data.qpos[ids.wheel_qpos])
         if self.localiser is not None:  # the start pose is known, as for dead reckoning
             self.localiser.reset(
-                np.random.default_rng(localiser_seed), self.odometry.pose, self.true_robot_pose(), time=self.data.time
+                np.random.default_rng(localiser_seed),
+                self.odometry.pose,
+                self.true_robot_pose(),
+                time=self.data.time,
             )
         self._next_scan = self._scan_time_after(self.data.time)
         self._next_frame = self.data.time
+        self._ticks, self._sensed_events, self._sensed_wall_contact = 0, [], False
+        self._action_target, self._stalled = None, False
         self._reset_done = True
         return self.ground_truth()
 
@@ -236,67 +253,29 @@ class LabWorld:
         human_command: HumanCommand,
         frame_callback: Callable[[LabWorld], None] | None = None,
     ) -> MacroStepResult:
-        """Drive the robot to ``robot_target`` (None: stay) while the human executes ``human_command``."""
+        """Drive the robot to ``robot_target`` (None: stay) while the human executes ``human_command``: one
+        :meth:`start_action`, :meth:`tick` until both are done (or the timeout), then the result."""
         if not self._reset_done:
             raise ConfigError("LabWorld.step_macro called before reset()")
         config, data = self.config, self.data
-        if robot_target is not None:
-            self.layout.check_node(robot_target)
-            estimate = self.pose_estimate()
-            self.current_route = tuple(self.layout.route_from(estimate[:2], robot_target))
-            self.controller.start(estimate, self.current_route)
-        else:
-            self.current_route = ()
-            self.controller.finished, self.controller.arrived = True, True
-        self.human.start(human_command, self._senses())
-        start, warnings_before = data.time, int(sum(w.number for w in data.warning))
-        events: list[int] = []
-        tick = 0
-        wall_contact = blocked = False
+        self.start_action(robot_target)
+        self.human.start(human_command, self.senses())
+        start, warnings_before = data.time, self.warning_count()
         kidnaps_before = 0 if self.localiser is None else self.localiser.kidnaps
-        progress_pose, progress_time = self.pose_estimate(), start
         while True:
             elapsed = data.time - start
             done = self.controller.finished and self.human.finished and elapsed >= config.min_macro_seconds
             if done or elapsed >= config.macro_timeout:
                 break
-            estimate = self.pose_estimate()
-            if not self.controller.finished and data.time - progress_time >= config.stall_seconds:
-                # progress over the last window: a robot pushing against an obstacle, with its wheels spinning,
-                # gets lidar corrections that keep its estimate in place
-                moved = np.hypot(estimate[0] - progress_pose[0], estimate[1] - progress_pose[1]) >= 0.1 or abs(
-                    wrap_angle(estimate[2] - progress_pose[2])
-                ) >= 0.2
-                if not moved:
-                    self.controller.finished, self.controller.arrived = True, False
-                    blocked = True
-                progress_pose, progress_time = estimate, data.time
-            wheels = self.controller.update(elapsed, estimate)
-            data.ctrl[self.ids.wheel_actuators] = wheels
-            if not self.human.finished:  # an idle human stands still: nothing to update
-                for kind, ball in self.human.tick(config.control_period, self._senses()):
-                    data.eq_active[self.ids.grasp_welds[ball]] = kind == "grasp"
-                self._apply_human()
-            self._physics(self.substeps)
-            self._sense()
-            tick += 1
-            if tick % self.sensor_ticks == 0:
-                events.extend(self.rfid.poll(data))
-                wall_contact = wall_contact or robot_wall_contact(data, self.ids)
-            while frame_callback is not None and data.time >= self._next_frame - 1e-9:
-                frame_callback(self)  # once per due frame (repeats if video_fps exceeds the control rate)
-                self._next_frame += 1.0 / config.video_fps
+            self.tick(frame_callback=frame_callback)
         data.ctrl[self.ids.wheel_actuators] = 0.0
-        events.extend(self.rfid.poll(data))  # whatever entered since the last sensor tick
-        wall_contact = wall_contact or robot_wall_contact(data, self.ids)
+        events, wall_contact = self.sensed()
         truth = self.ground_truth()
-        # a robot that could not reach its goal: stalled, or the controller gave up (or ran out of time)
-        blocked = blocked or (robot_target is not None and not self.controller.arrived)
         estimate = self.pose_estimate()
         return MacroStepResult(
             robot_arrived=self.controller.arrived,
             odometry_node=self.odometry_node(),
-            rfid_events=tuple(events),
+            rfid_events=events,
             sim_seconds=float(data.time - start),
             wall_contact=wall_contact,
             true_robot_node=truth.robot_node,
@@ -305,13 +284,105 @@ class LabWorld:
             human_status=self.human.status if self.human.finished else "unfinished (timeout)",
             timed_out=not (self.controller.finished and self.human.finished),
             odometry_error=self.odometry_error(),
-            mujoco_warnings=int(sum(w.number for w in data.warning)) - warnings_before,
+            mujoco_warnings=self.warning_count() - warnings_before,
             robot_node_reading=self.robot_node_reading(),
-            blocked=blocked,
+            blocked=self.action_blocked(),
             pose_error=float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
             localisation_mode="off" if self.localiser is None else self.localiser.mode,
             kidnaps=0 if self.localiser is None else self.localiser.kidnaps - kidnaps_before,
         )
+
+    # ------------------------------------------------------------------------------------------ control ticks
+    def start_action(self, robot_target: int | None) -> None:
+        """Start the robot's macro action: plan the route to ``robot_target`` from the pose estimate and hand it
+        to the controller (None: stay, the controller is done at once). :meth:`tick` then drives it; the
+        stall detector's window starts now. The human is commanded separately (``human.start``)."""
+        if not self._reset_done:
+            raise ConfigError("LabWorld.start_action called before reset()")
+        estimate = self.pose_estimate()
+        if robot_target is not None:
+            self.layout.check_node(robot_target)
+            self.current_route = tuple(self.layout.route_from(estimate[:2], robot_target))
+            self.controller.start(estimate, self.current_route)
+        else:
+            self.current_route = ()
+            self.controller.finished, self.controller.arrived = True, True
+        self._action_target = robot_target
+        self._action_start = self._progress_time = self.data.time
+        self._progress_pose = estimate
+        self._stalled = False
+
+    def tick(
+        self,
+        drive: bool = True,
+        human: Callable[[float], None] | None = None,
+        frame_callback: Callable[[LabWorld], None] | None = None,
+    ) -> None:
+        """One control tick (``control_period`` of simulated time): the controller tracks the route of
+        :meth:`start_action` on the pose estimate (``drive=False``: the wheels stop, e.g. while the agent
+        decides), the human moves (``human(dt)`` if given, else :meth:`tick_human`), the physics runs,
+        odometry and the localiser read their sensors (the lidar at its scan rate), and every ``sensor_period``
+        the RFID reader and the wall-contact check run (collected by :meth:`sensed`). ``frame_callback`` is
+        called once per due video frame.
+
+        A moving robot whose estimate advanced less than 10 cm and 0.2 rad over ``stall_seconds`` is blocked: a
+        robot pushing against an obstacle, its wheels spinning, gets lidar corrections that keep its estimate in
+        place; the controller is stopped and :meth:`action_blocked` says so."""
+        config, data, controller = self.config, self.data, self.controller
+        wheels = (0.0, 0.0)
+        if drive and not controller.finished:
+            estimate = self.pose_estimate()
+            if data.time - self._progress_time >= config.stall_seconds:
+                pose = self._progress_pose
+                moved = (
+                    math.hypot(estimate[0] - pose[0], estimate[1] - pose[1]) >= 0.1
+                    or abs(wrap_angle(estimate[2] - pose[2])) >= 0.2
+                )
+                if not moved:
+                    controller.finished, controller.arrived = True, False
+                    self._stalled = True
+                self._progress_pose, self._progress_time = estimate, data.time
+            wheels = controller.update(data.time - self._action_start, estimate)
+        data.ctrl[self.ids.wheel_actuators] = wheels
+        if human is None:
+            self.tick_human(config.control_period)
+        else:
+            human(config.control_period)
+        self._physics(self.substeps)
+        self._sense()
+        self._ticks += 1
+        if self._ticks % self.sensor_ticks == 0:
+            self._sensed_events.extend(self.rfid.poll(data))
+            self._sensed_wall_contact = self._sensed_wall_contact or self.wall_contact(data)
+        while frame_callback is not None and data.time >= self._next_frame - 1e-9:
+            frame_callback(self)  # once per due frame (repeats if video_fps exceeds the control rate)
+            self._next_frame += 1.0 / config.video_fps
+
+    def tick_human(self, dt: float) -> None:
+        """Advance the walker's current command by ``dt`` seconds and apply its grasp/release events and pose
+        (an idle human stands still: nothing to update)."""
+        if self.human.finished:
+            return
+        for kind, ball in self.human.tick(dt, self.senses()):
+            self.data.eq_active[self.ids.grasp_welds[ball]] = kind == "grasp"
+        self.apply_human()
+
+    def sensed(self) -> tuple[tuple[int, ...], bool]:
+        """The RFID reads and whether the robot touched a wall since the previous call (or the reset), with one
+        more reading now (whatever happened since the last sensor tick); clears both."""
+        events = (*self._sensed_events, *self.rfid.poll(self.data))
+        wall_contact = self._sensed_wall_contact or self.wall_contact(self.data)
+        self._sensed_events, self._sensed_wall_contact = [], False
+        return events, wall_contact
+
+    def action_blocked(self) -> bool:
+        """The current/last macro action could not reach its goal: the stall detector stopped it, or the
+        controller gave up (or ran out of time) short of the goal. False for "stay"."""
+        return self._stalled or (self._action_target is not None and not self.controller.arrived)
+
+    def warning_count(self) -> int:
+        """MuJoCo warnings raised since the reset (0 in a healthy run)."""
+        return int(self.data.warning.number.sum())
 
     # ------------------------------------------------------------------------------------------ state
     def true_robot_pose(self) -> tuple[float, float, float]:
@@ -341,7 +412,12 @@ class LabWorld:
         mujoco.mj_forward(self.model, data)
         height = float(data.xpos[self.lidar.body][2]) + self.lidar.height
         return LikelihoodField.from_scene(
-            self.model, data, height, self.config.localisation, self.lidar.config.max_range, self.layout.room_extent
+            self.model,
+            data,
+            height,
+            self.config.localisation,
+            self.lidar.config.max_range,
+            self.layout.room_extent,
         )
 
     def drive(self, wheels: tuple[float, float], seconds: float) -> None:
@@ -356,20 +432,24 @@ class LabWorld:
         self.data.ctrl[self.ids.wheel_actuators] = 0.0
 
     def _sense(self) -> None:
-        """The robot's sensing at a control tick: encoders into odometry, a due lidar scan into the localiser."""
+        """The robot's sensing at a control tick: encoders into odometry, a due lidar scan into the localiser
+        (computed only when the localiser will use it; its random numbers are drawn either way)."""
         data = self.data
-        self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
+        pose = self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
         if self.localiser is not None:
             scan = None
             if data.time >= self._next_scan - 1e-9:
-                scan = self.lidar.scan(data, self._lidar_rng)
+                if self.localiser.due(pose, data.time):
+                    scan = self.lidar.scan(data, self._lidar_rng)
+                else:
+                    self.lidar.skip(self._lidar_rng)
                 self._next_scan = self._scan_time_after(data.time)
-            self.localiser.tick(self.odometry.pose, scan, data.time)
+            self.localiser.tick(pose, scan, data.time)
 
     def _scan_time_after(self, time: float) -> float:
         """Simulated time of the lidar's next scan after ``time`` (MuJoCo casts the beams every period)."""
         period = self.lidar.period or self.config.control_period
-        return (np.floor(time / period + 1e-9) + 1) * period
+        return (math.floor(time / period + 1e-9) + 1) * period
 
     def odometry_node(self) -> int | None:
         """Node of the dead-reckoning pose from the area polygons (None outside every area)."""
@@ -448,8 +528,12 @@ class LabWorld:
             if scene.ngeom >= scene.maxgeom:
                 return  # the scene is full: the markers are decoration, the image stays valid without them
             mujoco.mjv_initGeom(
-                scene.geoms[scene.ngeom], kind, np.asarray(size, float), np.asarray(pos, float),
-                np.asarray(mat, float), np.asarray(rgba, np.float32),
+                scene.geoms[scene.ngeom],
+                kind,
+                np.asarray(size, float),
+                np.asarray(pos, float),
+                np.asarray(mat, float),
+                np.asarray(rgba, np.float32),
             )
             scene.ngeom += 1
 
@@ -458,7 +542,13 @@ class LabWorld:
             c, s = np.cos(yaw), np.sin(yaw)
             rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).ravel()
             add(mujoco.mjtGeom.mjGEOM_BOX, (0.08, 0.08, 0.005), (x, y, z), rgba, rotation)
-            add(mujoco.mjtGeom.mjGEOM_BOX, (0.12, 0.02, 0.006), (x + 0.16 * c, y + 0.16 * s, z), rgba, rotation)
+            add(
+                mujoco.mjtGeom.mjGEOM_BOX,
+                (0.12, 0.02, 0.006),
+                (x + 0.16 * c, y + 0.16 * s, z),
+                rgba,
+                rotation,
+            )
 
         if self.localiser is not None:
             particles = self.localiser.particles
@@ -500,7 +590,8 @@ class LabWorld:
     def _physics(self, steps: int) -> None:
         mujoco.mj_step(self.model, self.data, nstep=steps)
 
-    def _senses(self) -> HumanSenses:
+    def senses(self) -> HumanSenses:
+        """What the human perceives now (ball and container positions, the robot's heading and area)."""
         ids, data = self.ids, self.data
         robot = self.true_robot_pose()
         return HumanSenses(
@@ -510,7 +601,8 @@ class LabWorld:
             robot_node=self.layout.node_at(robot[:2]),
         )
 
-    def _apply_human(self) -> None:
+    def apply_human(self) -> None:
+        """Move the human's and its hand's mocap bodies to the walker's pose."""
         ids, data = self.ids, self.data
         data.mocap_pos[ids.human_mocap], data.mocap_quat[ids.human_mocap] = self.human.body_pose()
         data.mocap_pos[ids.hand_mocap], data.mocap_quat[ids.hand_mocap] = self.human.hand_pose()

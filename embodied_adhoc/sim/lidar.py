@@ -128,10 +128,20 @@ class Lidar:
         if not config.enabled:
             ranges = np.full(self.n_beams, np.nan)
         else:
-            raw = self.raw(data)
-            noise = rng.standard_normal(self.n_beams)
-            lost = rng.random(self.n_beams) < config.dropout
+            noise, lost = self._draw(rng)
+            raw = data.sensordata[self.addresses]
             ranges = raw + config.noise * noise
             outside = (raw < 0) | (ranges < config.min_range) | (ranges > config.max_range)
             ranges[outside | lost] = np.nan
         return LidarScan(self.angles, ranges, self.origin, float(data.time))
+
+    def skip(self, rng: np.random.Generator) -> None:
+        """A scan nobody reads: draw its noise and dropout from ``rng`` all the same, so that the scans that are
+        read get the same random numbers whether or not the ones before them were computed."""
+        if self.config.enabled:
+            self._draw(rng)
+
+    def _draw(self, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+        """Range noise (standard normal) and dropout mask of one scan, in this order from ``rng``."""
+        noise = rng.standard_normal(self.n_beams)
+        return noise, rng.random(self.n_beams) < self.config.dropout

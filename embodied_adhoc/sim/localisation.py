@@ -167,8 +167,9 @@ class LikelihoodField:
         for table in (self.log_likelihood, coarse):
             table[[0, -1], :] = self.far
             table[:, [0, -1]] = self.far
-        self._flat = self.log_likelihood.ravel()
-        self._coarse = coarse.ravel()
+        # flat float64 copies for scoring: a beam sum of float32 values in float64 is exact in any order
+        self._fine = self.log_likelihood.astype(np.float64).ravel()
+        self._coarse = coarse.astype(np.float64).ravel()
         self._inverse = 1.0 / resolution
         x0, x1, y0, y1 = region
         xs = origin[0] + (np.arange(self.shape[0]) + 0.5) * resolution
@@ -248,16 +249,39 @@ class LikelihoodField:
                 occupied |= np.hypot(dx, dy) <= max(half[0], resolution / 2)
         return cls(occupied, (float(low[0]), float(low[1])), resolution, config, max_range, region)
 
-    def lookup(self, x: np.ndarray, y: np.ndarray, coarse: bool = False) -> np.ndarray:
-        """Log-likelihood of end points (any shape) on the fine (or the coarse, global) field; points off the
-        grid count as random readings (the grid's outermost ring of cells holds that value and off-grid indices
-        are mapped onto it)."""
-        ix = ((x - self.origin[0]) * self._inverse).astype(np.intp)
-        iy = ((y - self.origin[1]) * self._inverse).astype(np.intp)
-        # clamped with the ufuncs in place (np.clip's Python wrapper cost as much as the arithmetic at 250 x 30)
-        np.minimum(np.maximum(ix, 0, out=ix), self.shape[0] - 1, out=ix)
-        np.minimum(np.maximum(iy, 0, out=iy), self.shape[1] - 1, out=iy)
-        return (self._coarse if coarse else self._flat).take(ix * self.shape[1] + iy)
+    def score(
+        self, poses: np.ndarray, local_x: np.ndarray, local_y: np.ndarray, coarse: bool = False
+    ) -> np.ndarray:
+        """Sum over beams of the fine (or the coarse, global) field at each pose's beam end points, shape (P,):
+        the log-likelihood of a scan whose used beams end at (``local_x``, ``local_y``) in the robot frame
+        (Probabilistic Robotics Table 6.3, without the max-range term: beams without a return are not used).
+
+        End points off the grid count as random readings (the grid's outermost ring of cells holds that value and
+        off-grid cells are clamped onto it). The end points of all poses are one matrix product: rows
+        ``[cos, -sin, x0]`` and ``[sin, cos, y0]`` per pose, shifted to the grid's origin and scaled to cells,
+        times the columns ``[lx, ly, 1]`` per beam."""
+        n, nx, ny = len(poses), self.shape[0], self.shape[1]
+        transform = np.empty((2 * n, 3))
+        np.cos(poses[:, 2], out=transform[:n, 0])
+        np.sin(poses[:, 2], out=transform[n:, 0])
+        np.negative(transform[n:, 0], out=transform[:n, 1])
+        transform[n:, 1] = transform[:n, 0]
+        np.subtract(poses[:, 0], self.origin[0], out=transform[:n, 2])
+        np.subtract(poses[:, 1], self.origin[1], out=transform[n:, 2])
+        transform *= self._inverse
+        beams = np.empty((3, len(local_x)))
+        beams[0], beams[1], beams[2] = local_x, local_y, 1.0
+        cells = transform @ beams  # (2P, B): x cells of every end point, then y cells
+        if not (cells.min() >= 0.0 and cells[:n].max() < nx and cells[n:].max() < ny):
+            # clamp onto the grid (fmax also sends a NaN to cell 0, i.e. the ring); rare: off-grid end points
+            np.fmax(cells, 0.0, out=cells)
+            np.fmin(cells[:n], nx - 1, out=cells[:n])
+            np.fmin(cells[n:], ny - 1, out=cells[n:])
+        index = cells.astype(np.intp)
+        flat = index[:n] * ny
+        flat += index[n:]
+        table = self._coarse if coarse else self._fine
+        return table.take(flat) @ np.ones(len(local_x))
 
     def sample_free(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """``count`` poses (x, y, yaw) uniform over the free space (cell jitter and heading uniform)."""
@@ -305,6 +329,7 @@ class MonteCarloLocaliser:
         self._w_slow = self._w_fast = 0.0
         self._low_streak = 0
         self._global = False
+        self._beam_picks: dict[int, np.ndarray] = {}
 
     # ------------------------------------------------------------------------------------------ start
     def reset(
@@ -339,22 +364,33 @@ class MonteCarloLocaliser:
         self._summarise()
 
     # ------------------------------------------------------------------------------------------ filter
+    def due(self, odometry_pose: Sequence[float], time: float) -> bool:
+        """Would a scan taken now update the filter? (The robot moved ``update_distance`` or turned
+        ``update_angle`` since the last update, or ``update_period`` passed.) The world reads the lidar only
+        then: a scan the filter would not use is not worth computing."""
+        return self._moved_enough(relative(self._odometry_at_update, odometry_pose), time)
+
+    def _moved_enough(self, delta: tuple[float, float, float], time: float) -> bool:
+        config = self.config
+        return (
+            math.hypot(delta[0], delta[1]) >= config.update_distance
+            or abs(delta[2]) >= config.update_angle
+            or time - self._last_update_time >= config.update_period
+        )
+
     def tick(self, odometry_pose: Sequence[float], scan: LidarScan | None, time: float) -> bool:
         """One control tick: remember the odometry; with a new ``scan``, update the filter if the robot moved
-        enough (or ``update_period`` passed). Returns True when the particles were updated."""
+        enough (or ``update_period`` passed: :meth:`due`). Returns True when the particles were updated."""
         self._odometry_now = (float(odometry_pose[0]), float(odometry_pose[1]), float(odometry_pose[2]))
         if scan is None:
             return False
         delta = relative(self._odometry_at_update, self._odometry_now)
-        moved = math.hypot(delta[0], delta[1]) >= self.config.update_distance or abs(delta[2]) >= (
-            self.config.update_angle
-        )
-        if not moved and time - self._last_update_time < self.config.update_period:
+        if not self._moved_enough(delta, time):
             return False
         self._move(delta)
         self._odometry_at_update = self._odometry_now
         self._last_update_time = time
-        valid = np.flatnonzero(scan.valid)
+        valid = scan.valid.nonzero()[0]
         if len(valid) < 3:
             self.mode = "odometry"
         elif self._global:
@@ -387,31 +423,22 @@ class MonteCarloLocaliser:
         self.particles[:, 2] = _wrap(yaw + dyaw)
 
     def _beams(self, scan: LidarScan, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """End points of the used beams in the robot frame (B,), (B,)."""
-        if len(valid) > self.config.max_beams:
-            valid = valid[np.linspace(0, len(valid) - 1, self.config.max_beams).round().astype(int)]
+        """End points of the used beams in the robot frame (B,), (B,): at most ``max_beams`` returns, evenly
+        spaced among the valid ones."""
+        count = len(valid)
+        if count > self.config.max_beams:
+            picks = self._beam_picks.get(count)
+            if picks is None:  # the same few counts come back scan after scan
+                picks = np.linspace(0, count - 1, self.config.max_beams).round().astype(int)
+                self._beam_picks[count] = picks
+            valid = valid[picks]
         ranges, angles = scan.ranges[valid], scan.angles[valid]
         return scan.origin[0] + ranges * np.cos(angles), scan.origin[1] + ranges * np.sin(angles)
-
-    def _log_likelihood(
-        self, poses: np.ndarray, local_x: np.ndarray, local_y: np.ndarray, coarse: bool = False
-    ) -> np.ndarray:
-        """Sum over beams of the field's log-likelihood at each pose's beam end points, shape (P,)."""
-        c, s = np.cos(poses[:, 2])[:, None], np.sin(poses[:, 2])[:, None]
-        # (x0 + c lx) - s ly and (y0 + s lx) + c ly, evaluated in that order with two scratch arrays
-        x = np.multiply(c, local_x)
-        x += poses[:, 0, None]
-        scratch = np.multiply(s, local_y)
-        x -= scratch
-        y = np.multiply(s, local_x, out=scratch)
-        y += poses[:, 1, None]
-        y += c * local_y
-        return self.field.lookup(x, y, coarse).sum(axis=1, dtype=np.float64)
 
     def _measure(self, scan: LidarScan, valid: np.ndarray, time: float) -> None:
         config = self.config
         local_x, local_y = self._beams(scan, valid)
-        log_l = self._log_likelihood(self.particles, local_x, local_y)
+        log_l = self.field.score(self.particles, local_x, local_y)
         # per-beam geometric-mean likelihood: comparable between scans with different numbers of returns
         per_beam = float(np.exp(log_l / len(local_x)) @ self.weights)
         if self.updates == 0 or self._w_slow == 0.0:
@@ -436,7 +463,7 @@ class MonteCarloLocaliser:
         """Sensor-resetting: weight uniform free-space poses by the scan and resample the particle set from them."""
         config = self.config
         candidates = self.field.sample_free(self.rng, config.global_samples)
-        log_l = config.global_exponent * self._log_likelihood(candidates, local_x, local_y, coarse=True)
+        log_l = config.global_exponent * self.field.score(candidates, local_x, local_y, coarse=True)
         weights = np.exp(log_l - log_l.max())
         weights /= weights.sum()
         picked = _low_variance(self.rng, weights, config.particles)
@@ -469,7 +496,7 @@ class MonteCarloLocaliser:
 
     def globalise(self, scan: LidarScan) -> None:
         """Global localisation from one scan now (as after a kidnapping), without counting a kidnap."""
-        valid = np.flatnonzero(scan.valid)
+        valid = scan.valid.nonzero()[0]
         if len(valid) >= 3:
             self._relocalise(*self._beams(scan, valid))
             self._summarise()
@@ -530,6 +557,7 @@ def _wrap(angles: np.ndarray) -> np.ndarray:
 def _low_variance(rng: np.random.Generator, weights: np.ndarray, count: int) -> np.ndarray:
     """Low-variance (systematic) resampling, Probabilistic Robotics Table 4.4: indices of ``count`` draws."""
     positions = (rng.random() + np.arange(count)) / count
-    cumulative = np.cumsum(weights)
+    cumulative = weights.cumsum()  # array methods: the np.* functions add a Python dispatch layer
     cumulative[-1] = 1.0
-    return np.searchsorted(cumulative, positions, side="right").clip(max=len(weights) - 1)
+    picked = cumulative.searchsorted(positions, side="right")
+    return np.minimum(picked, len(weights) - 1, out=picked)

@@ -45,23 +45,41 @@ class OdometryConfig:
 
 
 class WheelOdometry:
-    """Integrates encoder readings into a dead-reckoning pose (x, y, yaw)."""
+    """Integrates encoder readings into a dead-reckoning pose (x, y, yaw).
+
+    ``update`` runs at every control tick, so it is scalar Python on floats (numpy scalars and small arrays cost
+    more than the arithmetic); the encoder noise is drawn from ``rng`` in blocks of ``NOISE_BLOCK`` values, the
+    same stream as two draws per tick (a ``numpy.random.Generator`` fills an array value by value)."""
+
+    NOISE_BLOCK = 512
 
     def __init__(self, config: OdometryConfig, rng: np.random.Generator):
         self.config = config
-        self.rng = rng
         self._tick = 2.0 * math.pi / config.ticks_per_revolution
         self.pose = np.zeros(3)
         self._last_counts = (0, 0)
-        self._scale = np.ones(2)
+        self._scale = (1.0, 1.0)
+        self.rng = rng
         self.distance = 0.0  # metres travelled by the wheel-centre midpoint, as measured
+
+    @property
+    def rng(self) -> np.random.Generator:
+        return self._rng
+
+    @rng.setter
+    def rng(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._noise: list[float] = []  # the block drawn from the previous generator is dropped
+        self._noise_index = 0
 
     def reset(self, pose: tuple[float, float, float], wheel_angles: np.ndarray) -> None:
         """Start from a known ``pose`` with the current true wheel angles (rad, left/right)."""
         self.pose = np.array(pose, dtype=float)
         counts = self.counts(wheel_angles)
         self._last_counts = (int(counts[0]), int(counts[1]))
-        self._scale = 1.0 + self.config.wheel_slip * self.rng.standard_normal(2)
+        self._noise, self._noise_index = [], 0  # the slip factors come first in the stream, then the noise
+        scale = 1.0 + self.config.wheel_slip * self._rng.standard_normal(2)
+        self._scale = (float(scale[0]), float(scale[1]))
         self.distance = 0.0
 
     def counts(self, wheel_angles: np.ndarray) -> np.ndarray:
@@ -70,22 +88,31 @@ class WheelOdometry:
 
     def update(self, wheel_angles: np.ndarray) -> np.ndarray:
         """Read the encoders at the true ``wheel_angles`` (rad, left/right), integrate, return the pose."""
-        counts = (math.floor(wheel_angles[0] / self._tick), math.floor(wheel_angles[1] / self._tick))
-        delta = (
-            (counts[0] - self._last_counts[0]) * self._tick,
-            (counts[1] - self._last_counts[1]) * self._tick,
-        )
-        self._last_counts = counts
-        noise = self.rng.standard_normal(2) if self.config.encoder_noise > 0 else (0.0, 0.0)
-        travel = [0.0, 0.0]  # metres rolled by each wheel, as measured
-        for wheel in (0, 1):
-            step = float(delta[wheel])
-            step += self.config.encoder_noise * math.sqrt(abs(step)) * float(noise[wheel])
-            travel[wheel] = step * float(self._scale[wheel]) * self.config.wheel_radius
-        ds = 0.5 * (travel[0] + travel[1])
-        dyaw = (travel[1] - travel[0]) / self.config.track_width
-        x, y, yaw = self.pose
+        config, tick = self.config, self._tick
+        left, right = math.floor(wheel_angles[0] / tick), math.floor(wheel_angles[1] / tick)
+        step_left = (left - self._last_counts[0]) * tick  # radians turned, as counted
+        step_right = (right - self._last_counts[1]) * tick
+        self._last_counts = (left, right)
+        if config.encoder_noise > 0:
+            if self._noise_index + 2 > len(self._noise):
+                self._noise = self._rng.standard_normal(self.NOISE_BLOCK).tolist()
+                self._noise_index = 0
+            i = self._noise_index
+            self._noise_index = i + 2
+            step_left += config.encoder_noise * math.sqrt(abs(step_left)) * self._noise[i]
+            step_right += config.encoder_noise * math.sqrt(abs(step_right)) * self._noise[i + 1]
+        # metres rolled by each wheel, as measured
+        travel_left = step_left * self._scale[0] * config.wheel_radius
+        travel_right = step_right * self._scale[1] * config.wheel_radius
+        ds = 0.5 * (travel_left + travel_right)
+        dyaw = (travel_right - travel_left) / config.track_width
+        pose = self.pose
+        x, y, yaw = float(pose[0]), float(pose[1]), float(pose[2])
         mid_yaw = yaw + 0.5 * dyaw
-        self.pose[:] = (x + ds * math.cos(mid_yaw), y + ds * math.sin(mid_yaw), wrap_angle(yaw + dyaw))
+        pose[0], pose[1], pose[2] = (
+            x + ds * math.cos(mid_yaw),
+            y + ds * math.sin(mid_yaw),
+            wrap_angle(yaw + dyaw),
+        )
         self.distance += abs(ds)
-        return self.pose
+        return pose

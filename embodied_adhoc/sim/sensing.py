@@ -5,6 +5,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from embodied_adhoc.errors import SceneError
 from embodied_adhoc.sim.lab_model import LabIds
 
 
@@ -22,37 +23,51 @@ class RfidReader:
         self.rng = rng
         self.half_size = model.site_size[ids.rfid_site].copy()
         self.entered = np.zeros(len(ids.ball_bodies), dtype=bool)
+        self._unread = len(self.entered)  # balls that have not entered yet
 
     def reset(self, rng: np.random.Generator) -> None:
         self.rng = rng
         self.entered[:] = False
+        self._unread = len(self.entered)
 
     def inside_mask(self, data: mujoco.MjData) -> np.ndarray:
         """Per ball: is its centre inside the reader's box?"""
-        rotation = data.site_xmat[self.ids.rfid_site].reshape(3, 3)
-        local = (data.xpos[self.ids.ball_bodies] - data.site_xpos[self.ids.rfid_site]) @ rotation
-        return np.all(np.abs(local) <= self.half_size, axis=1)
+        site = self.ids.rfid_site
+        local = (data.xpos[self.ids.ball_bodies] - data.site_xpos[site]) @ data.site_xmat[site].reshape(3, 3)
+        # a ufunc reduce: ndarray.all adds a Python layer
+        return np.logical_and.reduce(np.abs(local) <= self.half_size, axis=1)
 
     def inside(self, data: mujoco.MjData, ball: int) -> bool:
         return bool(self.inside_mask(data)[ball])
 
     def poll(self, data: mujoco.MjData) -> list[int]:
         """Balls read at this tick (first entries that were not missed)."""
-        if self.entered.all():
+        if self._unread == 0:
             return []
-        new = np.flatnonzero(self.inside_mask(data) & ~self.entered)
         events = []
-        for ball in new:
+        for ball in (self.inside_mask(data) & ~self.entered).nonzero()[0].tolist():
             self.entered[ball] = True
+            self._unread -= 1
             if self.rng.random() >= self.miss_probability:
-                events.append(int(ball))
+                events.append(ball)
         return events
 
 
-def robot_wall_contact(data: mujoco.MjData, ids: LabIds) -> bool:
-    """Does any robot geom touch a wall or partition right now?"""
-    if data.ncon == 0:
-        return False
-    pairs = data.contact.geom[: data.ncon]
-    robot, wall = ids.robot_geom_mask, ids.wall_geom_mask
-    return bool(np.any((robot[pairs[:, 0]] & wall[pairs[:, 1]]) | (robot[pairs[:, 1]] & wall[pairs[:, 0]])))
+class WallContact:
+    """Does any robot geom touch a wall or partition right now? ``WallContact(ids)(data)``.
+
+    Each geom has a class code (robot 1, wall 2, anything else 0), so a contact pair is robot-wall exactly when
+    the product of its two codes is 2: one table look-up per pair."""
+
+    def __init__(self, ids: LabIds):
+        if (ids.robot_geom_mask & ids.wall_geom_mask).any():
+            raise SceneError(
+                "a geom is both part of the robot and a wall; the wall-contact check needs them apart"
+            )
+        self.codes = ids.robot_geom_mask.astype(np.int8) + 2 * ids.wall_geom_mask.astype(np.int8)
+
+    def __call__(self, data: mujoco.MjData) -> bool:
+        if data.ncon == 0:
+            return False
+        codes = self.codes[data.contact.geom]
+        return 2 in codes[:, 0] * codes[:, 1]
