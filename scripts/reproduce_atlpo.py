@@ -11,7 +11,9 @@ member's seed depends on its environment, not its set: ``learning.atlpo.member_s
 classifier. Seed 0's ``task+team`` library is the one shipped in the package when it was made with the same
 settings (its ``training.json`` says so), so it is copied, not retrained. Everything is resumable: a folder with
 ``training.json`` is not retrained, an ``evaluation*.json`` not re-evaluated. ``--train-only`` stops before the
-evaluations; run two processes with different ``--domains`` to use two cores.
+evaluations; run two processes with different ``--domains`` to use two cores. ``--mb`` adds the ATLPO-MB
+libraries (and the model-based baseline) of the sets and seeds asked, e.g. one cell:
+``--mb --domains foraging --sets task --seeds 0 --no-held-out``.
 """
 
 from __future__ import annotations
@@ -65,6 +67,9 @@ class Args:
     """held-out split: also a user's team, ``module:callable`` (see learning/atlpo_heldout.py)"""
     report_only: bool = False
     """print the table from what ``--out`` holds, train and evaluate nothing"""
+    mb: bool = False
+    """also train the ATLPO-MB libraries (``train atlpo --model mb --generalist``: members, the model-based
+    baseline and the classifier) of the sets and seeds asked, in ``<set>-mb`` folders, then evaluate them"""
 
 
 def library_folder(out: Path, domain: str, seed: int, set_name: str) -> Path:
@@ -93,6 +98,31 @@ def train(args: Args, domain: str, seed: int) -> None:
                 shutil.copy2(union / name, folder / name)
         report = train_atlpo(AtlpoTraining(domain, set_name, str(folder), steps=args.steps, seed=seed,
                                            threads=args.threads, quiet=True))
+        print(f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)", flush=True)
+
+
+def train_mb(args: Args, domain: str, seed: int) -> None:
+    """ATLPO-MB libraries in ``<set>-mb`` folders; ``task+team`` first when asked, whose members (same seeds)
+    the other sets then copy, as for ATLPO-MF."""
+    from embodied_adhoc.learning.atlpo import library_set
+    from embodied_adhoc.learning.atlpo_train import AtlpoTraining, train_atlpo
+
+    def mb_folder(set_name: str) -> Path:
+        folder = library_folder(args.out, domain, seed, set_name)
+        return folder.with_name(folder.name + "-mb")
+
+    union = mb_folder("task+team")
+    for set_name in sorted(args.sets, key=lambda name: name != "task+team"):
+        folder = mb_folder(set_name)
+        if (folder / "training.json").exists():
+            continue
+        folder.mkdir(parents=True, exist_ok=True)
+        for environment in library_set(set_name):
+            name = f"{domain}-mb-{environment.name}.safetensors"
+            if (union / name).exists() and not (folder / name).exists():
+                shutil.copy2(union / name, folder / name)
+        report = train_atlpo(AtlpoTraining(domain, set_name, str(folder), steps=args.steps, seed=seed,
+                                           threads=args.threads, quiet=True, model="mb", generalist=True))
         print(f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)", flush=True)
 
 
@@ -275,6 +305,8 @@ def main(args: Args) -> None:
         for domain in args.domains:
             for seed in args.seeds:
                 train(args, domain, seed)
+                if args.mb:
+                    train_mb(args, domain, seed)
         if not args.train_only:
             for domain in args.domains:
                 for seed in args.seeds:
@@ -283,7 +315,7 @@ def main(args: Args) -> None:
                     if not args.no_held_out:
                         held_out_cell(args, domain, seed)
             for domain, seed, set_name, folder in mb_cells(args):
-                if domain in args.domains:
+                if domain in args.domains and set_name in args.sets:
                     evaluate_mb_cell(args, domain, seed, set_name, folder)
                     print(f"{domain} seed {seed}: evaluated", flush=True)
     text = report(args)

@@ -26,12 +26,15 @@ class NetworkConfig:
     actions: int = 5
     hidden_channels: int = 16
     features: int = 64
+    head_hidden: int = 0  # 0: linear actor and critic heads; else one hidden layer of this width (MLP heads)
 
     def __post_init__(self) -> None:
         for name in ("channels", "view", "actions", "hidden_channels", "features"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise ConfigError(f"NetworkConfig.{name}={value!r}: give a positive integer")
+        if not isinstance(self.head_hidden, int) or self.head_hidden < 0:
+            raise ConfigError(f"NetworkConfig.head_hidden={self.head_hidden!r}: give 0 (linear heads) or a width")
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -59,15 +62,24 @@ class Encoder(nn.Module):
         return self.net(observations)
 
 
+def _head(config: NetworkConfig, outputs: int, gain: float) -> nn.Module:
+    """A linear head on the latent state, or an MLP with one tanh hidden layer of ``config.head_hidden``."""
+    if not config.head_hidden:
+        return _layer(nn.Linear(config.features, outputs), gain)
+    return nn.Sequential(_layer(nn.Linear(config.features, config.head_hidden), 2**0.5), nn.Tanh(),
+                         _layer(nn.Linear(config.head_hidden, outputs), gain))
+
+
 class ActorCritic(nn.Module):
-    """Fig. 6.2: encoder ``q``, actor ``pi`` (action logits) and critic ``V``, trained end to end."""
+    """Fig. 6.2: encoder ``q``, actor ``pi`` (action logits) and critic ``V``, trained end to end (ATLPO-MF), or
+    on a world model's latent states (ATLPO-MB, Fig. 6.3, where the thesis's actor and critic are MLPs)."""
 
     def __init__(self, config: NetworkConfig) -> None:
         super().__init__()
         self.config = config
         self.encoder = Encoder(config)
-        self.actor = _layer(nn.Linear(config.features, config.actions), 0.01)
-        self.critic = _layer(nn.Linear(config.features, 1), 1.0)
+        self.actor = _head(config, config.actions, 0.01)
+        self.critic = _head(config, 1, 1.0)
 
     def forward(self, observations: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(action logits (B, A), values (B,))."""

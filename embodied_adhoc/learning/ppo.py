@@ -44,6 +44,7 @@ class PpoConfig:
     device: str = "auto"  # "auto": cuda when available, else cpu
     hidden_channels: int = 16
     features: int = 64
+    head_hidden: int = 0  # 0: linear actor/critic heads; else MLP heads with one hidden layer of this width
 
     def __post_init__(self) -> None:
         for name in ("total_steps", "num_envs", "rollout_steps", "minibatches", "epochs"):
@@ -91,18 +92,23 @@ class PpoResult:
 
 
 def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
-              progress: Callable[[int, dict], None] | None = None, encoder: nn.Module | None = None) -> PpoResult:
+              progress: Callable[[int, dict], None] | None = None, encoder: nn.Module | None = None,
+              after_update: Callable[[ActorCritic, tuple], None] | None = None) -> PpoResult:
     """Train an actor-critic on ``GridVectorEnv(domain, config.num_envs, **env_kwargs)`` for
     ``config.total_steps`` env steps. ``progress(steps_done, row)`` is called after every update. With
     ``encoder`` (ATLPO-MB: a world model's trained encoder) the actor and critic learn on its latent states: its
-    weights are copied in and frozen, only the actor and critic heads are trained (Fig. 6.3)."""
+    weights are copied in and frozen, only the actor and critic heads are trained (Fig. 6.3).
+    ``after_update(model, transitions)``, if given, is called after every update with the rollout's transitions
+    ``(observations, actions, rewards, next_observations)`` as numpy arrays (reset steps left out); ATLPO-MB
+    trains its world model on them there and copies the new encoder into ``model``."""
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     device = pick_device(config.device)
     env = GridVectorEnv(domain, config.num_envs, **env_kwargs)
     observation, _ = env.reset(seed=config.seed)
     network = NetworkConfig(channels=observation.shape[1], view=observation.shape[2],
-                            hidden_channels=config.hidden_channels, features=config.features)
+                            hidden_channels=config.hidden_channels, features=config.features,
+                            head_hidden=config.head_hidden)
     model = ActorCritic(network)
     if encoder is not None:
         model.encoder.load_state_dict(encoder.state_dict())
@@ -176,6 +182,10 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
                 optimiser.step()
         with torch.no_grad():
             after = ppo_loss(model, b_obs, b_actions, b_logprobs, b_advantages, b_returns, config)
+        if after_update is not None:
+            following = torch.cat([obs_buf[1:], next_obs[None]]).reshape(-1, *obs_buf.shape[2:])[valid]
+            after_update(model, tuple(x.cpu().numpy() for x in (b_obs, b_actions, reward_buf.reshape(-1)[valid],
+                                                                 following)))
         row = {"update": update + 1, "env_steps": result.env_steps, "loss_before": loss_before,
                "loss_after": after[0].item(), "policy_loss": after[1].item(), "value_loss": after[2].item(),
                "entropy": after[3].item(), "episodes": len(finished),

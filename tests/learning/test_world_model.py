@@ -60,3 +60,39 @@ def test_mb_policy_learns_on_the_frozen_encoder(tmp_path):
     assert generalist_path(tmp_path, "foraging", "team", "mb").exists()
     assert torch.equal(next(iter(load_policy(generalist_path(tmp_path, "foraging", "team", "mb")).state_dict().values())),
                        next(iter(baseline.state_dict().values())))
+
+
+def test_world_model_keeps_learning_on_the_policys_replay():
+    """After every PPO update the rollout joins the replay and the world model trains on it (its encoder then
+    replaces the policy's); with updates_per_rollout=0 the encoder stays the pre-trained one. Seeded."""
+    config = PpoConfig(total_steps=128, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    frozen = WorldModelTraining(experience=256, iterations=20, batch_size=32, updates_per_rollout=0)
+    before, frozen_world, frozen_history = train_mb_policy("foraging", ONE, config, frozen)
+    interleaved = WorldModelTraining(experience=256, iterations=20, batch_size=32, updates_per_rollout=5, replay=300)
+    result, world, history = train_mb_policy("foraging", ONE, config, interleaved)
+    assert frozen_history[-1]["iteration"] == 19 and history[-1]["iteration"] == 19 + 2 * 5  # two PPO updates
+    changed = [not torch.equal(a, b) for a, b in zip(world.encoder.state_dict().values(),
+                                                    frozen_world.encoder.state_dict().values(), strict=True)]
+    assert any(changed)
+    for ours, theirs in zip(result.model.encoder.state_dict().values(), world.encoder.state_dict().values(),
+                            strict=True):
+        assert torch.equal(ours, theirs)
+    assert result.model.config.head_hidden == 64 and isinstance(result.model.actor, torch.nn.Sequential)
+    again = train_mb_policy("foraging", ONE, config, interleaved)[0]
+    for ours, theirs in zip(result.model.state_dict().values(), again.model.state_dict().values(), strict=True):
+        assert torch.equal(ours, theirs)
+
+
+def test_replay_replaces_the_oldest_transitions():
+    from embodied_adhoc.learning.world_model import Experience, Replay
+
+    def rows(start, count):
+        values = np.arange(start, start + count, dtype=np.float32)
+        return Experience(np.broadcast_to(values[:, None, None, None], (count, 1, 2, 2)).copy(),
+                          np.arange(count, dtype=np.int64), values, values[:, None, None, None] + np.zeros((1, 2, 2)))
+
+    replay = Replay(rows(0, 3), capacity=4, device=torch.device("cpu"))
+    assert replay.size == 3
+    more = rows(10, 3)
+    replay.add(more.observations, more.actions, more.rewards, more.next_observations)
+    assert replay.size == 4 and sorted(replay.tensors[2].tolist()) == [2.0, 10.0, 11.0, 12.0]
