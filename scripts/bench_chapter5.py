@@ -1,11 +1,12 @@
 """Build (and optionally solve) every chapter-5 library and print the thesis's Table 5.3 times beside ours.
 
 Building is timed per library (all its models, teammate policies by value iteration on the MMDPs included); the
-thesis's setup time is per POMDP, so its column is multiplied by the library size for the ratio. With
-``--solve-seconds S`` each model is also solved by Perseus (Table 5.2's belief-set size, tolerance 0.01, at most S
-seconds, no cache) and its time is printed beside the thesis's mean solve time per POMDP::
+thesis's setup time is per POMDP, so its column is multiplied by the library size for the ratio. With ``--solve``
+each model is also solved by Perseus with the settings of ``trials`` (``chapter5.solver_settings``: Table 5.2's
+belief-set size, tolerance 0.01, the domain's ``SOLVE_STAGES`` stages at most; no cache) and its CPU seconds (this
+process's, so the load of other processes counts little) are printed beside the thesis's mean solve time per POMDP::
 
-    .venv/bin/python scripts/bench_chapter5.py [--solve-seconds 20] [--repeats 3]
+    .venv/bin/python scripts/bench_chapter5.py [--solve] [--repeats 3]
 
 With ``--executors local ray`` it times instead the whole Table 5.5 (every library built, its policies solved or
 read from the policy cache, 32 episodes x 6 agents x 11 domains, the configs of ``reproduce_atpo.py``) once per
@@ -15,16 +16,25 @@ returns. ``ray`` joins the cluster at ``RAY_ADDRESS`` (see docs/atpo.md for a lo
     RAY_ADDRESS=127.0.0.1:6380 .venv/bin/python scripts/bench_chapter5.py --executors local ray
 
 A cold cache (``XDG_CACHE_HOME`` pointing at an empty folder) times solving too; a warm one times the trials and
-the building. Times are wall-clock on the machine at hand (say how loaded it was when you quote them).
+the building. The policies do not depend on the load (a stage budget), so the first executor's pass may run cold
+and the next ones warm. Times are wall-clock on the machine at hand, with this process's CPU seconds beside them
+(say how loaded the machine was when you quote them).
 """
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 from embodied_adhoc.domains.chapter5 import build_library
-from embodied_adhoc.experiments.chapter5 import TABLE_5_5_DOMAINS, forget_sessions, sweep_config
+from embodied_adhoc.experiments.chapter5 import (
+    TABLE_5_5_DOMAINS,
+    forget_sessions,
+    solver_settings,
+    sweep_config,
+)
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 from embodied_adhoc.experiments.tables import format_table
 
@@ -38,8 +48,8 @@ THESIS = {
 
 @dataclass(frozen=True)
 class Args:
-    solve_seconds: float = 0.0
-    """Perseus time limit per model (0: build only)"""
+    solve: bool = False
+    """also solve every model (the trials' solver settings, no cache; default: build only)"""
     repeats: int = 3
     """builds per library (the fastest is reported)"""
     markdown: bool = False
@@ -48,12 +58,13 @@ class Args:
     """time the whole Table 5.5 sweep with each of these executors (local, ray) instead"""
     workers: int = 1
     """worker processes of the local executor (ray: the cluster's CPUs)"""
-    sweep_solve_seconds: float = 20.0
-    """Perseus limit per model in the Table 5.5 sweep (reproduce_atpo.py's default: the same cache entries)"""
     episodes: int = 32
     """episodes per agent and domain in the Table 5.5 sweep"""
     domains: tuple[str, ...] = TABLE_5_5_DOMAINS
     """the Table 5.5 rows to time (default: all eleven)"""
+    returns_json: str = ""
+    """write the first executor's returns ({domain: [[agent, episode, return], ...]}) to this JSON file (to compare
+    runs: the same returns on any load)"""
 
 
 def time_table_5_5(args: Args) -> None:
@@ -64,19 +75,22 @@ def time_table_5_5(args: Args) -> None:
     rows, reference, first = [], None, None
     for executor in args.executors:
         forget_sessions()
-        start = time.perf_counter()
+        start, cpu_start = time.perf_counter(), time.process_time()
         returns, trials = {}, 0
         for domain in args.domains:
-            config = sweep_config(domain, episodes=args.episodes, solve_seconds=args.sweep_solve_seconds)
+            config = sweep_config(domain, episodes=args.episodes)  # reproduce_atpo.py's: the same cache entries
             result = run_sweep(config, workers=args.workers, executor=executor)
             trials += len(result.records)
             returns[domain] = sorted((r.agent, r.episode, r.total_reward) for r in result.records)
-        seconds = time.perf_counter() - start
+        seconds, cpu = time.perf_counter() - start, time.process_time() - cpu_start
         if reference is None:
             reference, first = seconds, returns
+            if args.returns_json:
+                Path(args.returns_json).write_text(json.dumps(returns, indent=0))
         same = "yes" if returns == first else "NO"
-        rows.append([executor, str(trials), f"{seconds:.1f}", f"{seconds / reference:.2f}", same])
-    headers = ["executor", "trials", "Table 5.5 s", f"ratio to {args.executors[0]}", "same returns"]
+        rows.append([executor, str(trials), f"{seconds:.1f}", f"{cpu:.1f}", f"{seconds / reference:.2f}", same])
+    headers = ["executor", "trials", "Table 5.5 s (wall)", "driver CPU s", f"ratio to {args.executors[0]}",
+               "same returns"]  # fmt: skip
     print(format_table(headers, rows, args.markdown))
     if any(row[-1] == "NO" for row in rows):
         raise SystemExit("executors disagree on the returns: a seeding bug")
@@ -101,22 +115,22 @@ def main() -> None:
         total_build += build
         row = [domain, str(library.n_models), f"{build:.3f}", f"{thesis_setup * library.n_models:.0f}",
                f"{thesis_setup * library.n_models / build:.0f}x"]  # fmt: skip
-        if args.solve_seconds > 0:
-            config = PerseusConfig(n_beliefs=library.n_beliefs, tolerance=0.01, time_limit=args.solve_seconds)
-            start = time.perf_counter()
-            for pomdp in library.pomdps:
-                perseus(pomdp, config)
-            solve = (time.perf_counter() - start) / library.n_models
+        if args.solve:
+            config = PerseusConfig(**solver_settings(library, {}))
+            start = time.process_time()
+            stages = [perseus(pomdp, config).stats.iterations for pomdp in library.pomdps]
+            solve = (time.process_time() - start) / library.n_models
             total_solve += solve * library.n_models
-            row += [f"{solve:.1f}", f"{thesis_solve:.0f}"]
+            row += [f"{config.max_iterations} ({min(stages)}-{max(stages)})", f"{solve:.1f}", f"{thesis_solve:.0f}",
+                    f"{thesis_solve / solve:.0f}x"]  # fmt: skip
         rows.append(row)
     headers = ["domain", "models", "build s (ours)", "setup s (thesis, x models)", "thesis / ours"]
-    if args.solve_seconds > 0:
-        headers += ["solve s per model (ours)", "solve s per model (thesis)"]
+    if args.solve:
+        headers += ["stages: budget (done)", "solve CPU s per model (ours)", "solve s per model (thesis)", "thesis / ours"]
     print(format_table(headers, rows, args.markdown))
     print(
         f"\nall libraries built in {total_build:.2f} s"
-        + (f", solved in {total_solve:.0f} s" if total_solve else "")
+        + (f", solved in {total_solve:.0f} CPU s" if total_solve else "")
     )
 
 

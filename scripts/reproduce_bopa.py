@@ -65,7 +65,8 @@ def run_setting(args: Args, size: int, teammate: str) -> SweepResult:
         "library": {"size": size, "teammate": teammate},
         "task": None,
         "beliefs": None,
-        "solve_seconds": 30.0,
+        "solve_stages": None,  # no Perseus here: greedy, BOPA and random use value iteration
+        "solve_seconds": None,
         "cache": True,
     }
     config = SweepConfig(

@@ -16,7 +16,11 @@ Agents (section 5.2.4):
 * ``random``: uniform actions.
 
 Perseus policies are solved once per model and settings and cached on disk
-(:mod:`embodied_adhoc.experiments.policy_cache`; ``--no-cache`` bypasses it). The session's ``timing`` (seconds
+(:mod:`embodied_adhoc.experiments.policy_cache`; ``--no-cache`` bypasses it). A solve's budget is a number of
+Perseus stages (``--solve-stages``, default :data:`SOLVE_STAGES` per domain), with Table 5.4's tolerance as the stop
+rule before it: the policy is then a function of the model, the settings and the seed alone, the same on an idle
+and on a loaded machine, so the tables do not depend on the load. ``--solve-seconds`` adds a wall-clock limit
+(off by default; it makes the policy depend on the machine's speed and load). The session's ``timing`` (seconds
 building the library and solving or loading its policies) goes into ``--json``. A solve that stopped at
 ``--solve-seconds`` before Perseus' first backup (the blind policy, ``policy_cache.is_blind``) is refused with the
 models named, never used silently, and never cached.
@@ -25,6 +29,7 @@ models named, never used silently, and never cached.
 from __future__ import annotations
 
 import argparse
+import math
 import time
 
 import numpy as np
@@ -40,7 +45,15 @@ TABLE_5_2_HORIZON = {
     "panic-buttons": 2000,
 }  # fmt: skip
 SOLVER_TOLERANCE = 0.01  # Table 5.4
-DEFAULT_SOLVE_SECONDS = 30.0
+SOLVE_STAGES = {
+    "gridworld": 14, "pursuit-task": 45, "pursuit-teammate": 45, "pursuit-both": 45, "power-plant": 40,
+    "ntu": 12, "isr": 13, "mit": 30, "pentagon": 16, "cit": 30, "overcooked": 40, "map": 30,
+    "panic-buttons": 40,
+}  # fmt: skip
+"""Perseus stages per model by default (``--solve-stages``): a deterministic budget, where the original ran to
+convergence (hours to days per model, Table 5.3). Perseus stops earlier where Table 5.4's tolerance is met on the
+belief set. The numbers are where the lower bound at b0 of the domain's first model stops moving much, measured
+in CPU seconds per stage (docs/atpo.md, "The solve budget")."""
 
 
 class LibraryEnv:
@@ -143,12 +156,7 @@ class Chapter5Session:
         if self._policies is None:
             from embodied_adhoc.experiments.policy_cache import is_blind, solve_cached
 
-            settings = {
-                "n_beliefs": int(self.options["beliefs"] or self.library.n_beliefs),
-                "tolerance": SOLVER_TOLERANCE,
-                "time_limit": self.options["solve_seconds"],
-                "seed": 0,
-            }
+            settings = solver_settings(self.library, self.options)
             start = time.perf_counter()
             solved = [solve_cached(p, settings, self.options["cache"]) for p in self.library.pomdps]
             self.timing["solve_seconds"] += time.perf_counter() - start
@@ -160,7 +168,7 @@ class Chapter5Session:
                     f"{self.library.domain}: Perseus stopped at --solve-seconds {settings['time_limit']:g} before "
                     f"its first backup for model(s) {', '.join(blind)}: that policy is the blind one (one action "
                     "for ever), so perseus, atpo and random-picker would be measured on no solution; raise "
-                    "--solve-seconds (the machine's load counts: this is wall-clock time)"
+                    "--solve-seconds or drop it (--solve-stages alone is a budget that no load can cut short)"
                 )
             self._policies = tuple(policy for policy, _ in solved)
         return self._policies
@@ -231,6 +239,7 @@ class Chapter5Domain:
             self.default_agents = self.agent_names
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        from embodied_adhoc.commands.arguments import bounded, positive_int
         from embodied_adhoc.domains.chapter5.options import add_library_arguments
         from embodied_adhoc.experiments.policy_cache import cache_dir
 
@@ -253,11 +262,20 @@ class Chapter5Domain:
             "--beliefs", type=int, default=None, help="Perseus belief-set size (default: Table 5.2's)"
         )
         group.add_argument(
+            "--solve-stages",
+            type=positive_int,
+            default=None,
+            metavar="N",
+            help=f"Perseus stages per model at most (default {SOLVE_STAGES[self.name]} here; it stops earlier at "
+            f"tolerance {SOLVER_TOLERANCE}): the same policy on any load",
+        )
+        group.add_argument(
             "--solve-seconds",
-            type=float,
-            default=DEFAULT_SOLVE_SECONDS,
+            type=bounded(float, math.ulp(0.0), "a finite number of seconds > 0"),
+            default=None,
             metavar="S",
-            help=f"Perseus time limit per model (default {DEFAULT_SOLVE_SECONDS:g} s; tolerance {SOLVER_TOLERANCE})",
+            help="also stop each solve after S wall-clock seconds (default: no time limit; with one, the policy "
+            "depends on the machine's speed and load)",
         )
         group.add_argument(
             "--no-cache",
@@ -271,12 +289,11 @@ class Chapter5Domain:
 
         if args.beliefs is not None and args.beliefs < 1:
             raise ConfigError(f"--beliefs must be >= 1, got {args.beliefs}")
-        if args.solve_seconds is not None and args.solve_seconds <= 0:
-            raise ConfigError(f"--solve-seconds must be positive, got {args.solve_seconds}")
         options = {
             "library": library_options(self.name, args, ignore=("teammate",)),
             "task": args.task,
             "beliefs": args.beliefs,
+            "solve_stages": args.solve_stages or SOLVE_STAGES[self.name],
             "solve_seconds": args.solve_seconds,
             "cache": not args.no_cache,
         }
@@ -495,18 +512,20 @@ def sweep_config(
     agents: tuple[str, ...] | None = None,
     episodes: int = 32,
     seed: int = 0,
-    solve_seconds: float = DEFAULT_SOLVE_SECONDS,
+    solve_stages: int | None = None,
     beliefs: int | None = None,
+    solve_seconds: float | None = None,
 ):
     """The :class:`~embodied_adhoc.experiments.runner.SweepConfig` of one Table 5.5 cell row (the options
-    ``trials DOMAIN`` would pass; Table 5.2's horizon as the cap), shared by the reproduction and benchmark scripts
-    so that their policies share the cache."""
+    ``trials DOMAIN`` would pass; Table 5.2's horizon as the cap; ``solve_stages`` None: :data:`SOLVE_STAGES`),
+    shared by the reproduction and benchmark scripts so that their policies share the cache."""
     from embodied_adhoc.experiments.runner import SweepConfig
 
     options = {
         "library": dict(library or {}),
         "task": None,
         "beliefs": beliefs,
+        "solve_stages": solve_stages or SOLVE_STAGES[domain_name],
         "solve_seconds": solve_seconds,
         "cache": True,
     }
@@ -516,6 +535,20 @@ def sweep_config(
     return SweepConfig(
         domain_name, "abstract", options, agents, episodes, seed, TABLE_5_2_HORIZON[domain_name]
     )
+
+
+def solver_settings(library, options: dict) -> dict:
+    """The Perseus settings (``PerseusConfig`` fields, part of the policy-cache key) of a session's ``options``:
+    Table 5.2's belief-set size unless ``beliefs``, Table 5.4's tolerance, at most ``solve_stages`` stages (default
+    :data:`SOLVE_STAGES`), ``solve_seconds`` of wall-clock time if given (else none), seed 0."""
+    stages = options.get("solve_stages") or SOLVE_STAGES.get(library.domain, SOLVE_STAGES["map"])
+    return {
+        "n_beliefs": int(options.get("beliefs") or library.n_beliefs),
+        "tolerance": SOLVER_TOLERANCE,
+        "max_iterations": int(stages),
+        "time_limit": options.get("solve_seconds"),
+        "seed": 0,
+    }
 
 
 def forget_sessions() -> None:

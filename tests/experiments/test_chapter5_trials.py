@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _options(cache: bool = False, **library) -> dict:
-    return {"library": library, "task": None, "beliefs": 60, "solve_seconds": 5.0, "cache": cache}
+    return {"library": library, "task": None, "beliefs": 60, "solve_stages": 10, "solve_seconds": None, "cache": cache}
 
 
 @pytest.fixture()
@@ -93,7 +93,7 @@ def test_cli_json_fields_and_help_shows_the_cache(tmp_path):
     assert str(tmp_path / "xdg" / "embodied-adhoc" / "policies") in "".join(help_text.split())
     result = _cli(
         "panic-buttons", "--size", "3", "--agents", "value-iteration,bopa,atpo,random", "--episodes", "3",
-        "--beliefs", "40", "--solve-seconds", "5", "--json", env=env,
+        "--beliefs", "40", "--solve-stages", "10", "--json", env=env,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
     document = json.loads(result.stdout)
@@ -102,6 +102,10 @@ def test_cli_json_fields_and_help_shows_the_cache(tmp_path):
         for key in ("return_mean", "return_ci95", "steps_mean", "success_rate", "identify_steps_mean"):
             assert key in fields
     assert document["config"]["max_steps"] == 2000
+    assert document["timing"]["solver_settings"]["max_iterations"] == 10
+    assert document["timing"]["solver_settings"]["time_limit"] is None
+    refused = _cli("ntu", "--episodes", "1", "--solve-stages", "0", env=env)
+    assert refused.returncode == 2 and "--solve-stages: 0: give an integer >= 1" in refused.stderr
 
 
 def test_cli_refuses_a_bad_map_with_its_place(tmp_path):
@@ -226,6 +230,36 @@ def test_power_plant_takes_a_world_teammate(tmp_path, monkeypatch):
     )
 
 
+def test_a_stage_budget_gives_the_same_policy_on_any_load(tmp_path, monkeypatch):
+    """The default budget is a number of Perseus stages: a wall clock that jumps 0.5 s at every reading (what a
+    solve sees on a heavily loaded machine) changes nothing, where the same clock cuts a wall-clock budget short."""
+    import time
+
+    from embodied_adhoc.decision.perseus import PerseusConfig, perseus
+    from embodied_adhoc.experiments.chapter5 import SOLVE_STAGES, solver_settings
+
+    library = build_library("gridworld", n_models=1)
+    settings = solver_settings(library, {"beliefs": 100, "solve_stages": 8})
+    assert settings == {"n_beliefs": 100, "tolerance": 0.01, "max_iterations": 8, "time_limit": None, "seed": 0}
+    assert solver_settings(library, {})["max_iterations"] == SOLVE_STAGES["gridworld"]
+    pomdp = library.pomdps[0]
+    idle = perseus(pomdp, PerseusConfig(**settings))
+    timed_idle = perseus(pomdp, PerseusConfig(**{**settings, "time_limit": 5.0}))
+    real_clock, offset = time.perf_counter, [0.0]
+
+    def loaded_clock() -> float:  # every reading 0.5 s later than the last: a stage here takes ~0.02 s
+        offset[0] += 0.5
+        return real_clock() + offset[0]
+
+    monkeypatch.setattr(time, "perf_counter", loaded_clock)
+    loaded = perseus(pomdp, PerseusConfig(**settings))
+    timed_loaded = perseus(pomdp, PerseusConfig(**{**settings, "time_limit": 5.0}))
+    monkeypatch.setattr(time, "perf_counter", real_clock)
+    assert idle.stats.iterations == loaded.stats.iterations == 8
+    assert np.array_equal(idle.alphas, loaded.alphas) and np.array_equal(idle.actions, loaded.actions)
+    assert timed_loaded.stats.iterations < timed_idle.stats.iterations  # the clock does reach the solver
+
+
 def test_policy_cache_key_covers_every_solver_module(tmp_path, monkeypatch):
     from embodied_adhoc.experiments import policy_cache
 
@@ -301,7 +335,8 @@ def test_a_blind_perseus_policy_is_refused_and_not_cached(private_cache, monkeyp
     real = __import__("embodied_adhoc.decision.perseus", fromlist=["perseus"]).perseus
     monkeypatch.setattr("embodied_adhoc.decision.perseus.perseus", timed_out)
     session = Chapter5Session(
-        "panic-buttons", {**_options(cache=True), "library": {"size": 3, "teammate": "optimal"}}
+        "panic-buttons",
+        {**_options(cache=True), "solve_seconds": 5.0, "library": {"size": 3, "teammate": "optimal"}},
     )
     with pytest.raises(ConfigError, match=r"before its first backup for model\(s\) .*raise --solve-seconds"):
         session.policies()
