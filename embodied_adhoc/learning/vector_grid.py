@@ -39,7 +39,7 @@ from embodied_adhoc.domains.grid_rules_team import TEAM_DRAWS, TeamTable, planne
 from embodied_adhoc.errors import ConfigError
 
 GRID_IDS = {"foraging": "EmbodiedAdhoc/ForagingGrid-v0", "pursuit": "EmbodiedAdhoc/PursuitGrid-v0"}
-DRAW_BLOCK = 16  # steps of uniforms drawn per sub-env at once
+DRAW_BLOCK = 64  # steps of uniforms drawn per sub-env at once
 
 
 class GridVectorEnv(gymnasium.vector.VectorEnv):
