@@ -228,12 +228,13 @@ def _move_of(before: np.ndarray, after: np.ndarray) -> int:
     return int(next(k for k, move in enumerate(MOVES) if offset_index(move) == delta))
 
 
-def draw_cells(cells: np.ndarray, cell_px: int = 32) -> np.ndarray:
-    """Top-down RGB picture of the torus: agent orange, teammate blue, prey red (shared cells split)."""
+def draw_cells(cells: np.ndarray, cell_px: int = 32,
+               colours=((240, 140, 20), (40, 90, 220), (220, 40, 40))) -> np.ndarray:
+    """Top-down RGB picture of the torus: agent orange, teammate blue, prey red (shared cells split); one colour
+    per row of ``cells`` (chapter 4's pursuit passes five)."""
     image = np.full((SIZE * cell_px, SIZE * cell_px, 3), 235, dtype=np.uint8)
     image[::cell_px, :] = 180
     image[:, ::cell_px] = 180
-    colours = ((240, 140, 20), (40, 90, 220), (220, 40, 40))
     for k, (cell, colour) in enumerate(zip(cells, colours, strict=True)):
         r, c = int(cell[0]) * cell_px, int(cell[1]) * cell_px
         margin = cell_px // 5 + 3 * k * (sum((cells == cell).all(axis=1)) > 1)

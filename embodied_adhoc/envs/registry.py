@@ -67,6 +67,13 @@ ENV_SPECS: list[EnvSpec] = [
     EnvSpec("EmbodiedAdhoc/PursuitPairPomdp-v0", "embodied_adhoc.envs.pursuit_pomdp:PursuitPomdpEnv",
             "Fig. 7.12 pursuit POMDP executed by robots in the MuJoCo arena; observation from the physical poses",
             kwargs={"backend": "mujoco"}, max_episode_steps=150, backend="mujoco"),
+    # issue 16: chapter 4's pursuit (TEAMSTER, PLASTIC-Model), its rules on the grid twin and in the arena
+    EnvSpec("EmbodiedAdhoc/Pursuit4Grid-v0", "embodied_adhoc.envs.teamwork:TeamworkEnv",
+            "Chapter-4 pursuit: 5x5 torus, 4 predators, teams teammate-aware/greedy/probabilistic destinations",
+            max_episode_steps=100),
+    EnvSpec("EmbodiedAdhoc/Pursuit4-v0", "embodied_adhoc.envs.teamwork:TeamworkEnv",
+            "Chapter-4 pursuit executed by five robots in the MuJoCo arena (waypoint controller, torus teleports)",
+            kwargs={"backend": "mujoco"}, max_episode_steps=100, backend="mujoco"),
 ]
 
 

@@ -12,7 +12,9 @@ episode the same way::
 
 ``z`` is ``observation_index(obs, info)`` (the tabular agents' observation index), or the env's raw observation
 itself for agents that declare ``observes_raw`` (learned agents over egocentric arrays); the trace records the
-index either way.
+index either way. Agents that learn from rewards (chapter 4's, through
+:class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`) declare ``observes_reward`` and also get
+``reward=r, terminated=...`` in ``observe``.
 
 Recorders and progress bars are :class:`EpisodeObserver` objects: the loop calls them, they never drive the
 episode. Envs stay pure Gymnasium and ``record/`` never imports this layer (``tests/test_layers.py``).
@@ -116,6 +118,7 @@ def run_episode_loop(
     trace.reset_info = info
     privileged = bool(getattr(agent, "observes_state", False))
     raw = bool(getattr(agent, "observes_raw", False))
+    rewarded = bool(getattr(agent, "observes_reward", False))
     agent.reset(agent_rng, state=info["state"] if privileged else None)
     if raw:
         agent.start(observation)
@@ -130,7 +133,8 @@ def run_episode_loop(
             observer.action_chosen(step, action)
         observation, reward, terminated, truncated, info = env.step(action)
         index = int(observation_index(observation, info))
-        agent.observe(action, observation if raw else index, state=info["state"] if privileged else None)
+        outcome = {"reward": float(reward), "terminated": bool(terminated)} if rewarded else {}
+        agent.observe(action, observation if raw else index, state=info["state"] if privileged else None, **outcome)
         posterior = _posterior(agent)
         trace.actions.append(action)
         trace.observations.append(index)

@@ -8,6 +8,10 @@ robot, the shared waypoint controller) with two changes that the POMDP's rules n
   physical floor cannot wrap, and the library's dynamics are toroidal;
 * **no collisions**: the model lets two predators (or a predator and the prey) share a cell, so contacts between
   robots are disabled (each robot still touches the floor and the walls).
+
+``predators=4`` is the same arena for chapter 4's pursuit (:class:`~embodied_adhoc.envs.teamwork.TeamworkEnv`),
+whose rules keep agents on distinct cells: the rules resolve conflicts, so robots passing each other in a
+chain move need no contacts either.
 """
 
 from __future__ import annotations
@@ -24,10 +28,12 @@ ROBOT_CONTYPE, ROBOT_CONAFFINITY = 2, 1  # collide with the floor and walls (con
 
 
 class PursuitPomdpArena:
-    """Agent 0 (the ad hoc robot), agent 1 (the teammate) and the prey robot, in the library's cell order."""
+    """Agent 0 (the ad hoc robot), the teammates (1 by default) and the prey robot, in the library's cell order."""
 
-    def __init__(self, physics: ArenaPhysics | None = None) -> None:
-        config = GridConfig(domain="pursuit", rows=SIZE, cols=SIZE, n_agents=2, n_targets=1, interact_required=False)
+    def __init__(self, physics: ArenaPhysics | None = None, predators: int = 2) -> None:
+        self.predators = predators
+        config = GridConfig(domain="pursuit", rows=SIZE, cols=SIZE, n_agents=predators, n_targets=1,
+                            interact_required=False)
         self.backend = GridArenaBackend(GridRules(config), physics=physics)
         model = self.backend.model
         roots = {model.body(f"{name}/").id for name in self.backend.robots}
@@ -38,16 +44,16 @@ class PursuitPomdpArena:
         model.geom_conaffinity[robot_geoms] = ROBOT_CONAFFINITY
         self.teleports = 0  # edge crossings executed as teleports (since construction)
 
-    @staticmethod
-    def _grid_state(cells: np.ndarray) -> GridState:
-        return GridState(cells[:2].copy(), np.ones(2, np.int64), cells[2:3].copy(), np.ones(1, np.int64))
+    def _grid_state(self, cells: np.ndarray) -> GridState:
+        n = self.predators
+        return GridState(cells[:n].copy(), np.ones(n, np.int64), cells[n:n + 1].copy(), np.ones(1, np.int64))
 
     @staticmethod
     def _cells(state: GridState) -> np.ndarray:
         return np.vstack([state.agents, state.targets]).astype(np.int64)
 
     def reset(self, cells: np.ndarray) -> np.ndarray:
-        """Place the robots on ``cells`` ((agent, teammate, prey) rows); returns the cells physics shows."""
+        """Place the robots on ``cells`` ((agent, teammates, prey) rows); returns the cells physics shows."""
         return self._cells(self.backend.reset(self._grid_state(np.asarray(cells))))
 
     def execute(self, cells: np.ndarray, target: np.ndarray) -> np.ndarray:
@@ -56,11 +62,12 @@ class PursuitPomdpArena:
         for robot in np.flatnonzero((np.abs(target - cells) > 1).any(axis=1)):
             self.backend.place(robot, target[robot], yaw[robot])
             self.teleports += 1
-        plan = StepPlan(target[:2].copy(), target[2:3].copy(), np.zeros(1, dtype=bool))
+        n = self.predators
+        plan = StepPlan(target[:n].copy(), target[n:n + 1].copy(), np.zeros(1, dtype=bool))
         return self._cells(self.backend.execute(self._grid_state(cells), plan))
 
     def poses(self) -> np.ndarray:
-        """(3, 3) true base poses (x, y, yaw) of the agent, the teammate and the prey."""
+        """(predators + 1, 3) true base poses (x, y, yaw) of the agent, the teammates and the prey."""
         return self.backend.poses()
 
     @property

@@ -16,6 +16,7 @@ IDS = [spec.id for spec in ENV_SPECS]
 MUJOCO = {spec.id for spec in ENV_SPECS if spec.backend == "mujoco"}
 POMDP_RULES = {"EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "EmbodiedAdhoc/PursuitPairPomdp-v0"}  # Fig. 7.12's POMDP
 LAB = {"EmbodiedAdhoc/ToxicWasteAbstract-v0", "EmbodiedAdhoc/ToxicWaste-v0"}
+TEAMWORK = {"EmbodiedAdhoc/Pursuit4Grid-v0", "EmbodiedAdhoc/Pursuit4-v0"}  # chapter 4's pursuit (no tasks)
 SMALL = {"EmbodiedAdhoc/ToxicWaste-v0": {"width": 64, "height": 48}}  # small frames keep the physics test fast
 
 ACCEPTED_ACTIONS = [1, np.int8(1), np.uint16(1), np.int64(1), np.array(1), np.array(1, dtype=np.uint8)]
@@ -77,7 +78,7 @@ def test_step_past_the_time_limit_raises_and_reset_starts_again(env):
 @pytest.mark.parametrize("env_id", IDS)
 def test_registered_cap_is_the_time_limit_and_make_overrides_it(env_id):
     assert gymnasium.spec(env_id).max_episode_steps == registered_cap(env_id)
-    assert registered_cap(env_id) == (100 if env_id in LAB else 150 if "Pair" in env_id else 200)
+    assert registered_cap(env_id) == (100 if env_id in LAB | TEAMWORK else 150 if "Pair" in env_id else 200)
     if env_id not in MUJOCO:
         env = make(env_id, max_episode_steps=7)
         assert env.spec.max_episode_steps == 7
@@ -94,6 +95,10 @@ def test_step_after_termination_raises(env_id):
         q_values = mdp_q_values(env.unwrapped.library)[0]
         env.reset(seed=0, options={"task": 0})
         policy = lambda: int(q_values[env.unwrapped.state].argmax())  # noqa: E731
+    elif env_id in TEAMWORK:  # the teammate-aware team's own policy in the ad hoc seat captures the prey
+        env.reset(seed=0, options={"team": "teammate-aware"})
+        seat = env.unwrapped.models["teammate-aware"].seat
+        policy = lambda: int(seat(env.unwrapped.state[None])[0].argmax())  # noqa: E731
     elif core is None:  # the lab: a human who never fails, and a robot that follows it (see test_lab_abstract_env)
         env = make(env_id, human_epsilon=0.0)
         env.reset(seed=0, options={"task": 0, "robot_node": 0, "human_node": 0})
@@ -112,7 +117,7 @@ def test_step_after_termination_raises(env_id):
     for _ in range(3):
         with pytest.raises(EpisodeOverError):
             env.step(0)
-    if core is not None or env_id in POMDP_RULES:
+    if core is not None or env_id in POMDP_RULES | TEAMWORK:
         assert total == 1.0  # the grid pays once, at the end, and nothing for refused steps after it
     with pytest.raises(EpisodeOverError):  # the env itself, without gymnasium's wrappers
         env.unwrapped.step(0)
@@ -137,7 +142,7 @@ def test_unwrapped_env_refuses_step_before_reset(env_id):
     ],
 )
 def test_unknown_kwargs_are_refused(env_id, kwargs, match):
-    if (env_id in LAB or env_id in POMDP_RULES) and "toroidl" in kwargs:
+    if (env_id in LAB or env_id in POMDP_RULES | TEAMWORK) and "toroidl" in kwargs:
         match = "unknown keyword 'toroidl'"
     with pytest.raises(ConfigError, match=match):
         make(env_id, **kwargs)
@@ -181,6 +186,10 @@ def test_wrongly_typed_reset_options_are_refused(env):
         good["team"] = "greedy"
     if env_id in POMDP_RULES:  # the task is the only option of both kinds (no teams: the library's teammate)
         good = {"task": np.int32(2)}
+    if env_id in TEAMWORK:  # the team is the only unknown (no tasks)
+        _, info = env.reset(seed=0, options={"team": "greedy", "state": np.array([0, 1, 2, 3, 24], np.int16)})
+        assert info["team"] == "greedy" and info["state"].tolist() == [0, 1, 2, 3, 24]
+        return
     _, info = env.reset(seed=0, options=good)
     assert info["task"] == (1 if lab else 2)
 

@@ -186,3 +186,50 @@ class OriginalTeammate(RandomAgent):
 
     def act(self, state):
         return int(sample_rows(self.policy(np.asarray(state)[None]), self.rng)[0])
+
+
+class EpisodeSeat:
+    """A chapter-4 agent (:class:`TeamworkAgent`) in the project's one episode loop
+    (:func:`embodied_adhoc.experiments.episode.run_episode_loop`), over :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv`
+    observations ``[state cells..., teammates' last actions...]``.
+
+    It declares ``observes_raw`` (it gets those arrays) and ``observes_reward`` (Algorithm 1, line 11 learns the
+    reward model from ``R_{t+1}``), and translates the loop's ``act()`` / ``observe(action, observation,
+    reward=..., terminated=...)`` into ``act(X_t)`` / ``observe(X_t, (A_t, A_t^{-alpha}), R_{t+1}, X_{t+1},
+    terminal)``. ``reset(rng)`` makes ``rng`` the agent's source of draws for the episode and, with
+    ``evaluation=True``, starts an evaluation episode (section 4.1.4: learning paused, the team belief restarted
+    uniform, so episodes are independent of each other's order); otherwise whether the agent learns is the
+    caller's (``set_evaluation``). ``task_posterior`` is the team belief (library, then the online model), so the
+    trial runner records team identification."""
+
+    observes_raw = True
+    observes_reward = True
+    observes_state = False
+
+    def __init__(self, agent: TeamworkAgent, n_agents: int, evaluation: bool = False) -> None:
+        self.agent, self.n_agents, self.evaluation = agent, n_agents, evaluation
+        self.name = agent.name
+        self.state: np.ndarray | None = None
+
+    def reset(self, rng: np.random.Generator, state=None) -> None:
+        self.agent.rng = rng
+        if self.evaluation:
+            self.agent.set_evaluation(True)
+
+    def start(self, observation) -> None:
+        self.state = np.asarray(observation[:self.n_agents], dtype=np.int64)
+
+    def act(self) -> int:
+        return int(self.agent.act(self.state))
+
+    def observe(self, action: int, observation, state=None, reward: float = 0.0, terminated: bool = False) -> None:
+        observation = np.asarray(observation, dtype=np.int64)
+        following = observation[:self.n_agents]
+        joint = np.concatenate([[action], observation[self.n_agents:]])
+        self.agent.observe(self.state, joint, float(reward), following, bool(terminated))
+        self.state = following
+
+    @property
+    def task_posterior(self) -> np.ndarray | None:
+        belief = getattr(self.agent, "belief", None)
+        return None if belief is None or not hasattr(self.agent, "models") else np.asarray(belief)
