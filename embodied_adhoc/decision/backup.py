@@ -6,12 +6,13 @@ For beliefs ``B`` (n x S) and an alpha set ``Gamma`` (K x S) the backup at ``b``
     k*_{a,z}(b) = argmax_k  sum_{s'} (b T_a)(s') O(z | s', a) Gamma[k](s'),
 
 and ``backup(b) = alpha_{a*}^b`` for the action maximising ``b . alpha_a^b``. All beliefs of a batch are handled
-at once: one sparse product ``B T_a`` per action, then the scores of every vector on every branch, and one
-sparse product per action to map the chosen continuation vectors back through ``T_a``. The scores are computed
-on the support of the predicted beliefs when they are sparse: one sparse (possible branches x S) matrix
-``W[(i, z), s'] = (b_i T_a)(s') O(z | s', a)`` times the dense ``Gamma^T``, so the cost is ``K`` times the
-nonzeros of ``W`` (about ``n * |supp(b T_a)| * nnz(O_a) / S``); dense predicted beliefs use one product with the
-projection of all vectors on all observations (``n * K * nnz(O_a)`` per action, not ``n * K * S * |Z|``).
+at once: one sparse product ``B T_a`` per action, then the scores of every vector on every branch. With sparse
+observations the scores are computed on the support of the predicted beliefs: one sparse (possible branches x S)
+matrix ``W[(i, z), s'] = (b_i T_a)(s') O(z | s', a)`` times the dense ``Gamma^T`` (float32), so the cost is ``K``
+times the nonzeros of ``W``, never more than a product with the projection of all vectors on all observations
+(``n * K * nnz(O_a)``) and less by the predicted beliefs' density; dense observation models use one dense product
+with that projection. Each action's value follows from the best scores (float64, on the same entries); the
+vector, mapped back through ``T_a`` by two sparse products, is built only for each belief's best action.
 
 Branches ``(a, z)`` impossible at a belief still get a continuation vector (the one best for a uniform spread
 over the states emitting ``z``): dropping them would give a vector that is not the value of any plan, and the
@@ -28,11 +29,8 @@ import scipy.sparse.linalg
 
 from embodied_adhoc.decision.models import POMDP
 
-_DENSE_DENSITY = 0.1  # observation-matrix density above which projections are stored densely
+_DENSE_DENSITY = 0.1  # observation-matrix density from which scores use a dense projection of the vectors
 _DENSE_MAX_ELEMENTS = 20_000_000
-
-
-_SUPPORT_DENSITY = 0.3  # predicted-belief density below which scores are computed on the belief supports
 
 
 @dataclass(frozen=True)
@@ -41,7 +39,7 @@ class PreparedAlphas:
 
     alphas: np.ndarray
     alphas_t: np.ndarray  # (S, K) float32, contiguous: right operand of the support-restricted scores
-    projections: dict[int, sp.csr_matrix | np.ndarray]
+    projections: dict[int, np.ndarray | None]
     fallbacks: tuple[np.ndarray, ...]
 
 
@@ -83,38 +81,32 @@ class BackupOperator:
         fallbacks = tuple(np.argmax(entry[4] @ alphas.T, axis=1) for entry in self.entries)
         return PreparedAlphas(alphas, np.ascontiguousarray(alphas.T, dtype=np.float32), {}, fallbacks)
 
-    def _projection(self, prepared: PreparedAlphas, action: int) -> sp.csr_matrix | np.ndarray:
-        """Projection of every vector on every observation of ``action`` (used for dense predicted beliefs)."""
+    def _projection(self, prepared: PreparedAlphas, action: int) -> np.ndarray | None:
+        """Dense projection (Z*K, S) of every vector on every observation of ``action``, for dense observation
+        models (a dense BLAS product then beats the support-restricted one despite the zeros); None when the
+        observations are sparse or the projection would exceed ``_DENSE_MAX_ELEMENTS``."""
         if action in prepared.projections:
             return prepared.projections[action]
         alphas = prepared.alphas
-        end_states, observations, probabilities, _, observation_t = self.entries[action]
         n_vectors, n_obs, n_states = alphas.shape[0], self.n_observations, self.pomdp.n_states
-        # projected (K*Z x S'): row k*Z+z holds O(z|s',a) alpha_k(s'); scores[k, z, i] = row . (b_i T_a)
-        shape = (n_vectors * n_obs, n_states)
-        density = len(end_states) / (n_states * n_obs)
-        if density >= _DENSE_DENSITY and shape[0] * shape[1] <= _DENSE_MAX_ELEMENTS:
-            # Dense observation models: a dense BLAS product beats the sparse one despite the extra zeros.
+        projection = None
+        if not self.sparse_observations[action] and n_vectors * n_obs * n_states <= _DENSE_MAX_ELEMENTS:
             # Laid out (Z, K, S) so that the scores come out (n, Z, K), K last for a contiguous argmax.
-            dense_t = observation_t.toarray()  # (Z, S)
+            dense_t = self.entries[action][4].toarray()  # (Z, S)
             projection = (dense_t[:, None, :] * alphas[None, :, :]).reshape(n_obs * n_vectors, n_states)
-        else:
-            weights = alphas[:, end_states] * probabilities  # (K, nnz)
-            rows = (np.arange(n_vectors)[:, None] * n_obs + observations[None, :]).ravel()
-            columns = np.tile(end_states, n_vectors)
-            projection = sp.csr_matrix((weights.ravel(), (rows, columns)), shape=shape)
         prepared.projections[action] = projection
         return projection
 
     def _support_choices(
         self, prepared: PreparedAlphas, action: int, predicted: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Best vector of each possible branch, scored on the support of the predicted beliefs only.
 
-        Returns ``(observations, beliefs, best)`` for every branch ``(z, i)`` with ``P(z | b_i, a) > 0``. The
-        scores are float32 (half the memory traffic of this, the solver's hottest product): they only choose
-        the continuation, the vectors are then built in float64, so a near-tie picked differently still gives
-        the exact value of a conditional plan (the lower bound holds).
+        Returns ``(observations, beliefs, best, values)`` for every branch ``(z, i)`` with ``P(z | b_i, a) > 0``,
+        and per belief ``sum_z sum_s' (b_i T_a)(s') O(z | s', a) alpha_best(s')`` in float64 (the continuation
+        part of the backed-up value, from the same entries). The scores are float32 (half the memory traffic of
+        this, the solver's hottest product): they only choose the continuation, the vectors are then built in
+        float64, so a near-tie picked differently still gives the exact value of a conditional plan.
         """
         observation = self.observation_rows[action]  # CSR (S x Z)
         n_obs = self.n_observations
@@ -126,13 +118,24 @@ class BackupOperator:
         first = np.repeat(np.cumsum(counts) - counts, counts)
         position = observation.indptr[ends][owner] + np.arange(total) - first
         keys = columns[owner] * n_obs + observation.indices[position]  # branch (i, z) of every product entry
-        branch_keys, rows = np.unique(keys, return_inverse=True)
-        weights = sp.csr_matrix(
-            ((mass[owner] * observation.data[position]).astype(np.float32), (rows.ravel(), ends[owner])),
-            shape=(len(branch_keys), self.pomdp.n_states),
-        )
+        if predicted.shape[1] * n_obs <= max(4 * total, 1 << 16):
+            # The branches present, numbered in key order without sorting (np.unique's argsort was 14 % of a
+            # backup of the pursuit model): a mark per possible key, then its running count.
+            present = np.zeros(predicted.shape[1] * n_obs, dtype=bool)
+            present[keys] = True
+            branch_keys, rows = np.flatnonzero(present), (np.cumsum(present) - 1)[keys]
+        else:
+            branch_keys, rows = np.unique(keys, return_inverse=True)
+            rows = rows.ravel()
+        states = ends[owner]
+        entries = mass[owner] * observation.data[position]
+        weights = sp.csr_matrix((entries.astype(np.float32), (rows, states)), shape=(len(branch_keys), self.pomdp.n_states))
         best = np.argmax(weights @ prepared.alphas_t, axis=1)  # (branches,)
-        return branch_keys % n_obs, branch_keys // n_obs, best
+        branch_beliefs = branch_keys // n_obs
+        values = np.bincount(
+            branch_beliefs[rows], entries * prepared.alphas[best[rows], states], minlength=predicted.shape[1]
+        )
+        return branch_keys % n_obs, branch_beliefs, best, values
 
     def backup(
         self,
@@ -149,66 +152,63 @@ class BackupOperator:
         observation, i.e. its conditional plan (``vectors[i] = R_a + gamma T_a sum_z O_z alphas[children[i, z]]``).
         Internally everything is laid out (S, n) so that every sparse product is a row-oriented CSR product.
         ``project=False`` always scores on the predicted beliefs' support, never building the projection of all
-        vectors (for one or a few beliefs, e.g. the solver's trials, building it costs more than the scores).
+        vectors (dense observation models use it by default; for one or a few beliefs, e.g. the solver's trials,
+        building it costs more than the scores).
+
+        Each action's value ``b . R_a + gamma sum_z max_k (b T_a O_z) . alpha_k`` is computed from the branch
+        scores alone; the vector (two sparse products over all states) is built only for the best action of
+        each belief (the pursuit model: about a quarter of a solve went into vectors of actions not chosen).
         """
         prepared = alphas if isinstance(alphas, PreparedAlphas) else self.prepare(alphas)
         alphas = prepared.alphas
         n, n_states = beliefs.shape
-        n_vectors, n_obs = alphas.shape[0], self.n_observations
+        n_actions, n_obs = self.pomdp.n_actions, self.n_observations
         beliefs_t = np.ascontiguousarray(beliefs.T)  # (S, n)
-        best_vectors = np.empty((n, n_states))
-        best_values = np.full(n, -np.inf)
-        best_actions = np.zeros(n, dtype=np.int64)
-        best_children = np.zeros((n, n_obs), dtype=np.int64) if with_children else None
-        for action in range(self.pomdp.n_actions):
-            end_states, observations, probabilities, from_entries, observation_t = self.entries[action]
+        action_values = np.empty((n_actions, n))
+        chosen_by_action = np.empty((n_actions, n_obs, n), dtype=np.int64)
+        for action in range(n_actions):
             # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
             predicted = self.transitions_t[action] @ beliefs_t
-            if not project or (
-                self.sparse_observations[action] and np.count_nonzero(predicted) < _SUPPORT_DENSITY * predicted.size
-            ):
-                # (Z, n): best continuation per branch and belief; impossible branches keep the fallback.
-                chosen = np.repeat(prepared.fallbacks[action][:, None], n, axis=1)
-                branch_observations, branch_beliefs, best = self._support_choices(prepared, action, predicted)
+            chosen = chosen_by_action[action]  # (Z, n): best continuation per branch and belief
+            projected = self._projection(prepared, action) if project else None
+            if projected is None:
+                # Scored on the predicted beliefs' support: the same products as the projection's, restricted to
+                # the states a belief can reach, in float32. Impossible branches keep the fallback.
+                chosen[:] = prepared.fallbacks[action][:, None]
+                branch_observations, branch_beliefs, best, continuation = self._support_choices(
+                    prepared, action, predicted
+                )
                 chosen[branch_observations, branch_beliefs] = best
             else:
-                projected = self._projection(prepared, action)
-                if isinstance(projected, np.ndarray):  # dense (Z*K, S): scores (n, Z, K)
-                    scores = (predicted.T @ projected.T).reshape(n, n_obs, n_vectors)
-                    chosen = np.ascontiguousarray(np.argmax(scores, axis=2).T)  # (Z, n)
-                else:  # sparse (K*Z, S): scores (K, Z, n)
-                    scores = (projected @ predicted).reshape(n_vectors, n_obs, n)
-                    chosen = _argmax_first_axis(scores)  # (Z, n): best continuation per branch and belief
-                impossible = (observation_t @ predicted) <= 0.0  # (Z, n)
+                scores = (predicted.T @ projected.T).reshape(n, n_obs, -1)
+                chosen[:] = np.argmax(scores, axis=2).T
+                continuation = np.take_along_axis(scores, chosen.T[:, :, None], axis=2)[:, :, 0].sum(axis=1)
+                impossible = (self.entries[action][4] @ predicted) <= 0.0  # (Z, n)
                 if impossible.any():
-                    chosen = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
-            # continuation[s', i] = sum_z O(z|s',a) alpha_{chosen[z,i]}(s'), gathered per observation entry.
-            per_entry = alphas[chosen[observations], end_states[:, None]] * probabilities[:, None]  # (nnz, n)
-            continuation = from_entries @ per_entry  # (S', n)
-            vectors = self.rewards_by_action[action][:, None] + self.discount * (
-                self.transitions[action] @ continuation
-            )
-            values = np.einsum("si,si->i", beliefs_t, vectors)
-            better = values > best_values
-            best_values[better] = values[better]
-            best_actions[better] = action
-            best_vectors[better] = vectors[:, better].T
-            if with_children:
-                best_children[better] = chosen[:, better].T
+                    chosen[:] = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
+            action_values[action] = beliefs @ self.rewards_by_action[action] + self.discount * continuation
+        best_actions = np.argmax(action_values, axis=0)  # the first of equal values, as a running maximum would
+        best_vectors = np.empty((n, n_states))
+        best_values = np.empty(n)
+        best_children = np.empty((n, n_obs), dtype=np.int64)
+        for action in np.unique(best_actions):
+            which = np.flatnonzero(best_actions == action)
+            chosen = chosen_by_action[action][:, which]
+            vectors = self._vectors(alphas, int(action), chosen)  # (S, len(which))
+            best_vectors[which] = vectors.T
+            best_values[which] = np.einsum("si,si->i", beliefs_t[:, which], vectors)
+            best_children[which] = chosen.T
         if with_children:
             return best_vectors, best_actions, best_values, best_children
         return best_vectors, best_actions, best_values
 
-
-def _argmax_first_axis(scores: np.ndarray) -> np.ndarray:
-    """``argmax(scores, axis=0)`` by a running maximum over contiguous slabs (about 2x numpy's strided argmax)."""
-    best = scores[0].copy()
-    chosen = np.zeros(best.shape, dtype=np.int64)
-    for k in range(1, scores.shape[0]):
-        better = scores[k] > best
-        np.copyto(best, scores[k], where=better)
-        chosen[better] = k
-    return chosen
+    def _vectors(self, alphas: np.ndarray, action: int, chosen: np.ndarray) -> np.ndarray:
+        """``R_a + gamma T_a sum_z O_z alphas[chosen[z, i]]`` for each column ``i`` of ``chosen`` (S, n)."""
+        end_states, observations, probabilities, from_entries, _ = self.entries[action]
+        # continuation[s', i] = sum_z O(z|s',a) alpha_{chosen[z,i]}(s'), gathered per observation entry.
+        per_entry = alphas[chosen[observations], end_states[:, None]] * probabilities[:, None]  # (nnz, n)
+        continuation = from_entries @ per_entry  # (S', n)
+        return self.rewards_by_action[action][:, None] + self.discount * (self.transitions[action] @ continuation)
 
 
 def blind_policy_vectors(pomdp: POMDP) -> np.ndarray:
