@@ -12,6 +12,14 @@ Part B, section 4.1.4: ``embodied-adhoc teamster pursuit`` with the given option
 table of captures per 500 steps after learning each team (Table 4.4's layout) and PLASTIC-Policy / TEAMSTER
 evaluated on the teammate-aware team after learning it, beside the reference's PLASTIC-Policy.
 The thesis's scale (8 trials, T = 5000) takes hours on two CPU cores; smaller options give a smaller study.
+
+Part C, the navigation maps (``--maps ntu,isr,pentagon``; ``--skip-pursuit`` leaves out A and B): with each team,
+the team's own policy in the ad hoc seat ("Original Teammate"), a random agent and PLASTIC-Model that knows the
+three teams, ``--episodes`` episodes of at most 100 steps each: the mean accumulated episode reward (-100 for an
+episode that does not end), the share of episodes that end, and the mean over those (the original's final
+evaluation re-ran an episode that did not end, so Tables 4.5-4.7 are means over ended episodes), beside the
+thesis's rows. Unless ``--skip-protocol``, ``embodied-adhoc teamster MAP`` with the given options follows
+(``--eval-episodes`` per evaluation, resumable in ``OUT-MAP``).
 """
 
 from __future__ import annotations
@@ -27,7 +35,7 @@ from embodied_adhoc.domains.pursuit4 import TEAMS, ExactTeam, Pursuit4
 from embodied_adhoc.experiments.stats import summarise_sample
 from embodied_adhoc.experiments.tables import format_table
 from embodied_adhoc.learning.teamster_agents import build_agent
-from embodied_adhoc.learning.teamster_protocol import play
+from embodied_adhoc.learning.teamster_protocol import make_world, play, play_episodes
 
 REFERENCE = {"teammate-aware": 64, "greedy": 32, "probabilistic-destinations": 35, "plastic-policy": 43,
              "random": 11}
@@ -56,6 +64,36 @@ def part_a(trials: int, seed: int) -> dict[str, list[int]]:
     return out
 
 
+# Tables 4.5-4.7 (mean over 8 trials; eval on tau1, tau2, tau3): Original Teammate, Random Policy, and
+# PLASTIC-Model after learning the three teams.
+THESIS_MAPS = {
+    "ntu": {"original": (98.0, 98.0, 97.83), "random": (79.58, 69.0, 69.12), "plastic-model": (98.0, 97.96, 97.67)},
+    "isr": {"original": (94.0, 94.0, 94.0), "random": (60.0, 69.17, 64.04), "plastic-model": (92.71, 92.62, 93.62)},
+    "pentagon": {"original": (91.67, 88.0, 91.83), "random": (66.17, 61.92, 80.79),
+                 "plastic-model": (91.54, 84.08, 91.21)},
+}
+
+
+def part_c(map_name: str, episodes: int, seed: int) -> list[list[str]]:
+    """Rows (agent, team, mean [CI], ended share, mean over ended episodes, thesis) of the map baselines."""
+    world = make_world(map_name)
+    rows = []
+    for name in ("original", "random", "plastic-model"):
+        agent = build_agent(name, world, np.random.default_rng([seed, 8]), horizon=episodes)
+        for known in world.teams:
+            agent.finish_team(known)  # PLASTIC-Model knows the three teams' exact models
+        agent.start_team(np.random.default_rng([seed, 9]))
+        agent.set_evaluation(True)
+        for k, team in enumerate(world.teams):
+            returns = np.array(play_episodes(agent, world, ExactTeam(world, team), episodes,
+                                             np.random.default_rng([seed, k, 7])))
+            ended = returns > -world.episode_cap
+            rows.append([name, team, _cell(returns), f"{ended.mean():.2f}",
+                         f"{returns[ended].mean():.2f}" if ended.any() else "-",
+                         f"{THESIS_MAPS.get(map_name, {}).get(name, ('-',) * 3)[k]}"])
+    return rows
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=8)
@@ -67,8 +105,29 @@ def main() -> None:
                                             "random,original")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="runs/teamster-pursuit")
-    parser.add_argument("--skip-protocol", action="store_true", help="part A only")
+    parser.add_argument("--skip-protocol", action="store_true", help="part A only (part C only on the maps)")
+    parser.add_argument("--maps", default="", help="comma-separated navigation maps for part C (ntu,isr,pentagon)")
+    parser.add_argument("--episodes", type=int, default=40, help="part C: episodes per (agent, team)")
+    parser.add_argument("--eval-episodes", type=int, default=8, help="maps' protocol: episodes per evaluation")
+    parser.add_argument("--skip-pursuit", action="store_true", help="parts A and B left out")
     args = parser.parse_args()
+
+    for map_name in [m for m in args.maps.split(",") if m]:
+        print(f"Part C: {map_name}, {args.episodes} episodes per row (accumulated episode reward)")
+        print(format_table(["ad hoc agent", "team", "mean [95% CI]", "ended", "mean of ended", "thesis"],
+                           part_c(map_name, args.episodes, args.seed)))
+        if not args.skip_protocol:
+            out = f"{args.out}-{map_name}"
+            command = ["teamster", map_name, "--agents", args.agents, "--steps", str(args.steps), "--trials",
+                       str(args.trials), "--eval-episodes", str(args.eval_episodes), "--points", str(args.points),
+                       "--seed", str(args.seed), "--out", out, "--quiet"]
+            if args.changed > 0:
+                command += ["--changed", str(args.changed)]
+            if cli_main(command) != 0:
+                raise SystemExit(2)
+            print("\n" + Path(out, "table.md").read_text())
+    if args.skip_pursuit:
+        return
 
     counts = part_a(args.trials, args.seed)
     rows = [[name, _cell(values), str(REFERENCE.get(name, "-"))] for name, values in counts.items()]

@@ -45,7 +45,8 @@ def handle(args: argparse.Namespace) -> int:
     if args.changed >= 1.0:
         raise ConfigError(f"--changed {args.changed}: a move-failure probability in [0, 1)")
     from embodied_adhoc.experiments.teamster import final_table, summarise, write_outputs
-    from embodied_adhoc.learning.teamster_protocol import TABLE_4_1, ProtocolConfig, run_trial
+    from embodied_adhoc.learning.teamster_agents import TABLE_4_1
+    from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, run_trial
 
     iterations, depth = TABLE_4_1[args.domain]
     config = ProtocolConfig(steps=args.steps, eval_steps=args.eval_steps, points=args.points,

@@ -37,6 +37,8 @@ from embodied_adhoc.learning.teamster import LearnedEnvironment, LearnedTeam
 from embodied_adhoc.learning.teamster_navigation import dqn_config, features_for
 
 AGENTS = CHAPTER4_AGENTS  # its last three are the teams' own policies (TEAMS) in the ad hoc seat
+TABLE_4_1 = {"pursuit": (100, 5), "ntu": (100, 10), "isr": (300, 50), "pentagon": (300, 25)}
+"""Table 4.1: UCT (iterations, maximum rollout depth) per domain (exploration sqrt(2), discount 0.95)."""
 
 
 class PlasticPolicy(TeamTracking):
@@ -93,8 +95,11 @@ def build_agent(name: str, world: Pursuit4, rng: np.random.Generator, horizon: i
                 uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic"):
     """A fresh agent ``name`` (see the module table) for ``world`` (pursuit or a navigation map: its teams,
     exact models and network encodings); ``horizon`` is the interaction length per team (the DQN's epsilon
-    decays over it)."""
+    decays over it); ``uct`` defaults to the world's row of Table 4.1."""
     exact = {team: ExactTeam(world, team) for team in world.teams}
+    if uct is None:  # Table 4.1's row of the world (pursuit's for a map file of one's own)
+        iterations, depth = TABLE_4_1.get(getattr(world, "name", "pursuit"), TABLE_4_1["pursuit"])
+        uct = UctConfig(iterations=iterations, depth=depth)
     if name in MODEL_BASED:
         learned_env = name in ("teamster", "learns-environment")
         features = features_for(world)

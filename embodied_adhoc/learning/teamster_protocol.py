@@ -79,8 +79,6 @@ class ProtocolConfig:
 
 
 DOMAINS = ("pursuit",) + MAPS
-TABLE_4_1 = {"pursuit": (100, 5), "ntu": (100, 10), "isr": (300, 50), "pentagon": (300, 25)}
-"""Table 4.1: UCT (iterations, maximum rollout depth) per domain (exploration sqrt(2), discount 0.95)."""
 
 
 def make_world(domain: str, size: int = 5, slip: float = 0.0):
