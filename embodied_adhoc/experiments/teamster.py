@@ -15,7 +15,7 @@ import numpy as np
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.plots import _pyplot, _save
-from embodied_adhoc.experiments.stats import summarise_sample
+from embodied_adhoc.experiments.stats import compare_pairs, summarise_sample
 from embodied_adhoc.experiments.tables import format_table
 
 PER = 500  # captures are reported per 500 steps (the PLASTIC reference's unit)
@@ -67,6 +67,8 @@ def summarise(records: list[dict]) -> dict:
             points = np.array([[c for _, c in r["changed"]] for r in mine])
             entry["changed"] = [{"step": s, entry["metric"]: cells(points[:, i])[entry["metric"]]}
                                 for i, (s, _) in enumerate(mine[0]["changed"])]
+            # the robustness measure: each trial's mean over the evaluations after learning began (not step 0)
+            entry["changed_after"] = (points[:, 1:].mean(axis=1) * (1.0 if navigation else scale)).tolist()
         entry["seconds"] = float(np.mean([r.get("seconds", np.nan) for r in mine]))
         out[agent] = entry
     return out
@@ -129,10 +131,28 @@ def plot_curves(summary: dict, path: str | Path) -> Path:
     return _save(figure, Path(path))
 
 
+def changed_table(summary: dict, markdown: bool = False) -> str:
+    """The changed-environment test of section 4.1.4 (TEAMSTER's robustness): per agent its trials' mean
+    evaluation after learning began in the changed environment (captures per 500 steps on pursuit), mean [95 %
+    CI], and between every two agents Welch's t and p on those per-trial values and the probability that the
+    first scores more (:func:`~embodied_adhoc.experiments.stats.compare_pairs`). Empty without a changed phase."""
+    changed = {agent: entry["changed_after"] for agent, entry in summary.items() if "changed_after" in entry}
+    if not changed:
+        return ""
+    rows = [[agent, str(len(v)), _fmt(_cell(v, 1.0))] for agent, v in changed.items()]
+    pairs = [[f"{c.first} vs {c.second}", f"{c.statistic:.2f}", f"{c.p_value:.3g}",
+              "yes" if c.significant() else "no", f"{c.improvement:.2f}"]
+             for c in compare_pairs(changed, "changed", lower_is_better=False)]
+    return (format_table(["agent", "trials", "changed env, after learning began"], rows, markdown) + "\n\n"
+            + format_table(["a vs b", "Welch t", "p", "p < 0.05", "P(a scores more)"], pairs, markdown))
+
+
 def write_outputs(summary: dict, folder: str | Path) -> list[Path]:
     folder = Path(folder)
+    changed = changed_table(summary, True)
     paths = [atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n"),
              atomic_write_text(folder / "table.md", "## After learning each team\n\n" + after_table(summary, True)
-                               + "\n\n## End of each interaction\n\n" + final_table(summary, True) + "\n"),
+                               + "\n\n## End of each interaction\n\n" + final_table(summary, True) + "\n"
+                               + (f"\n## Changed environment\n\n{changed}\n" if changed else "")),
              plot_curves(summary, folder / "curves.png")]
     return paths

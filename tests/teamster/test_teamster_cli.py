@@ -39,3 +39,24 @@ def test_out_resumes_and_json_summary(tmp_path, capsys):
     assert main(["teamster", "pursuit", "--agents", "random", "--steps", "40", "--points", "2", "--eval-steps",
                  "10", "--trials", "1", "--quiet", "--out", str(tmp_path)]) == 2
     assert "written with other settings" in capsys.readouterr().err
+
+
+def test_changed_environment_table_tests_agents_on_their_trials_after_learning_began():
+    from embodied_adhoc.experiments.teamster import changed_table, summarise
+
+    config = {"eval_steps": 50, "steps": 100, "points": 2}
+    curves = {"teammate-aware": [[0, 1], [50, 2], [100, 3]]}
+
+    def record(agent, trial, changed):
+        return {"agent": agent, "trial": trial, "config": config, "curves": curves, "after": {},
+                "changed": [[0, 9]] + [[50 * (i + 1), c] for i, c in enumerate(changed)], "seconds": 1.0}
+
+    records = [record("a", 0, [4, 6]), record("a", 1, [5, 5]), record("a", 2, [6, 8]),
+               record("b", 0, [1, 1]), record("b", 1, [2, 0]), record("b", 2, [1, 3])]
+    summary = summarise(records)
+    assert summary["a"]["changed_after"] == [50.0, 50.0, 70.0]  # (4 + 6) / 2 captures per 50 steps -> per 500
+    assert summary["b"]["changed_after"] == [10.0, 10.0, 20.0]  # the step-0 evaluation (9) is left out
+    table = changed_table(summary)
+    assert "a vs b" in table and "yes" in table.splitlines()[-1]
+    no_phase = [{key: value for key, value in r.items() if key != "changed"} for r in records]
+    assert changed_table(summarise(no_phase)) == ""
