@@ -110,11 +110,17 @@ def _train_policy(domain: str, kwargs: dict, config: PpoConfig, model: str, path
         result = train_ppo(domain, kwargs, config, report)
         save_weights(path, result.model, training_metadata(domain, kwargs, config, result))
         return result.model
-    from embodied_adhoc.learning.world_model import WorldModelTraining, mb_metadata, train_mb_policy
+    from embodied_adhoc.learning.world_model import (
+        WorldModelTraining,
+        mb_metadata,
+        mb_policy_config,
+        train_mb_policy,
+    )
 
     settings = replace(world_model or WorldModelTraining(), seed=config.seed)
     result, _, history = train_mb_policy(domain, kwargs, config, settings, report)
-    metadata = {**training_metadata(domain, kwargs, config, result, kind="atlpo-mb-policy"),
+    metadata = {**training_metadata(domain, kwargs, mb_policy_config(config, settings), result,
+                                    kind="atlpo-mb-policy"),
                 **mb_metadata(settings, history)}
     save_weights(path, result.model, metadata)
     return result.model

@@ -183,6 +183,13 @@ def train_world_model(model: WorldModel, data: Experience, settings: WorldModelT
     return history
 
 
+def mb_policy_config(config, settings: WorldModelTraining):
+    """The PPO settings of an ATLPO-MB member: ``config`` with the world-model settings' rate and head width."""
+    from dataclasses import replace
+
+    return replace(config, learning_rate=settings.policy_learning_rate, head_hidden=settings.head_hidden)
+
+
 def train_mb_policy(domain: str, env_kwargs: dict, config, settings: WorldModelTraining, progress=None):
     """ATLPO-MB's member for one environment (or, with ``env_kwargs['environments']``, the model-based baseline
     over several), Fig. 6.3: the world model first learns on a random agent's replay; then PPO
@@ -191,8 +198,6 @@ def train_mb_policy(domain: str, env_kwargs: dict, config, settings: WorldModelT
     gradient from them). With ``settings.updates_per_rollout`` > 0, after every PPO update the rollout's
     transitions join the replay and the world model trains that many minibatches on it end to end, after which
     its encoder is copied into the policy. Returns (PPO result, world model, world-model loss history)."""
-    from dataclasses import replace
-
     from embodied_adhoc.learning.ppo import train_ppo
 
     data = collect_experience(domain, env_kwargs, settings.experience, settings.seed, config.num_envs)
@@ -210,8 +215,8 @@ def train_mb_policy(domain: str, env_kwargs: dict, config, settings: WorldModelT
         policy.encoder.load_state_dict(model.encoder.state_dict())
 
     hook = after_update if settings.updates_per_rollout else None
-    policy_config = replace(config, learning_rate=settings.policy_learning_rate, head_hidden=settings.head_hidden)
-    result = train_ppo(domain, env_kwargs, policy_config, progress, encoder=model.encoder, after_update=hook)
+    result = train_ppo(domain, env_kwargs, mb_policy_config(config, settings), progress, encoder=model.encoder,
+                       after_update=hook)
     return result, model, history
 
 

@@ -96,3 +96,12 @@ def test_replay_replaces_the_oldest_transitions():
     more = rows(10, 3)
     replay.add(more.observations, more.actions, more.rewards, more.next_observations)
     assert replay.size == 4 and sorted(replay.tensors[2].tolist()) == [2.0, 10.0, 11.0, 12.0]
+
+
+def test_mb_member_metadata_records_the_ppo_settings_it_trained_with(tmp_path):
+    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    settings = WorldModelTraining(experience=128, iterations=5, batch_size=32, policy_learning_rate=5e-4, head_hidden=8)
+    train_library("foraging", "team", config, tmp_path, model="mb", world_model=settings)
+    metadata = load_weights(tmp_path / "foraging-mb-task1-tau1.safetensors")[1]
+    assert metadata["ppo"]["learning_rate"] == 5e-4 and metadata["network"]["head_hidden"] == 8
+    assert metadata["world_model"]["policy_learning_rate"] == 5e-4
