@@ -24,13 +24,14 @@ def sample_path(
     precision: float,
     max_depth: int,
     deadline: float | None = None,
+    clock: Callable[[], float] = time.perf_counter,
 ) -> list[np.ndarray]:
     """Beliefs of one excess-gap path from ``start`` (the upper bound is updated along it); ``lower`` maps beliefs
-    (n, S) to the lower bound's values. At ``deadline`` (perf_counter seconds) the path ends where it is."""
+    (n, S) to the lower bound's values. At ``deadline`` (seconds of ``clock``) the path ends where it is."""
     gamma = upper.pomdp.discount
     belief, path = start, []
     for depth in range(max_depth):
-        if deadline is not None and time.perf_counter() > deadline:
+        if deadline is not None and clock() > deadline:
             break
         successors = upper.successors(belief)
         q_upper = upper.q_values(belief, successors)

@@ -37,6 +37,7 @@ from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import SolverError
 
 STOP_RULES = ("bound", "gain")
+CLOCKS: dict[str, Callable[[], float]] = {"wall": time.perf_counter, "cpu": time.process_time}
 _TRIAL_SHARE = 0.1  # with a time limit, trials from b0 take at most this share of the time spent
 _DOMINANCE_CANDIDATES = 4  # new vectors tested for dominating each vector a stage drops
 
@@ -65,6 +66,9 @@ class PerseusConfig:
     expand: bool = False
     precision: float = 1e-3  # stop when upper - lower at b0 <= precision (the only rule that sets converged)
     max_beliefs: int | None = None
+    # What time_limit and the reported seconds count: "wall" (time.perf_counter) or "cpu", this process' CPU time
+    # (time.process_time), as SARSOP's pomdpsol does (clock()): results then depend far less on machine load.
+    clock: str = "wall"
 
     def __post_init__(self) -> None:
         if self.n_beliefs < 1:
@@ -83,6 +87,13 @@ class PerseusConfig:
             raise SolverError(f"precision must be >= 0, got {self.precision}")
         if self.time_limit is not None and self.time_limit <= 0:
             raise SolverError(f"time_limit must be positive seconds, got {self.time_limit}")
+        if self.clock not in CLOCKS:
+            raise SolverError(f"clock must be one of {', '.join(CLOCKS)}, got {self.clock!r}")
+
+    @property
+    def timer(self) -> Callable[[], float]:
+        """The clock that ``time_limit`` and the reported seconds count."""
+        return CLOCKS[self.clock]
 
 
 @dataclass(frozen=True)
@@ -119,7 +130,7 @@ def perseus(
 
 
 def _solve(pomdp: POMDP, config: PerseusConfig, progress: ProgressCallback | None) -> AlphaVectorPolicy:
-    start = time.perf_counter()
+    start = config.timer()
     rng = np.random.default_rng(config.seed)
     greedy_q = value_iteration(pomdp.as_mdp(), tolerance=1e-6, horizon=config.horizon).q_values
     # A finite-horizon solve only needs beliefs reachable within the horizon.
@@ -142,21 +153,22 @@ def _infinite_horizon(
     start: float,
     progress: ProgressCallback | None,
 ) -> AlphaVectorPolicy:
+    clock = config.timer
     graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
     current = np.arange(len(graph))  # rows of V_n in the graph
     alphas, actions = graph.vectors, graph.actions
     b0 = pomdp.initial_belief
     deadline = None if config.time_limit is None else start + config.time_limit
-    upper = SawtoothBound(pomdp, fast_informed_bound(pomdp, deadline=deadline))
+    upper = SawtoothBound(pomdp, fast_informed_bound(pomdp, deadline=deadline, clock=clock))
     rows = _belief_rows(beliefs)
     values = (rows @ alphas.T).max(axis=1)  # V_n on the belief set
     known = {_belief_key(b) for b in beliefs}
-    trace = [(time.perf_counter() - start, float((alphas @ b0).max()))]
+    trace = [(clock() - start, float((alphas @ b0).max()))]
     bounds = _Bounds(trace[-1][1], float(upper.values(b0)[0]))
 
     def report(at_iteration: int, gain: float, n_beliefs: int | None = None) -> None:
         if progress is not None:
-            seconds, count = time.perf_counter() - start, len(beliefs) if n_beliefs is None else n_beliefs
+            seconds, count = clock() - start, len(beliefs) if n_beliefs is None else n_beliefs
             progress(SolverProgress(at_iteration, seconds, bounds.lower, len(graph), gain, bounds.upper, count))
 
     report(0, np.inf)  # the bounds from the first instant: blind policies and the fast informed bound
@@ -165,18 +177,18 @@ def _infinite_horizon(
     bound = config.stop == "bound" and gamma > 0
     threshold = config.tolerance * (1.0 - gamma) / gamma if bound else config.tolerance
     max_beliefs = config.max_beliefs or (10 if deadline is not None else 3) * config.n_beliefs
-    round_start, last_round, last_round_time = bounds, 0, time.perf_counter()
+    round_start, last_round, last_round_time = bounds, 0, clock()
     stage_seconds, stage_gain, trial_wait, trial_skip, trial_seconds = 0.0, 0.0, 0, 0, 0.0
     witness = np.full(len(current), -1)  # per row of current: a belief of B where it is best (-1: unknown)
     for iteration in range(1, config.max_iterations + 1):
-        now = time.perf_counter()
+        now = clock()
         if config.expand and trial_wait <= 0 and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start)):
             # A trial from b0 before a stage (for at most half the last stage's time, and a tenth of the time so
             # far, with a time limit). A trial that raises V(b0) by less than the tolerance, or by less than the
             # last stage did, doubles the number of stages until the next one (Tag: trials before every stage
             # halved the stages done in 20 s and lowered V(b0) there; cit and sunysb need them early).
             end = None if deadline is None else min(deadline, now + max(0.05, 0.5 * stage_seconds))
-            grown = _lower_trial(operator, graph, current, upper, b0, config.precision, end)
+            grown = _lower_trial(operator, graph, current, upper, b0, config.precision, end, clock)
             if len(grown) > len(current):
                 added = graph.vectors[grown[len(current) :]]
                 witness = np.concatenate([witness, np.full(len(grown) - len(current), -1)])
@@ -185,15 +197,17 @@ def _infinite_horizon(
             lower_b0 = float((alphas @ b0).max())
             gain = lower_b0 - bounds.lower
             trial_skip = 0 if gain > config.tolerance and gain >= stage_gain else max(1, 2 * trial_skip)
-            trial_wait, trial_seconds = trial_skip, trial_seconds + time.perf_counter() - now
+            trial_wait, trial_seconds = trial_skip, trial_seconds + clock() - now
             bounds = _Bounds(lower_b0, float(upper.values(b0)[0]))
-            trace.append((time.perf_counter() - start, bounds.lower))
+            trace.append((clock() - start, bounds.lower))
             if bounds.gap <= config.precision:
                 break
         else:
             trial_wait -= 1
-        stage_start = time.perf_counter()
-        stage = _perseus_iteration(operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline)
+        stage_start = clock()
+        stage = _perseus_iteration(
+            operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline, clock
+        )
         if stage.timed_out and not stage.vectors.shape[0]:
             iteration -= 1
             break
@@ -202,20 +216,20 @@ def _infinite_horizon(
             stage = stage.with_old(alphas, actions)
             stage.values[:] = (rows @ stage.vectors.T).max(axis=1)
         improvement = float(np.max(stage.values - values))
-        stage_seconds = time.perf_counter() - stage_start
+        stage_seconds = clock() - stage_start
         current = _record(graph, current, stage, rows, witness)
         witness = stage.witness if stage.witness is not None else np.full(len(current), -1)
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
         lower_b0 = float((alphas @ b0).max())
         stage_gain, bounds = lower_b0 - bounds.lower, _Bounds(lower_b0, bounds.upper)
-        trace.append((time.perf_counter() - start, bounds.lower))
+        trace.append((clock() - start, bounds.lower))
         report(iteration, improvement)
         if stage.timed_out or bounds.gap <= config.precision:
             break
         # Expansion also runs periodically: with a time limit once the backups since the last round took a
         # quarter of the time so far (at least 1 s); without one every max(10, iteration / 4) iterations
         # (counted, so that the seed alone fixes B).
-        now = time.perf_counter()
+        now = clock()
         if deadline is not None:
             periodic = config.expand and now - last_round_time >= max(1.0, 0.25 * (now - start))
         else:
@@ -237,12 +251,12 @@ def _infinite_horizon(
         # many beliefs as B holds, from the trajectories B was collected from (PBVI-like breadth: the set grows
         # geometrically). The excess-gap beliefs themselves are not added: chosen greedily on a loose upper bound
         # they cost backups without raising the lower bound (Tag, 20 s: -6.45 with them, -6.26 without).
-        _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline))
+        _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock)
         new: list[np.ndarray] = []
         if config.expand:
             count = len(beliefs) // 2 + 1
             new = _unknown(collect_beliefs(pomdp, count, rng, greedy_q=greedy_q, epsilon=config.epsilon), known)
-        last_round, last_round_time = iteration, time.perf_counter()
+        last_round, last_round_time = iteration, clock()
         bounds = _Bounds(bounds.lower, float(upper.values(b0)[0]))
         new = new[: max(0, max_beliefs - len(beliefs))]
         report(iteration, improvement, len(beliefs) + len(new))
@@ -251,9 +265,9 @@ def _infinite_horizon(
         if on_beliefs and config.expand and not new:
             # B is exhausted and converged: only the upper bound can still move; tighten it while it does (until
             # the deadline, else for at most a quarter of the time spent so far).
-            last = deadline or time.perf_counter() + max(1.0, 0.25 * (time.perf_counter() - start))
-            while bounds.gap > config.precision and time.perf_counter() < last:
-                _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline))
+            last = deadline or clock() + max(1.0, 0.25 * (clock() - start))
+            while bounds.gap > config.precision and clock() < last:
+                _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock)
                 moved = bounds.upper - float(upper.values(b0)[0])
                 bounds = _Bounds(bounds.lower, bounds.upper - moved)
                 report(iteration, improvement)
@@ -278,7 +292,7 @@ def _infinite_horizon(
     stats = SolverStats(
         "perseus",
         iteration,
-        time.perf_counter() - start,
+        clock() - start,
         bounds.gap <= config.precision,
         improvement,
         beliefs.shape[0],
@@ -307,10 +321,10 @@ def _lower_values(alphas: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     return lambda beliefs: (np.atleast_2d(beliefs) @ alphas.T).max(axis=1)
 
 
-def _time_budget(start: float, deadline: float | None) -> float:
+def _time_budget(start: float, deadline: float | None, clock: Callable[[], float]) -> float:
     """Seconds for one round of upper-bound paths: a tenth of the time spent so far (at least 0.2 s), within the
     deadline."""
-    now = time.perf_counter()
+    now = clock()
     budget = max(0.2, 0.1 * (now - start))
     return budget if deadline is None else max(0.0, min(budget, deadline - now))
 
@@ -321,14 +335,15 @@ def _explore(
     b0: np.ndarray,
     precision: float,
     budget: float,
+    clock: Callable[[], float],
 ) -> None:
     """Excess-gap paths from b0, each backing up the upper bound along it, for ``budget`` seconds."""
-    end = time.perf_counter() + budget
+    end = clock() + budget
     max_depth = _max_depth(upper, lower, b0, precision)
-    while time.perf_counter() < end:
+    while clock() < end:
         # Paths aim at half the precision: they stop where the gap is within their target, and the lower bound
         # is not backed up along them, so aiming at the precision itself leaves a gap at b0 just above it.
-        if not sample_path(upper, lower, b0, precision / 2, max_depth, end):
+        if not sample_path(upper, lower, b0, precision / 2, max_depth, end, clock):
             break  # the gap at b0 is within precision
 
 
@@ -346,6 +361,7 @@ def _lower_trial(
     b0: np.ndarray,
     precision: float,
     deadline: float | None,
+    clock: Callable[[], float],
 ) -> np.ndarray:
     """One excess-gap path from b0 (HSVI/SARSOP trial), then the lower bound backed up at its beliefs, deepest
     first, each against the set grown by the previous ones: value travels the whole path in one trial, where
@@ -357,7 +373,7 @@ def _lower_trial(
     # Paths end at the effective horizon 1 / (1 - gamma) (20 steps at 0.95, 100 at 0.99): HSVI's gap rule alone
     # lets them run 130-670 steps while the upper bound is loose, at the cost of a few stages each.
     depth = min(_max_depth(upper, lower, b0, precision), math.ceil(1.0 / (1.0 - operator.discount)))
-    path = sample_path(upper, lower, b0, precision / 2, depth, deadline)
+    path = sample_path(upper, lower, b0, precision / 2, depth, deadline, clock)
     for belief in reversed(path):
         alphas = graph.vectors[current]
         vector, action, value, children = operator.backup(belief[None, :], alphas, with_children=True, project=False)
@@ -452,6 +468,7 @@ def _perseus_iteration(
     rng: np.random.Generator,
     batch_size: int,
     deadline: float | None,
+    clock: Callable[[], float],
 ) -> _Stage:
     """One Perseus stage ``V_n -> V_{n+1}`` (its vectors, their plans, V_{n+1} on B, whether it timed out).
 
@@ -469,7 +486,7 @@ def _perseus_iteration(
     prepared = operator.prepare(alphas)
     size = min(batch_size, 16)
     while True:
-        if deadline is not None and time.perf_counter() > deadline:
+        if deadline is not None and clock() > deadline:
             return _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, True)
         pending = order[new_values[order] < values[order]]  # B~: not improved yet, in random order
         if pending.size == 0:
@@ -604,6 +621,7 @@ def _finite_horizon(
     start: float,
     progress: ProgressCallback | None,
 ) -> AlphaVectorPolicy:
+    clock = config.timer
     horizon = int(config.horizon)
     previous = np.zeros((1, pomdp.n_states))
     stage_alphas, stage_actions, stage_numbers = [], [], []
@@ -625,7 +643,7 @@ def _finite_horizon(
         stage_actions.append(actions)
         stage_numbers.append(np.full(len(actions), stage, dtype=np.int64))
         previous = vectors
-        seconds = time.perf_counter() - start
+        seconds = clock() - start
         trace.append((seconds, float((vectors @ b0).max())))
         if progress is not None:
             progress(SolverProgress(stage, seconds, trace[-1][1], vectors.shape[0], float("nan")))
@@ -636,7 +654,7 @@ def _finite_horizon(
                 "or lower --beliefs"
             )
     stats = SolverStats(
-        "perseus", horizon, time.perf_counter() - start, True, float("nan"), beliefs.shape[0], tuple(trace)
+        "perseus", horizon, clock() - start, True, float("nan"), beliefs.shape[0], tuple(trace)
     )
     return AlphaVectorPolicy(
         np.vstack(stage_alphas), np.concatenate(stage_actions), np.concatenate(stage_numbers), stats=stats

@@ -38,7 +38,7 @@ def test_solve_perseus_json_with_simulation_and_saved_policy(tmp_path):
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)  # stdout is exactly one JSON object
     assert report["value_b0"] == pytest.approx(19.37, abs=0.01)
-    assert report["alpha_vectors"] >= 1 and report["seconds"] > 0
+    assert report["alpha_vectors"] >= 1 and report["seconds"] > 0 and report["cpu_seconds"] > 0
     assert report["simulation"]["episodes"] == 50
     assert "iteration" in result.stderr  # progress goes to stderr
     with np.load(policy_path, allow_pickle=False) as data:
@@ -97,6 +97,7 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) 
         (("--simulate", "-1"), ("--simulate",)),
         (("--seed", "-1"), ("--seed", "negative")),
         (("--precision", "nan"), ("--precision", "nan is not a finite number >= 0")),
+        (("--clock", "sundial"), ("--clock", "invalid choice: 'sundial'")),
         (("--solver", "vi", "--save-policy", "vi.npz"), ("--save-policy needs an alpha-vector policy",)),
     ],
 )

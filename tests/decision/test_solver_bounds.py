@@ -210,3 +210,20 @@ def test_backup_without_projection_matches_the_projected_one():
         )
         rebuilt = pomdp.rewards[:, action] + pomdp.discount * (pomdp.transitions[action] @ continuation)
         np.testing.assert_allclose(vector, rebuilt, atol=1e-9)
+
+
+def test_time_limit_counts_the_configured_clock(monkeypatch):
+    """``clock="cpu"`` makes the time limit and the reported seconds count the clock of CLOCKS["cpu"] (the
+    process's CPU time; here a fake one that advances one second per reading, so the test needs no timing)."""
+    import embodied_adhoc.decision.perseus as perseus_module
+    from embodied_adhoc.errors import SolverError
+
+    readings = iter(range(1_000_000))
+    monkeypatch.setitem(perseus_module.CLOCKS, "cpu", lambda: float(next(readings)))
+    pomdp = _model("hallway.POMDP")
+    policy = perseus(pomdp, PerseusConfig(n_beliefs=50, time_limit=30.0, expand=True, clock="cpu"))
+    stamps = [seconds for seconds, _ in policy.stats.trace]
+    assert stamps == sorted(stamps) and all(float(s).is_integer() for s in stamps)  # the fake clock's seconds
+    assert 30.0 <= policy.stats.seconds < 60.0  # stopped by the limit on that clock, not by convergence
+    with pytest.raises(SolverError, match="clock must be one of cpu, wall|clock must be one of wall, cpu"):
+        PerseusConfig(clock="sundial")
