@@ -117,7 +117,6 @@ class TeamPlanner:
         ring (:func:`ring_goal`, tabulated). Every member computes the same target rule and slot assignment
         from the full state."""
         rules, agents = self.rules, batch.agents
-        n = agents.shape[1]
         env = np.arange(len(agents))[:, None]
         start, targets_flat = rules.flat(agents), rules.flat(batch.targets)
         if targets_flat.shape[1] == 1:  # one apple/prey: every rule picks it
