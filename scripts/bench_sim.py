@@ -11,8 +11,8 @@ Prints, all measured in this run on this machine:
   5. a scripted 10-macro-step episode bare and recorded as ``run --record`` records it (overhead video at the rate
      the video keeps, heads-up text, encoded on the writer thread; rerun poses and camera), and their ratio.
 
-Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render-frames 30] [--width 640 --height 512]
-       [--video-fps 15 --video-speed 4] [--episode-only]
+Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render-frames 30] [--width 640 --height 480]
+       [--video-fps 10 --video-speed 4] [--episode-only]
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco  # noqa: E402
 
+from embodied_adhoc.experiments.recorded_episode import EpisodeConfig  # noqa: E402
 from embodied_adhoc.experiments.script_args import parse_dataclass_args  # noqa: E402
 from embodied_adhoc.record.rerun_recorder import RerunRecorder  # noqa: E402
 from embodied_adhoc.record.video import VideoWriter  # noqa: E402
@@ -47,13 +48,14 @@ class Args:
     """simulated seconds of raw mj_step for the reference rate"""
     render_frames: int = 30
     """frames per camera for the render rate"""
-    width: int = 640
-    height: int = 512
-    video_fps: float = 15.0
-    """frames per second of the recorded episode's video (as ``run --video-fps``)"""
-    video_speed: float = 4.0
-    """simulated seconds per video second (as ``run --video-speed``): frames rendered per simulated second are
-    video_fps / video_speed"""
+    width: int = EpisodeConfig.width
+    """image width of the render rates and the recorded episode (``run --width``'s default)"""
+    height: int = EpisodeConfig.height
+    video_fps: float = EpisodeConfig.video_fps
+    """frames per second of the recorded episode's video (``run --video-fps``'s default)"""
+    video_speed: float = EpisodeConfig.video_speed
+    """simulated seconds per video second (``run --video-speed``'s default): frames rendered per simulated second
+    are video_fps / video_speed"""
     noise_free: bool = False
     """tours with encoder noise and wheel slip set to 0 (the drift left is the physics' own)"""
     episode_only: bool = False
@@ -138,8 +140,9 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float
     encoding count),
     simulated seconds, frames and final ball states of the scripted episode. With ``folder`` it is recorded as
     ``run --record`` records: the overhead camera rendered at the rate the video keeps, each frame with a heads-up
-    text into the mp4 writer (encoded on its thread), poses into the rerun recording (camera image at 2 Hz of
-    simulated time), the final state held for 1 s."""
+    text into the mp4 writer (encoded on its thread), poses into the rerun recording (camera image at
+    ``rerun_camera_hz`` of simulated time), the final state held for ``video_hold`` (``EpisodeConfig``'s
+    defaults)."""
     frames: list[int] = []
     video = rerun = None
     next_camera = [0.0]
@@ -154,7 +157,7 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float
         )
         if truth.time >= next_camera[0]:
             rerun.log_camera("overhead", frame)
-            next_camera[0] = truth.time + 0.5
+            next_camera[0] = truth.time + 1.0 / EpisodeConfig.rerun_camera_hz
         frames.append(1)
 
     world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
@@ -167,7 +170,9 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float
             sim += world.step_macro(target, command, record if folder is not None else None).sim_seconds
         if video is not None:
             video.write(
-                world.render("overhead", args.width, args.height), ["done"], repeat=round(args.video_fps)
+                world.render("overhead", args.width, args.height),
+                ["done"],
+                repeat=max(1, round(EpisodeConfig.video_hold * args.video_fps)),
             )
     finally:
         if video is not None:

@@ -81,12 +81,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="write episode.mp4/.rrd, metrics.json",
     )
-    toxic.add_argument("--video-fps", type=float, default=15.0, help="frames per second of the video (15)")
+    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig
+
+    toxic.add_argument(
+        "--video-fps",
+        type=float,
+        default=EpisodeConfig.video_fps,
+        help=f"frames per second of the video ({EpisodeConfig.video_fps:g})",
+    )
     toxic.add_argument(
         "--video-speed",
         type=float,
-        default=4.0,
-        help="simulated seconds per video second (4 = 4x time-lapse)",
+        default=EpisodeConfig.video_speed,
+        help=f"simulated seconds per video second ({EpisodeConfig.video_speed:g} = {EpisodeConfig.video_speed:g}x "
+        "time-lapse)",
     )
     toxic.add_argument("--width", type=int, default=640, help="video width in pixels, even (640)")
     toxic.add_argument("--height", type=int, default=480, help="video height in pixels, even (480)")

@@ -10,9 +10,11 @@ No mujoco here: plain numpy and ruckig.
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
@@ -63,9 +65,10 @@ class DriveLimits:
             )
 
 
-@dataclass(frozen=True)
-class ReferenceState:
-    """Reference pose and its derivatives at one instant: xy (m), heading (rad), speed v (m/s), yaw rate (rad/s)."""
+class ReferenceState(NamedTuple):
+    """Reference pose and its derivatives at one instant: xy (m), heading (rad), speed v (m/s), yaw rate (rad/s).
+
+    A named tuple: one is made at every control tick, and a frozen dataclass costs several times more to build."""
 
     x: float
     y: float
@@ -144,6 +147,7 @@ class RouteReference:
             heading, velocity = direction, target_velocity
         self.duration = self._time
         self._final_heading = heading
+        self._segment_ends = [segment.start + segment.duration for segment in self.segments]
 
     # ------------------------------------------------------------------------------------------ planning
     def _pass_through_velocity(self, points: list[np.ndarray], i: int) -> np.ndarray:
@@ -211,11 +215,8 @@ class RouteReference:
         """The reference at time ``t`` (s since the route started); after ``duration``, the goal at rest."""
         if not self.segments or t >= self.duration:
             return ReferenceState(float(self.goal[0]), float(self.goal[1]), self._final_heading, 0.0, 0.0)
-        segment = self.segments[-1]
-        for candidate in self.segments:
-            if t < candidate.start + candidate.duration:
-                segment = candidate
-                break
+        # the first segment still running at t (the last one if none is)
+        segment = self.segments[min(bisect.bisect_right(self._segment_ends, t), len(self.segments) - 1)]
         local = min(max(t - segment.start, 0.0), segment.duration)
         position, velocity, acceleration = segment.trajectory.at_time(local)
         if segment.kind == "turn":

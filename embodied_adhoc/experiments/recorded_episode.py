@@ -40,7 +40,9 @@ class EpisodeConfig:
     confusion: str = DEFAULT_CONFUSION
     max_steps: int = 100
     record_dir: Path | None = None
-    video_fps: float = 15.0
+    # 10 frames per 4 simulated seconds: the robot moves ~20 cm a frame, each macro step's heads-up text stays
+    # ~2 s on screen, and recording costs at most ~3x the bare episode (scripts/bench_sim.py)
+    video_fps: float = 10.0
     video_speed: float = 4.0  # simulated seconds per second of video (time-lapse keeps rendering affordable)
     video_hold: float = 1.0  # seconds of video that show the final state
     render_quality: str = "fast"

@@ -342,9 +342,16 @@ class RerunRecorder:
         self._images.submit((name, self._step, self._sim_time, frame))
 
     def _encode_image(self, item: tuple) -> None:
-        """Worker thread: JPEG-encode and log at the time the frame was taken (rerun's time is per thread)."""
+        """Worker thread: JPEG-encode and log at the time the frame was taken (rerun's time is per thread).
+        Pillow (libjpeg-turbo) encodes a 640x512 frame in about half the CPU time of ``rr.Image.compress``."""
+        import io
+
+        from PIL import Image
+
         name, step, sim_time, frame = item
-        image = self._rr.Image(np.ascontiguousarray(frame)).compress(jpeg_quality=self.jpeg_quality)
+        jpeg = io.BytesIO()
+        Image.fromarray(np.ascontiguousarray(frame)).save(jpeg, format="JPEG", quality=self.jpeg_quality)
+        image = self._rr.EncodedImage(contents=jpeg.getvalue(), media_type="image/jpeg")
         self._stream.set_time("step", sequence=step)
         self._stream.set_time("sim_time", duration=sim_time)
         self._stream.log(f"camera/{name}", image)

@@ -24,6 +24,8 @@ class RfidReader:
         self.half_size = model.site_size[ids.rfid_site].copy()
         self.entered = np.zeros(len(ids.ball_bodies), dtype=bool)
         self._unread = len(self.entered)  # balls that have not entered yet
+        self._bodies = [int(body) for body in ids.ball_bodies]
+        self._reach2 = float(self.half_size @ self.half_size)  # squared radius of the sphere around the box
 
     def reset(self, rng: np.random.Generator) -> None:
         self.rng = rng
@@ -40,9 +42,20 @@ class RfidReader:
     def inside(self, data: mujoco.MjData, ball: int) -> bool:
         return bool(self.inside_mask(data)[ball])
 
+    def _any_near(self, data: mujoco.MjData) -> bool:
+        """Is any ball centre within the sphere around the box? (Scalar Python: cheaper than the box test for
+        three balls, and the box test is needed only when it says yes.)"""
+        cx, cy, cz = data.site_xpos[self.ids.rfid_site].tolist()
+        xpos = data.xpos
+        for body in self._bodies:
+            x, y, z = xpos[body].tolist()
+            if (x - cx) ** 2 + (y - cy) ** 2 + (z - cz) ** 2 <= self._reach2:
+                return True
+        return False
+
     def poll(self, data: mujoco.MjData) -> list[int]:
         """Balls read at this tick (first entries that were not missed)."""
-        if self._unread == 0:
+        if self._unread == 0 or not self._any_near(data):
             return []
         events = []
         for ball in (self.inside_mask(data) & ~self.entered).nonzero()[0].tolist():
@@ -64,10 +77,11 @@ class WallContact:
             raise SceneError(
                 "a geom is both part of the robot and a wall; the wall-contact check needs them apart"
             )
-        self.codes = ids.robot_geom_mask.astype(np.int8) + 2 * ids.wall_geom_mask.astype(np.int8)
+        self.codes = (ids.robot_geom_mask.astype(int) + 2 * ids.wall_geom_mask.astype(int)).tolist()
 
     def __call__(self, data: mujoco.MjData) -> bool:
         if data.ncon == 0:
             return False
-        codes = self.codes[data.contact.geom]
-        return 2 in codes[:, 0] * codes[:, 1]
+        codes = self.codes
+        # a handful of contacts: a Python loop over the pairs costs less than numpy's fancy indexing
+        return any(codes[a] * codes[b] == 2 for a, b in data.contact.geom.tolist())
