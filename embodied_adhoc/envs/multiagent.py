@@ -26,6 +26,8 @@ single-agent id, 200; 150 for ``pairs=True``); ``step`` after the end raises.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import gymnasium
 import numpy as np
 from pettingzoo import ParallelEnv
@@ -43,6 +45,8 @@ GRID_IDS = {
     ("pursuit", True): "EmbodiedAdhoc/PursuitPairGrid-v0",
 }
 """The single-agent id whose registered step cap is the default ``max_cycles`` (same cap on both backends)."""
+PETTINGZOO_PROBE = "options"
+"""The reset option PettingZoo's API test sends to see that ``reset`` takes ``options``: accepted and ignored."""
 
 
 class GridParallelEnv(ParallelEnv):
@@ -105,10 +109,18 @@ class GridParallelEnv(ParallelEnv):
         return dict(zip(self.possible_agents, self.core.observe_all(), strict=True))
 
     def reset(self, seed: int | None = None, options: dict | None = None):
-        # Only the world's own options (task, team, state) reach it; PettingZoo passes others (its API test
-        # sends {"options": 1}) that belong to wrappers, so they are left for them rather than refused.
-        known = {k: v for k, v in (options or {}).items() if k in ("task", "team", "state")}
-        self._single.reset(seed=seed, options=known)  # seeds np_random, draws task/team/state
+        """Start an episode; ``options`` are the single-agent env's (``task``, ``team``, ``state``): any other
+        name is refused with one ConfigError (a typo gets a suggestion). The one exception is PettingZoo's API
+        test (``pettingzoo.test.parallel_api_test``), which calls ``reset(seed=0, options={"options": 1})`` only
+        to check that reset takes the keyword: the name ``options`` (``PETTINGZOO_PROBE``) is accepted and
+        ignored."""
+        if options is not None and not isinstance(options, Mapping):
+            raise ConfigError(
+                f"GridParallelEnv.reset options must be a dict of option name -> value, got {type(options).__name__}"
+            )
+        world_options = {k: v for k, v in (options or {}).items() if k != PETTINGZOO_PROBE}
+        # the world refuses unknown and wrongly typed options (checks.refuse_unknown, with "did you mean")
+        self._single.reset(seed=seed, options=world_options)  # seeds np_random, draws task/team/state
         self.agents = list(self.possible_agents)
         info = self.core.info()
         return self._observations(), {name: dict(info) for name in self.agents}

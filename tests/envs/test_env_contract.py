@@ -227,6 +227,19 @@ def test_parallel_env_refuses_unknown_and_wrongly_typed_kwargs():
             parallel(**kwargs)
 
 
+def test_parallel_env_refuses_unknown_reset_options_but_pettingzoos_probe():
+    env = parallel()
+    for options, match in [({"tsk": 0}, "did you mean 'task'"), ({"task": 0, "robot_node": 1}, "robot_node"),
+                           ({"task": 1.5}, "task"), (["task"], "dict")]:
+        with pytest.raises(ConfigError, match=match):
+            env.reset(seed=0, options=options)
+    _, infos = env.reset(seed=0, options={"options": 1, "task": 2})  # what pettingzoo's parallel_api_test sends
+    assert infos["agent_0"]["task"] == 2
+    _, infos = env.reset(seed=0, options={"options": 1})
+    _, plain = env.reset(seed=0)
+    assert infos["agent_0"]["task"] == plain["agent_0"]["task"]
+
+
 def test_parallel_env_spaces_and_state():
     env = parallel(pairs=True)
     assert env.max_cycles == registered_cap("EmbodiedAdhoc/PursuitPairGrid-v0") == 150
