@@ -29,8 +29,8 @@ cannot reach it, as the original's random fallback).
 
 * ``altruistic`` (tau1): the assignments of the N agents to the N exits (permutations) of least total
   ``sum_m d_m(sigma(m))``; uniform among tied assignments; each agent heads to its exit in the chosen one;
-* ``selfish`` (tau2): each agent heads to its nearest exit not held by another agent (ties uniform), whoever
-  else is nearer;
+* ``selfish`` (tau2): each agent heads to its nearest exit not held by another agent (ties: the first exit in
+  map order, the original's stable sort), whoever else is nearer;
 * ``weighted-altruistic`` (tau3): an assignment drawn with probability ``softmin`` of its total distance among
   the assignments that no agent is walled off from (the original's ``softmin``; the altruistic rule when fewer
   than two are finite).
@@ -176,7 +176,8 @@ class Navigation4:
     # --- the teams (exact per-agent action distributions) -----------------------------------------------
     def team_policy(self, team: str, states: np.ndarray, agents=None) -> np.ndarray:
         """(B, len(agents), 5) ``pi^n(a | x)`` of ``team`` for the seats ``agents`` (default the teammates
-        1..N-1), Eq. 4.2's factors; memoised per state (the planner revisits states)."""
+        1..N-1), Eq. 4.2's factors; memoised per state (the planner revisits states; at most the map's
+        ``C^N`` states per team: up to about 30 MB on pentagon)."""
         if team not in TEAMS:
             raise ConfigError(f"team={team!r}: choose one of {', '.join(TEAMS)}")
         states = np.asarray(states, dtype=np.int64)
