@@ -9,19 +9,35 @@ text logs) through the :class:`~embodied_adhoc.experiments.episode.EpisodeObserv
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.episode import EpisodeObserver
 
-__all__ = ["ArenaRecording", "check_video_options"]
+__all__ = ["ArenaRecording", "ArenaVideoConfig", "check_video_options"]
 
 
-def check_video_options(config) -> None:
+@dataclass(frozen=True)
+class ArenaVideoConfig:
+    """The recording settings of a ``run pursuit`` / ``run foraging`` episode (their configs extend it)."""
+
+    record_dir: Path | None = None  # None: no recording
+    video_fps: float = 12.0
+    video_speed: float = 2.0  # simulated seconds per second of video
+    video_hold: float = 1.0  # seconds of video that show the final state
+    size: int = 480  # square video, pixels (even)
+    video_overlay: bool = True
+    rerun_camera_hz: float = 2.0
+
+
+def check_video_options(config: ArenaVideoConfig) -> None:
     """``video_fps``, ``video_speed`` > 0 and ``size`` even and >= 16, else one line naming the flags."""
     if not (config.video_fps > 0 and config.video_speed > 0 and config.size >= 16 and config.size % 2 == 0):
-        raise ConfigError(f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
-                          f"--size ({config.size}) even and >= 16")
+        raise ConfigError(
+            f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
+            f"--size ({config.size}) even and >= 16"
+        )
 
 
 class ArenaRecording(EpisodeObserver):
@@ -32,8 +48,17 @@ class ArenaRecording(EpisodeObserver):
     hud_keys: tuple[str, ...] = ()
     outcomes: tuple[str, str] = ("success", "failure")  # what the end of an episode is called: (success, not)
 
-    def __init__(self, config, view, backend, clock: Callable[[], float], labels: Sequence[str],
-                 colours: Sequence[tuple[int, int, int]], name: str, files: dict[str, Path]):
+    def __init__(
+        self,
+        config,
+        view,
+        backend,
+        clock: Callable[[], float],
+        labels: Sequence[str],
+        colours: Sequence[tuple[int, int, int]],
+        name: str,
+        files: dict[str, Path],
+    ):
         from embodied_adhoc.record.arena_recorder import ArenaRerunRecorder
         from embodied_adhoc.record.video import VideoWriter
 

@@ -10,7 +10,7 @@ interrupted run keeps what it finished.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -114,17 +114,29 @@ def localisation_events(info: dict) -> list[str]:
     return lines
 
 
-class _Metrics(EpisodeObserver):
-    """Feeds :class:`~embodied_adhoc.record.metrics.EpisodeMetrics` (``metrics.json``)."""
+class MetricsObserver(EpisodeObserver):
+    """Feeds :class:`~embodied_adhoc.record.metrics.EpisodeMetrics` (``metrics.json``) from the loop's hooks; each
+    recorded run's subclass says what a step adds (``step_finished``)."""
 
-    def __init__(self, metrics, library):
-        self.metrics, self.library = metrics, library
+    def __init__(self, metrics):
+        self.metrics = metrics
 
     def episode_started(self, info: dict, task_posterior) -> None:
         self.metrics.start_episode(task_posterior)
 
     def step_started(self, step: int) -> None:
         self.metrics.start_step()
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        self.metrics.finish(success=trace.success, truncated=trace.truncated)
+
+
+class _Metrics(MetricsObserver):
+    """The toxic-waste step: decoded observation, utterances and, on physics, the localisation outcome."""
+
+    def __init__(self, metrics, library):
+        super().__init__(metrics)
+        self.library = library
 
     def step_finished(self, record: StepRecord) -> None:
         from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
@@ -142,9 +154,6 @@ class _Metrics(EpisodeObserver):
         )
         if "pose_error" in record.info:
             self.metrics.per_step[-1].update(localisation_fields(record.info))
-
-    def episode_finished(self, trace: EpisodeTrace) -> None:
-        self.metrics.finish(success=trace.success, truncated=trace.truncated)
 
 
 class _Recording(EpisodeObserver):
@@ -279,16 +288,29 @@ class _Recording(EpisodeObserver):
             self.rerun.close()
 
 
-def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
-    """Run (and, with ``config.record_dir``, record) one episode; ``progress(step, info)`` after each step."""
-    import gymnasium
+@dataclass
+class EpisodeSetup:
+    """What one ``run toxic-waste`` episode is built from (:func:`prepare_episode`): the trial domain's options, the
+    episode drawn for seed ``config.seed`` (``spec``), the physics session and the env's keyword arguments."""
 
-    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    options: dict
+    spec: dict
+    session: Any
+    env_kwargs: dict
+
+
+def prepare_episode(config: EpisodeConfig) -> EpisodeSetup:
+    """Options, episode 0 of ``config.seed`` (start nodes overridden by the config), the physics session and the env
+    kwargs (rendering only with a record folder, exactly the frames the video keeps) of ``config``: shared by
+    :func:`run_episode` and the real-time episode (``live.episode``), so both start from the same state."""
     from embodied_adhoc.experiments import seeding
     from embodied_adhoc.experiments.registry import get_trial_domain
-    from embodied_adhoc.experiments.stats import identify_step
-    from embodied_adhoc.record.metrics import EpisodeMetrics
 
+    if not (config.video_fps > 0 and config.video_speed > 0 and config.video_hold >= 0):
+        raise ConfigError(
+            f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
+            f"video_hold ({config.video_hold}) >= 0"
+        )
     domain = get_trial_domain("toxic-waste")
     options = domain.options(
         human_epsilon=config.human_epsilon,
@@ -300,21 +322,13 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
         localisation_model=config.localisation_model,
     )
     spec = domain.episode_spec(options, seeding.episode_rng(config.seed, 0))
-    if config.robot_node is not None:
-        spec["robot_node"] = int(config.robot_node)
-    if config.human_node is not None:
-        spec["human_node"] = int(config.human_node)
+    for key in ("robot_node", "human_node"):
+        if getattr(config, key) is not None:
+            spec[key] = int(getattr(config, key))
     session = domain.open_session("mujoco", options)
-    library = session.library
-    recording = config.record_dir is not None
-    if not (config.video_fps > 0 and config.video_speed > 0 and config.video_hold >= 0):
-        raise ConfigError(
-            f"--video-fps ({config.video_fps}) and --video-speed ({config.video_speed}) must be > 0, "
-            f"video_hold ({config.video_hold}) >= 0"
-        )
-    kwargs = {
+    env_kwargs = {
         **session.env_kwargs,
-        "render_mode": "rgb_array" if recording else None,
+        "render_mode": "rgb_array" if config.record_dir is not None else None,
         "width": int(config.width),
         "height": int(config.height),
         "speech": config.speech,
@@ -323,35 +337,79 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
         "frame_rate": config.video_fps / config.video_speed,
         **config.env_kwargs,
     }
-    # the step cap is the registered TimeLimit's, set to --max-steps
-    env = gymnasium.make(ENV_ID, max_episode_steps=int(config.max_steps), disable_env_checker=True, **kwargs)
-    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
-    metrics = EpisodeMetrics(
+    return EpisodeSetup(options, spec, session, env_kwargs)
+
+
+def episode_metrics(config: EpisodeConfig, setup: EpisodeSetup, command: str, **settings):
+    """The episode's :class:`~embodied_adhoc.record.metrics.EpisodeMetrics` (``metrics.json``), its configuration
+    naming ``command`` and any further ``settings``."""
+    from embodied_adhoc.experiments.stats import identify_step
+    from embodied_adhoc.record.metrics import EpisodeMetrics
+
+    return EpisodeMetrics(
         config={
-            "command": "run toxic-waste",
+            "command": command,
             "agent": config.agent,
             "seed": config.seed,
-            "spec": spec,
-            "options": options,
+            "spec": setup.spec,
+            "options": setup.options,
             "speech": config.speech,
             "max_steps": config.max_steps,
+            **settings,
         },
-        true_task=int(spec["task"]),
+        true_task=int(setup.spec["task"]),
         identify=identify_step,
     )
+
+
+def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+    """Run (and, with ``config.record_dir``, record) one episode; ``progress(step, info)`` after each step."""
+    import gymnasium
+
+    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    from embodied_adhoc.experiments import seeding
+
+    setup = prepare_episode(config)
+    session, library = setup.session, setup.session.library
+    # the step cap is the registered TimeLimit's, set to --max-steps
+    env = gymnasium.make(
+        ENV_ID, max_episode_steps=int(config.max_steps), disable_env_checker=True, **setup.env_kwargs
+    )
+    agent = session.make_agent(config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
+    metrics = episode_metrics(config, setup, "run toxic-waste")
+    recording = config.record_dir is not None
     return play_recorded_episode(
-        env, agent, session, spec, config, metrics, [_Metrics(metrics, library)],
-        (lambda files: _Recording(config, env, library, spec, files)) if recording else None, progress,
+        env,
+        agent,
+        session,
+        setup.spec,
+        config,
+        metrics,
+        [_Metrics(metrics, library)],
+        (lambda files: _Recording(config, env, library, setup.spec, files)) if recording else None,
+        progress,
     )
 
 
-def play_recorded_episode(env, agent, session, spec: dict, config, metrics, observers: list[EpisodeObserver],
-                          open_recorder: Callable[[dict], EpisodeObserver] | None,
-                          progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+def play_recorded_episode(
+    env,
+    agent,
+    session,
+    spec: dict,
+    config,
+    metrics,
+    observers: list[EpisodeObserver],
+    open_recorder: Callable[[dict], EpisodeObserver] | None,
+    progress: Callable[[int, dict], None] | None = None,
+    later: Sequence[EpisodeObserver] = (),
+    interruptions: tuple[type[BaseException], ...] = (),
+) -> EpisodeOutcome:
     """Episode 0 of ``config.seed`` for ``config.agent`` (the trial runner's seeds) through the one loop, with
-    ``observers``, a recorder from ``open_recorder(files)`` (it adds its files; None: no recording) and a progress
-    callback; the recorder and the env are closed and ``metrics.json`` written even when the loop raises.
-    ``run toxic-waste`` and ``run pursuit`` share it."""
+    ``observers``, a recorder from ``open_recorder(files)`` (it adds its files; None: no recording), a progress
+    callback and ``later`` observers (called after the recorder); the recorder and the env are closed and
+    ``metrics.json`` written even when the loop raises. An exception of a type in ``interruptions`` ends the episode
+    as interrupted (``metrics.json`` says so; the recorders keep what they have) instead of propagating.
+    ``run toxic-waste``, ``run pursuit``, ``run foraging`` and the real-time episode (``live.episode``) share it."""
     from embodied_adhoc.experiments import seeding
 
     files: dict[str, Path] = {}
@@ -371,8 +429,10 @@ def play_recorded_episode(env, agent, session, spec: dict, config, metrics, obse
             reset_options=session.reset_options(spec),
             max_steps=config.max_steps,
             observation_index=session.observation_index,
-            observers=observers,
+            observers=[*observers, *later],
         )
+    except interruptions:
+        pass  # metrics.json says "interrupted"; the recorders keep what they have
     finally:
         try:
             if recorder is not None:

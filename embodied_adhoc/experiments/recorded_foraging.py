@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.arena_recording import ArenaRecording, check_video_options
-from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord
-from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, play_recorded_episode
+from embodied_adhoc.experiments.arena_recording import ArenaRecording, ArenaVideoConfig, check_video_options
+from embodied_adhoc.experiments.episode import StepRecord
+from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, MetricsObserver, play_recorded_episode
 
 __all__ = ["FORAGING_AGENTS", "ForagingEpisodeConfig", "run_foraging_episode"]
 
@@ -32,8 +32,8 @@ ROBOT_COLOURS = ((240, 140, 20), (40, 90, 220), (40, 160, 90), (150, 60, 200))
 
 
 @dataclass(frozen=True)
-class ForagingEpisodeConfig:
-    """What one ``run foraging`` episode is (CLI flags map one to one)."""
+class ForagingEpisodeConfig(ArenaVideoConfig):
+    """What one ``run foraging`` episode is (CLI flags map one to one; recording settings: ArenaVideoConfig)."""
 
     agent: str = "atlpo-mf"
     seed: int = 0
@@ -41,13 +41,6 @@ class ForagingEpisodeConfig:
     teams: tuple[str, ...] = ("tau0", "tau1", "tau2")  # the episode's team is drawn among these
     library: Path | None = None  # None: the shipped task+team library
     max_steps: int = 200
-    record_dir: Path | None = None
-    video_fps: float = 12.0
-    video_speed: float = 2.0  # simulated seconds per second of video
-    video_hold: float = 1.0
-    size: int = 480  # square video, pixels (even)
-    video_overlay: bool = True
-    rerun_camera_hz: float = 2.0
 
     def options(self) -> dict:
         """The ``trials foraging`` options of this episode (the grid twin's defaults: 5x5 walled, 4 robots)."""
@@ -71,15 +64,10 @@ def _entropy(posterior) -> float | None:
     return None if posterior is None else max(0.0, float(normalised_entropy(posterior)))
 
 
-class _Metrics(EpisodeObserver):
+class _Metrics(MetricsObserver):
     def __init__(self, metrics, agent, backend):
-        self.metrics, self.agent, self.backend = metrics, agent, backend
-
-    def episode_started(self, info: dict, task_posterior) -> None:
-        self.metrics.start_episode(task_posterior)
-
-    def step_started(self, step: int) -> None:
-        self.metrics.start_step()
+        super().__init__(metrics)
+        self.agent, self.backend = agent, backend
 
     def step_finished(self, record: StepRecord) -> None:
         self.metrics.end_step(record.action, f"egocentric view, fingerprint {record.observation_index:08x}",
@@ -89,9 +77,6 @@ class _Metrics(EpisodeObserver):
         self.metrics.per_step[-1].update(
             cells=record.info["state"]["agents"], apples_left=int(record.info["remaining"]),
             library_posterior=None if library is None else [round(float(p), 6) for p in library])
-
-    def episode_finished(self, trace: EpisodeTrace) -> None:
-        self.metrics.finish(success=trace.success, truncated=trace.truncated)
 
 
 class _Recording(ArenaRecording):

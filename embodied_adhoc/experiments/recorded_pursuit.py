@@ -15,9 +15,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.arena_recording import ArenaRecording, check_video_options
-from embodied_adhoc.experiments.episode import EpisodeObserver, EpisodeTrace, StepRecord
-from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, play_recorded_episode
+from embodied_adhoc.experiments.arena_recording import ArenaRecording, ArenaVideoConfig, check_video_options
+from embodied_adhoc.experiments.episode import StepRecord
+from embodied_adhoc.experiments.recorded_episode import EpisodeOutcome, MetricsObserver, play_recorded_episode
 
 __all__ = ["PursuitEpisodeConfig", "describe_pursuit_observation", "run_pursuit_episode"]
 
@@ -28,20 +28,13 @@ ROBOT_COLOURS = ((240, 140, 20), (40, 90, 220), (220, 40, 40))
 
 
 @dataclass(frozen=True)
-class PursuitEpisodeConfig:
-    """What one ``run pursuit`` episode is (CLI flags map one to one)."""
+class PursuitEpisodeConfig(ArenaVideoConfig):
+    """What one ``run pursuit`` episode is (CLI flags map one to one; recording settings: ArenaVideoConfig)."""
 
     agent: str = "hotspot"
     seed: int = 0
     task: int | None = None  # 1..4 (N+S, W+E, SW+NE, NW+SE); None: drawn
     max_steps: int = 150
-    record_dir: Path | None = None
-    video_fps: float = 12.0
-    video_speed: float = 2.0  # simulated seconds per second of video
-    video_hold: float = 1.0
-    size: int = 480  # square video, pixels (even)
-    video_overlay: bool = True
-    rerun_camera_hz: float = 2.0
 
 
 def describe_pursuit_observation(observation_index: int) -> str:
@@ -56,16 +49,7 @@ def describe_pursuit_observation(observation_index: int) -> str:
     return f"teammate {seen(mate)}, prey {seen(prey)}"
 
 
-class _Metrics(EpisodeObserver):
-    def __init__(self, metrics):
-        self.metrics = metrics
-
-    def episode_started(self, info: dict, task_posterior) -> None:
-        self.metrics.start_episode(task_posterior)
-
-    def step_started(self, step: int) -> None:
-        self.metrics.start_step()
-
+class _Metrics(MetricsObserver):
     def step_finished(self, record: StepRecord) -> None:
         from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
 
@@ -75,9 +59,6 @@ class _Metrics(EpisodeObserver):
                               record.info["sim_time"], posterior, entropy)
         self.metrics.per_step[-1].update(cells=record.info["cells"], state=int(record.info["state"]),
                                          intended_state=int(record.info["intended_state"]))
-
-    def episode_finished(self, trace: EpisodeTrace) -> None:
-        self.metrics.finish(success=trace.success, truncated=trace.truncated)
 
 
 class _Recording(ArenaRecording):

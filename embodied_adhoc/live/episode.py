@@ -11,15 +11,16 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Sequence
-from pathlib import Path
 
-from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
+from embodied_adhoc.experiments.episode import EpisodeObserver
 from embodied_adhoc.experiments.recorded_episode import (
     EpisodeConfig,
     EpisodeOutcome,
     _Metrics,
     _Recording,
+    episode_metrics,
+    play_recorded_episode,
+    prepare_episode,
 )
 from embodied_adhoc.live.realtime import LiveStopped, RealtimeToxicWasteEnv
 
@@ -52,100 +53,46 @@ def open_realtime_episode(
 ) -> RealtimeEpisode:
     """Build env, agent and metrics for ``config`` exactly as ``run toxic-waste`` does (module docstring)."""
     from embodied_adhoc.experiments import seeding
-    from embodied_adhoc.experiments.registry import get_trial_domain
-    from embodied_adhoc.experiments.stats import identify_step
-    from embodied_adhoc.record.metrics import EpisodeMetrics
 
-    domain = get_trial_domain("toxic-waste")
-    options = domain.options(
-        human_epsilon=config.human_epsilon,
-        communication=config.communication,
-        task=config.task,
-        confusion=config.confusion,
-        faults=config.faults,
-        localisation=config.localisation,
-        localisation_model=config.localisation_model,
-    )
-    spec = domain.episode_spec(options, seeding.episode_rng(config.seed, 0))
-    for key in ("robot_node", "human_node"):
-        if getattr(config, key) is not None:
-            spec[key] = int(getattr(config, key))
-    session = domain.open_session("mujoco", options)
-    recording = config.record_dir is not None
-    if not (config.video_fps > 0 and config.video_speed > 0):
-        raise ConfigError(
-            f"video_fps ({config.video_fps}) and video_speed ({config.video_speed}) must be > 0"
-        )
+    setup = prepare_episode(config)
     env = RealtimeToxicWasteEnv(
         human=human,
         speed=speed,
         reply_timeout=reply_timeout,
         tick_listener=tick_listener,
         stop=stop,
-        **session.env_kwargs,
-        render_mode="rgb_array" if recording else None,
-        width=int(config.width),
-        height=int(config.height),
-        speech=config.speech,
-        render_quality=config.render_quality,
-        frame_rate=config.video_fps / config.video_speed,
-        **config.env_kwargs,
+        **setup.env_kwargs,
     )
-    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
-    metrics = EpisodeMetrics(
-        config={
-            "command": command,
-            "agent": config.agent,
-            "seed": config.seed,
-            "spec": spec,
-            "options": options,
-            "speech": config.speech,
-            "max_steps": config.max_steps,
-            "speed": speed,
-            "reply_timeout": reply_timeout,
-            "human": type(env.human_driver).__name__,
-        },
-        true_task=int(spec["task"]),
-        identify=identify_step,
+    agent = setup.session.make_agent(
+        config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)
     )
-    return RealtimeEpisode(config, env, agent, session, spec, metrics)
+    metrics = episode_metrics(
+        config,
+        setup,
+        command,
+        speed=speed,
+        reply_timeout=reply_timeout,
+        human=type(env.human_driver).__name__,
+    )
+    return RealtimeEpisode(config, env, agent, setup.session, setup.spec, metrics)
 
 
 def run_realtime_episode(
     episode: RealtimeEpisode, observers: Sequence[EpisodeObserver] = ()
 ) -> EpisodeOutcome:
-    """Run (and, with a record folder, record) the episode; a :class:`LiveStopped` ends it as interrupted, with
-    everything finished so far written."""
-    from embodied_adhoc.experiments import seeding
-
+    """Run (and, with a record folder, record) the episode through ``run toxic-waste``'s player, ``observers``
+    after the recorders; a :class:`LiveStopped` ends it as interrupted, with everything finished so far written."""
     config, env, session = episode.config, episode.env, episode.session
-    files: dict[str, Path] = {}
-    attached: list[EpisodeObserver] = [_Metrics(episode.metrics, session.library)]
-    recorder: _Recording | None = None
-    try:
-        if config.record_dir is not None:
-            recorder = _Recording(config, env, session.library, episode.spec, files)
-            attached.append(recorder)
-        run_episode_loop(
-            env,
-            episode.agent,
-            env_seed=seeding.env_seed(config.seed, 0, config.agent),
-            agent_rng=seeding.agent_rng(config.seed, 0, config.agent),
-            reset_options=session.reset_options(episode.spec),
-            max_steps=config.max_steps,
-            observation_index=session.observation_index,
-            observers=[*attached, *observers],
-        )
-    except LiveStopped:
-        pass  # metrics.json says "interrupted"; the recorders keep what they have
-    finally:
-        try:
-            if recorder is not None:
-                recorder.close()
-        finally:
-            env.close()
-            if config.record_dir is not None:
-                files["metrics"] = episode.metrics.write(Path(config.record_dir) / "metrics.json")
-    return EpisodeOutcome(
-        episode.metrics.summary(), files, 0 if recorder is None else recorder.video.frame_count
+    recording = config.record_dir is not None
+    return play_recorded_episode(
+        env,
+        episode.agent,
+        session,
+        episode.spec,
+        config,
+        episode.metrics,
+        [_Metrics(episode.metrics, session.library)],
+        (lambda files: _Recording(config, env, session.library, episode.spec, files)) if recording else None,
+        later=observers,
+        interruptions=(LiveStopped,),
     )
