@@ -170,6 +170,8 @@ class GridRules:
         # neighbours[flat cell, action] = flat index of the cell that move leads to, or -1 (a wall)
         self.neighbours = np.where(inside, wanted[..., 0] * config.cols + wanted[..., 1], -1)
         self.all_cells, self.flat_cells = cells, np.arange(len(cells))
+        # step_to[flat cell, action]: the cell an action leads to (-1 into a wall; itself for INTERACT)
+        self.step_to = np.concatenate([self.neighbours, self.flat_cells[:, None]], axis=1)
         self.target_cell_ok = self.target_cells_valid(cells)  # per flat cell
         self.valid_target_cells = np.flatnonzero(self.target_cell_ok)  # flat, ascending
 
@@ -253,19 +255,19 @@ class GridRules:
             done &= np.all(actions == INTERACT, axis=1)[:, None]
         return done
 
-    def resolve_moves(self, movers: np.ndarray, moves: np.ndarray, blocked: np.ndarray) -> np.ndarray:
-        """New cells of ``movers`` (B, K, 2) moving by ``moves`` (B, K, 2): a move fails if it leaves the walls,
-        enters a ``blocked`` (B, R*C) cell, or claims a cell another mover of the same env also claims."""
-        wanted, inside = self.normalise(movers + moves)
-        moving = np.any(moves != 0, axis=-1) & inside
-        flat = np.where(inside, self.flat(wanted), 0)
+    def resolve_moves(self, movers: np.ndarray, actions: np.ndarray, blocked: np.ndarray) -> np.ndarray:
+        """New flat cells of ``movers`` (B, K, flat cells) taking ``actions`` (B, K; INTERACT stays): a move fails
+        if it leaves the walls, enters a ``blocked`` (B, R*C) cell, or claims a cell another mover of the same
+        env also claims."""
+        wanted = self.step_to[movers, actions]
+        moving = (actions != INTERACT) & (wanted >= 0)
+        flat = np.maximum(wanted, 0)
         env = np.arange(len(movers))[:, None]
         moving &= ~blocked[env, flat]
-        cells = blocked.shape[1]
-        key = env * cells + flat
+        key = env * blocked.shape[1] + flat
         claims = np.bincount(key[moving], minlength=blocked.size)
         moving &= claims[key] == 1
-        return np.where(moving[..., None], wanted, movers)
+        return np.where(moving, wanted, movers)
 
     def plan_batch(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, actions: np.ndarray,
                    prey_uniforms: np.ndarray | None = None) -> StepPlan:
@@ -274,20 +276,19 @@ class GridRules:
         in [0, 1): the first decides whether a prey stays, the second which of the 4 moves it tries."""
         completed = self.completed_targets(batch, offsets, interchangeable, actions)
         blocked = self.occupied(batch)
-        agents = self.resolve_moves(batch.agents, MOVES[actions], blocked)
-        targets = batch.targets
-        if self.config.domain == "pursuit":
-            alive = batch.alive & ~completed
-            stay = prey_uniforms[..., 0] < self.config.prey_stay_probability
-            direction = np.minimum((prey_uniforms[..., 1] * 4).astype(np.int64), 3)
-            moves = np.where((stay | ~alive)[..., None], 0, MOVES[direction])
-            wanted, inside = self.normalise(targets + moves)
-            valid = inside & self.target_cell_ok[np.where(inside, self.flat(wanted), 0)]  # target_cells_valid
-            moves = np.where(valid[..., None], moves, 0)
-            blocked = blocked.copy()
-            blocked[np.arange(len(agents))[:, None], self.flat(agents)] = True
-            targets = self.resolve_moves(targets, moves, blocked)
-        return StepPlan(agents, targets.copy(), completed)
+        agents = self.resolve_moves(self.flat(batch.agents), actions, blocked)
+        if self.config.domain != "pursuit":
+            return StepPlan(self.all_cells[agents], batch.targets.copy(), completed)
+        alive = batch.alive & ~completed
+        stay = prey_uniforms[..., 0] < self.config.prey_stay_probability
+        direction = np.minimum((prey_uniforms[..., 1] * 4).astype(np.int64), 3)
+        prey = self.flat(batch.targets)
+        moves = np.where(stay | ~alive, INTERACT, direction)
+        wanted = self.step_to[prey, moves]
+        moves = np.where((wanted >= 0) & self.target_cell_ok[np.maximum(wanted, 0)], moves, INTERACT)  # valid cells
+        blocked = blocked.copy()
+        blocked[np.arange(len(agents))[:, None], agents] = True
+        return StepPlan(self.all_cells[agents], self.all_cells[self.resolve_moves(prey, moves, blocked)], completed)
 
     def prey_draws(self) -> int:
         """Uniforms one step of :meth:`plan` consumes (2 per prey in pursuit, none in LBF)."""
