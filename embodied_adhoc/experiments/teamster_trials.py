@@ -31,6 +31,7 @@ __all__ = ["DOMAIN", "Pursuit4Session", "Pursuit4TrialDomain"]
 AGENTS = ("plastic-model", "teamster", "learns-team", "learns-environment", "plastic-policy", "random", "original")
 ENV_IDS = {"abstract": "EmbodiedAdhoc/Pursuit4Grid-v0", "mujoco": "EmbodiedAdhoc/Pursuit4-v0"}
 N_AGENTS = 5
+_LEARNED: dict = {}  # (agent, learn_steps, learn_seed) -> the agent after learning, shared by both backends' sessions
 
 
 class Pursuit4Session:
@@ -46,7 +47,6 @@ class Pursuit4Session:
         if self.env_id not in gymnasium.registry:
             raise ConfigError(f"--backend {backend} needs the env '{self.env_id}', which is not registered")
         self.task_names = TEAMS + ("online model",)
-        self._agents: dict = {}
 
     def make_env(self, max_steps: int):
         import gymnasium
@@ -57,8 +57,11 @@ class Pursuit4Session:
         return {"team": TEAMS[int(spec["task"])], "state": [int(spec[f"s{i}"]) for i in range(N_AGENTS)]}
 
     def learned_agent(self, name: str):
-        """``name`` after ``learn_steps`` steps with each team (section 4.1.4, steps 1-4), learning paused."""
-        if name not in self._agents:
+        """``name`` after ``learn_steps`` steps with each team (section 4.1.4, steps 1-4), built once per process
+        (episodes leave it unchanged: learning is paused, the belief restarts and the draws come from the
+        episode's generator)."""
+        key = (name, int(self.options["learn_steps"]), int(self.options["learn_seed"]))
+        if key not in _LEARNED:
             from embodied_adhoc.domains.pursuit4 import ExactTeam, Pursuit4
             from embodied_adhoc.learning.teamster_agents import build_agent
             from embodied_adhoc.learning.teamster_protocol import play
@@ -72,8 +75,8 @@ class Pursuit4Session:
                 if steps:
                     play(agent, world, ExactTeam(world, team), steps, rng)
                 agent.finish_team(team)
-            self._agents[name] = agent
-        return self._agents[name]
+            _LEARNED[key] = agent
+        return _LEARNED[key]
 
     def make_agent(self, name: str, spec: dict, seed: int):
         from embodied_adhoc.decision.agents.teamwork import EpisodeSeat
