@@ -394,7 +394,7 @@ class LabWorld:
 
     def odometry_pose(self) -> tuple[float, float, float]:
         """Dead-reckoning pose (x, y, yaw) from the wheel encoders."""
-        return tuple(float(v) for v in self.odometry.pose)  # type: ignore[return-value]
+        return self.odometry.pose_tuple
 
     def pose_estimate(self) -> tuple[float, float, float]:
         """The pose the controller tracks: the localiser's estimate, or dead reckoning without a localiser."""
@@ -456,12 +456,13 @@ class LabWorld:
 
     def odometry_node(self) -> int | None:
         """Node of the dead-reckoning pose from the area polygons (None outside every area)."""
-        return self.layout.node_at(self.odometry.pose[:2])
+        return self.layout.node_at(self.odometry.pose_tuple[:2])
 
     def odometry_error(self) -> float:
         """Distance (m) between the dead-reckoning and the true robot position."""
         x, y, _ = self.true_robot_pose()
-        return float(np.hypot(self.odometry.pose[0] - x, self.odometry.pose[1] - y))
+        odometry_x, odometry_y, _ = self.odometry.pose_tuple
+        return float(np.hypot(odometry_x - x, odometry_y - y))
 
     def ground_truth(self) -> GroundTruth:
         ids, data = self.ids, self.data

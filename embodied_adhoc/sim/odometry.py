@@ -56,11 +56,17 @@ class WheelOdometry:
     def __init__(self, config: OdometryConfig, rng: np.random.Generator):
         self.config = config
         self._tick = 2.0 * math.pi / config.ticks_per_revolution
-        self.pose = np.zeros(3)
+        self.pose_tuple: tuple[float, float, float] = (0.0, 0.0, 0.0)
+        """The dead-reckoning pose (x, y, yaw) as Python floats (what the control tick reads)."""
         self._last_counts = (0, 0)
         self._scale = (1.0, 1.0)
         self.rng = rng
         self.distance = 0.0  # metres travelled by the wheel-centre midpoint, as measured
+
+    @property
+    def pose(self) -> np.ndarray:
+        """The dead-reckoning pose (x, y, yaw) as a new array."""
+        return np.array(self.pose_tuple)
 
     @property
     def rng(self) -> np.random.Generator:
@@ -74,7 +80,7 @@ class WheelOdometry:
 
     def reset(self, pose: tuple[float, float, float], wheel_angles: np.ndarray) -> None:
         """Start from a known ``pose`` with the current true wheel angles (rad, left/right)."""
-        self.pose = np.array(pose, dtype=float)
+        self.pose_tuple = (float(pose[0]), float(pose[1]), float(pose[2]))
         counts = self.counts(wheel_angles)
         self._last_counts = (int(counts[0]), int(counts[1]))
         self._noise, self._noise_index = [], 0  # the slip factors come first in the stream, then the noise
@@ -86,10 +92,12 @@ class WheelOdometry:
         """Encoder readings (whole ticks) for true wheel angles (rad)."""
         return np.floor(np.asarray(wheel_angles, dtype=float) / self._tick).astype(np.int64)
 
-    def update(self, wheel_angles: np.ndarray) -> np.ndarray:
-        """Read the encoders at the true ``wheel_angles`` (rad, left/right), integrate, return the pose."""
+    def update(self, wheel_angles: np.ndarray) -> tuple[float, float, float]:
+        """Read the encoders at the true ``wheel_angles`` (rad, left/right), integrate, return the pose (x, y,
+        yaw)."""
         config, tick = self.config, self._tick
-        left, right = math.floor(wheel_angles[0] / tick), math.floor(wheel_angles[1] / tick)
+        left_angle, right_angle = float(wheel_angles[0]), float(wheel_angles[1])
+        left, right = math.floor(left_angle / tick), math.floor(right_angle / tick)
         step_left = (left - self._last_counts[0]) * tick  # radians turned, as counted
         step_right = (right - self._last_counts[1]) * tick
         self._last_counts = (left, right)
@@ -106,13 +114,8 @@ class WheelOdometry:
         travel_right = step_right * self._scale[1] * config.wheel_radius
         ds = 0.5 * (travel_left + travel_right)
         dyaw = (travel_right - travel_left) / config.track_width
-        pose = self.pose
-        x, y, yaw = float(pose[0]), float(pose[1]), float(pose[2])
+        x, y, yaw = self.pose_tuple
         mid_yaw = yaw + 0.5 * dyaw
-        pose[0], pose[1], pose[2] = (
-            x + ds * math.cos(mid_yaw),
-            y + ds * math.sin(mid_yaw),
-            wrap_angle(yaw + dyaw),
-        )
+        self.pose_tuple = (x + ds * math.cos(mid_yaw), y + ds * math.sin(mid_yaw), wrap_angle(yaw + dyaw))
         self.distance += abs(ds)
-        return pose
+        return self.pose_tuple
