@@ -63,8 +63,11 @@ class Pursuit4Session:
         key = (name, int(self.options["learn_steps"]), int(self.options["learn_seed"]))
         if key not in _LEARNED:
             from embodied_adhoc.domains.pursuit4 import ExactTeam, Pursuit4
+            from embodied_adhoc.learning.blocks import one_thread
             from embodied_adhoc.learning.teamster_agents import build_agent
             from embodied_adhoc.learning.teamster_protocol import play
+
+            one_thread()
 
             world, steps = Pursuit4(), int(self.options["learn_steps"])
             rng = np.random.default_rng(np.random.SeedSequence([int(self.options["learn_seed"]), N_AGENTS,

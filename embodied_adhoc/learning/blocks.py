@@ -66,6 +66,14 @@ def softmax(logits: np.ndarray) -> np.ndarray:
     return shifted
 
 
+def one_thread() -> None:
+    """Run torch on one thread. The chapter-4 networks are small (batches of 32-160 rows): on the shared 2-core
+    machine under load, torch's default thread pool made an Adam step of the TEAMSTER networks about 0.25 s of
+    CPU instead of about 1.5 ms (cProfile of 40 learning steps of a seated agent: 13.5 CPU s, 2.5 s on one
+    thread)."""
+    torch.set_num_threads(1)
+
+
 def seeded_module(build: Callable[[], nn.Module], rng: np.random.Generator) -> nn.Module:
     """``build()`` with torch's RNG seeded from ``rng`` (and restored afterwards)."""
     with torch.random.fork_rng(devices=[]):

@@ -12,9 +12,11 @@ from gymnasium.utils.env_checker import check_env
 
 import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 from embodied_adhoc.decision.agents.teamwork import EpisodeSeat
+from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.pursuit4 import TEAMS, Pursuit4
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
+from embodied_adhoc.learning.blocks import one_thread
 from embodied_adhoc.learning.teamster_agents import build_agent
 
 START = {"team": "teammate-aware", "state": [0, 6, 12, 18, 24]}
@@ -86,3 +88,26 @@ def test_trials_pursuit4_runs_chapter4_agents_and_refuses_bad_input():
     bad = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "trials", "pursuit4", "--team", "tau9"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "--team 'tau9'" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
+
+
+def test_a_learning_seat_gets_the_env_rewards_through_the_loop():
+    """Algorithm 1's lines 11-12 through the episode loop: the seat hands the env's reward and the teammates'
+    observed actions to the agent, which stores them."""
+    one_thread()
+    env = gymnasium.make("EmbodiedAdhoc/Pursuit4Grid-v0", max_episode_steps=40)
+    agent = build_agent("learns-environment", Pursuit4(), np.random.default_rng(0), 40,
+                        uct=UctConfig(iterations=10, depth=2))
+    agent.start_team(np.random.default_rng(1))
+    seat = EpisodeSeat(agent, 5)
+    rewards = []
+
+    class _Rewards(EpisodeObserver):
+        def step_finished(self, record) -> None:
+            rewards.append((record.reward, record.info["teammate_actions"]))
+
+    trace = run_episode_loop(env, seat, env_seed=0, agent_rng=np.random.default_rng(2), reset_options=START,
+                             max_steps=40, observation_index=env.unwrapped.observation_index, observers=[_Rewards()])
+    buffer = agent.environment.buffer
+    assert len(buffer) == trace.steps == agent.online.steps
+    assert buffer.data["reward"][:trace.steps].tolist() == [r for r, _ in rewards]
+    assert buffer.data["action"][:trace.steps, 1:].tolist() == [m for _, m in rewards]
