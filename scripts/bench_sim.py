@@ -157,7 +157,8 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float
         )
         if truth.time >= next_camera[0]:
             rerun.log_camera("overhead", frame)
-            next_camera[0] = truth.time + 1.0 / EpisodeConfig.rerun_camera_hz
+            while next_camera[0] <= truth.time:  # the camera's own clock, as the recorder keeps it
+                next_camera[0] += 1.0 / EpisodeConfig.rerun_camera_hz
         frames.append(1)
 
     world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))

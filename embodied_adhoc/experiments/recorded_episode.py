@@ -193,8 +193,8 @@ class _Recording(EpisodeObserver):
             self.hud["belief"] = f"P(task): {beliefs}"
 
     def _on_frame(self, frame: np.ndarray, snapshot: dict) -> None:
-        """Every frame the env renders is a frame of the video; rerun gets its poses, and the image at
-        ``rerun_camera_hz`` of simulated time."""
+        """Every frame the env renders is a frame of the video; rerun gets its poses, and the image of the first
+        frame in each ``1 / rerun_camera_hz`` slot of simulated time."""
         self.video.write(frame, self._overlay(snapshot["sim_time"]))
         self.rerun.set_time(snapshot["step"], snapshot["sim_time"])
         self.rerun.log_poses(
@@ -210,7 +210,10 @@ class _Recording(EpisodeObserver):
             )
         if camera_due:
             self.rerun.log_camera("overhead", frame)
-            self._next_camera = snapshot["sim_time"] + self._camera_period
+            # the camera keeps its own clock: frames are sparser than its rate (10 fps at 4x: one every 0.4 s), so
+            # "one period after this frame" would log every second frame only (1.25 Hz instead of 2)
+            while self._next_camera <= snapshot["sim_time"] + 1e-9:
+                self._next_camera += self._camera_period
 
     # -- loop hooks ---------------------------------------------------------------------------------------
     def episode_started(self, info: dict, task_posterior) -> None:
