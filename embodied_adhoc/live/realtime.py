@@ -35,7 +35,6 @@ from embodied_adhoc.envs import contract
 from embodied_adhoc.envs.toxic_waste import BALL_STATUS, ToxicWasteEnv, _area
 from embodied_adhoc.errors import EmbodiedAdhocError
 from embodied_adhoc.live.humans import ScriptedHuman
-from embodied_adhoc.sim.lab_world import MacroStepResult
 
 __all__ = ["LiveStopped", "RealtimeClock", "RealtimeToxicWasteEnv"]
 
@@ -205,10 +204,11 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
 
     def _finish_step(self, action, target, reward, start, kidnaps_before, asking, reply, decision_wait):
         world, data = self.world, self.world.data
-        events, wall_contact = world.sensed()
-        warnings_mark, self._warnings_mark = self._warnings_mark, world.warning_count()
+        # the robot's action alone (the human runs on); warnings since the previous decision
+        result = world.action_result(start, self._warnings_mark, kidnaps_before, with_human=False)
+        self._warnings_mark = world.warning_count()
+        events, reading = result.rfid_events, result.robot_node_reading
         truth = world.ground_truth()
-        reading = world.robot_node_reading()
         if reading is not None:
             self._robot_believed_node = reading
         elif target is not None:
@@ -231,26 +231,6 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         self._steps += 1
         terminated = all(s == DISPOSED for s in self._status)
         self._episode.close_if(terminated)
-        controller, estimate = world.controller, world.pose_estimate()
-        result = MacroStepResult(
-            robot_arrived=controller.arrived,
-            odometry_node=world.odometry_node(),
-            rfid_events=events,
-            sim_seconds=float(data.time - start),
-            wall_contact=wall_contact,
-            true_robot_node=truth.robot_node,
-            human_node=truth.human_node,
-            human_succeeded=world.human.succeeded,
-            human_status=world.human.status,
-            timed_out=not controller.finished,
-            odometry_error=world.odometry_error(),
-            mujoco_warnings=self._warnings_mark - warnings_mark,  # since the previous decision
-            robot_node_reading=reading,
-            blocked=world.action_blocked(),
-            pose_error=float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
-            localisation_mode="off" if world.localiser is None else world.localiser.mode,
-            kidnaps=0 if world.localiser is None else world.localiser.kidnaps - kidnaps_before,
-        )
         info = self._info(observation, truth, entered, result, utterances, audio)
         info["human_command"] = world.human.status
         info["realtime_slip_s"] = round(self.clock.slipped, 3)

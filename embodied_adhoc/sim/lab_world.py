@@ -272,20 +272,32 @@ class LabWorld:
                 break
             self.tick(frame_callback=frame_callback)
         data.ctrl[self.ids.wheel_actuators] = 0.0
+        return self.action_result(start, warnings_before, kidnaps_before, with_human=True)
+
+    def action_result(
+        self, start: float, warnings_before: int, kidnaps_before: int, with_human: bool
+    ) -> MacroStepResult:
+        """The outcome of the macro action begun at simulated time ``start``, read now (the RFID reads and wall
+        contact since the previous :meth:`sensed`; warnings and re-localisations since the counts given).
+        ``with_human``: the step also waited for the human (turn-based): it timed out unless both finished, and an
+        unfinished human reads "unfinished (timeout)"; otherwise (real time) the robot's action alone and the
+        human's current status."""
+        data, controller, human = self.data, self.controller, self.human
         events, wall_contact = self.sensed()
         truth = self.ground_truth()
         estimate = self.pose_estimate()
+        human_done = human.finished or not with_human
         return MacroStepResult(
-            robot_arrived=self.controller.arrived,
+            robot_arrived=controller.arrived,
             odometry_node=self.odometry_node(),
             rfid_events=events,
             sim_seconds=float(data.time - start),
             wall_contact=wall_contact,
             true_robot_node=truth.robot_node,
             human_node=truth.human_node,
-            human_succeeded=self.human.finished and self.human.succeeded,
-            human_status=self.human.status if self.human.finished else "unfinished (timeout)",
-            timed_out=not (self.controller.finished and self.human.finished),
+            human_succeeded=human_done and human.succeeded,
+            human_status=human.status if human_done else "unfinished (timeout)",
+            timed_out=not (controller.finished and (human.finished or not with_human)),
             odometry_error=self.odometry_error(),
             mujoco_warnings=self.warning_count() - warnings_before,
             robot_node_reading=self.robot_node_reading(),
