@@ -32,6 +32,8 @@ def test_mp4_decodes_with_expected_frame_count_and_size(tmp_path):
 def test_odd_size_and_wrong_frame_are_rejected(tmp_path):
     with pytest.raises(ConfigError, match="even"):
         VideoWriter(tmp_path / "odd.mp4", 63, 48)
+    with pytest.raises(ConfigError, match="crf"):
+        VideoWriter(tmp_path / "bad.mp4", 64, 48, crf=60)
     writer = VideoWriter(tmp_path / "clip.mp4", 64, 48)
     with pytest.raises(ConfigError, match=r"\(48, 64, 3\) uint8"):
         writer.write(np.zeros((48, 64, 3), np.float32))

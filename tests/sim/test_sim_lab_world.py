@@ -107,6 +107,35 @@ def test_same_seed_gives_a_bit_identical_trajectory():
     assert odo_a != odo_c  # encoder noise and slip come from the seed
 
 
+def test_public_control_tick_drives_stands_and_collects_sensing(world):
+    """start_action/tick/sensed/action_result: what step_macro loops over and the real-time env calls."""
+    world.reset(seed=2, robot_node=1, human_node=4, ball_nodes=(0, 1, 2))
+    start, pose = world.data.time, world.true_robot_pose()
+    world.start_action(3)
+    for _ in range(50):  # one simulated second standing still while the agent "decides"
+        world.tick(drive=False)
+    assert math.dist(world.true_robot_pose()[:2], pose[:2]) < 0.01
+    assert not world.controller.finished and world.current_route
+    while not world.controller.finished and world.data.time - start < 30.0:
+        world.tick()
+    result = world.action_result(start, 0, 0, with_human=False)
+    assert result.robot_arrived and not result.blocked and result.true_robot_node == 3
+    assert result.sim_seconds == pytest.approx(world.data.time - start)
+    assert world.sensed() == ((), False)  # action_result collected (and cleared) the sensing
+    with pytest.raises(ConfigError, match="before reset"):
+        LabWorld().start_action(1)
+
+
+def test_fast_renders_leave_the_models_render_settings_alone():
+    with LabWorld() as lab:
+        quality = lab.model.vis.quality
+        before = (quality.numslices, quality.numstacks, quality.numquads, quality.offsamples)
+        lab.reset(seed=0, robot_node=1, human_node=1, ball_nodes=(0, 1, 2))
+        assert lab.render("overhead", 64, 48).std() > 5
+        assert (quality.numslices, quality.numstacks, quality.numquads, quality.offsamples) == before
+        assert lab.model.vis.global_.offwidth == 1920
+
+
 def test_frame_callback_runs_at_the_video_rate_and_renders(world):
     world.reset(seed=0, robot_node=1, human_node=1, ball_nodes=(0, 1, 2))
     frames = []

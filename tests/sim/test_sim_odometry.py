@@ -53,3 +53,10 @@ def test_same_seed_same_estimate_and_config_is_checked():
     assert np.array_equal(a, b)
     with pytest.raises(ConfigError, match="ticks_per_revolution"):
         OdometryConfig(ticks_per_revolution=0)
+
+
+def test_block_drawn_encoder_noise_is_the_same_stream_as_per_tick_draws():
+    per_tick = WheelOdometry(OdometryConfig(), np.random.default_rng(7))
+    per_tick.NOISE_BLOCK = 2  # two normals per update, drawn at each update
+    blocked = WheelOdometry(OdometryConfig(), np.random.default_rng(7))
+    assert np.array_equal(_drive(per_tick, 3.0, 3.4, 5.0), _drive(blocked, 3.0, 3.4, 5.0))
