@@ -60,12 +60,16 @@ def thesis_in_our_count(agent: str) -> float:
     return mean - captured / THESIS_TRIALS
 
 
-ATPO_SOLVER = {"tolerance": 0.01, "stop": "gain", "time_limit": None, "max_iterations": 200, "seed": 0}
+ATPO_SOLVER = {"tolerance": 0.01, "stop": "gain", "time_limit": None, "max_iterations": 80, "seed": 0}
 """Perseus for ATPO / perseus: Table 5.4's tolerance 0.01 with Perseus's own stopping rule (the largest gain of a
-backup), 5000 beliefs (Table 5.2, the library's), at most 200 iterations and no time limit, so the policies, and
-every trial, do not depend on the machine's load (a time-limited solve did: two sessions of one sweep solved
-different policies). Task 0 converged in 76 iterations (45 s of CPU on a loaded machine); task 2 had run more
-than 5 min of CPU without finishing when last measured. The policies are cached on disk."""
+backup, confirmed by a full backup of the belief set), 5000 beliefs (Table 5.2, the library's), at most 80
+iterations and no time limit, so the policies, and every trial, do not depend on the machine's load (a
+time-limited solve did: two sessions of one sweep solved different policies). Measured (decision/ at db460cb, one
+BLAS thread, nice 10, load 9-12 on 2 cores): tasks 0 and 1 (N+S, W+E) stop by the rule after 76 and 78
+iterations (41 and 86 s of CPU); the diagonal tasks reach the cap (2: 195 s, residual 0.019; 3: 218 s, residual
+0.058): with a 200 cap task 2 was at iteration 92 after 7 min of CPU, its sampled gains below 0.01 but each full
+backup finding beliefs that still gain more, at about 1 min of CPU per iteration. The policies are cached on disk
+(:mod:`~embodied_adhoc.experiments.policy_cache`)."""
 
 
 class PursuitPairsSession:
