@@ -12,6 +12,7 @@ the Welch p-value against the thesis's 32 trials (from their mean and sd).
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -62,7 +63,8 @@ def thesis_p(sample: np.ndarray, agent: str) -> float:
 def main() -> None:
     args = parse_dataclass_args(Args, __doc__)
     if args.episodes < 2:
-        raise SystemExit(f"--episodes {args.episodes}: at least 2 (a standard deviation)")
+        print(f"--episodes {args.episodes}: at least 2 (a standard deviation)", file=sys.stderr)
+        raise SystemExit(2)
     library = pursuit_pair_library()
     rows = []
     for label, wrap, n_tasks, locate, gain in ROWS:

@@ -20,6 +20,7 @@ runs/fig7_12`` writes the same folders.
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -162,7 +163,8 @@ def main() -> None:
     agents = tuple(a.strip() for a in args.agents.split(",") if a.strip())
     unknown = sorted(set(agents) - set(AGENTS))
     if unknown or not agents:
-        raise SystemExit(f"--agents {args.agents}: choose from {','.join(AGENTS)}")
+        print(f"--agents {args.agents}: choose from {','.join(AGENTS)}", file=sys.stderr)
+        raise SystemExit(2)
     if "mujoco" in backends:
         from embodied_adhoc.gl import choose_gl_platform
 
