@@ -71,3 +71,11 @@ def test_locate_reads_the_teammate_direction_at_any_distance():
     row = pomdp.observations[5].getrow(state).toarray().ravel()
     assert row[9 * 2 + 4] == pytest.approx(1.0 - library.noise) and row[9 * 4 + 4] == pytest.approx(library.noise)
     assert pomdp.observations[0].getrow(state).toarray().ravel()[9 * 4 + 4] == pytest.approx(1.0)  # unseen
+
+
+def test_thesis_numbers_convert_to_our_step_count():
+    from embodied_adhoc.experiments.pursuit_pairs import THESIS_FIG_7_12, THESIS_TRIALS, thesis_in_our_count
+
+    assert thesis_in_our_count("oracle") == pytest.approx(THESIS_FIG_7_12["oracle"][0] - 1.0)
+    # random: 9 of the 32 trials hit the cap and count the same either way
+    assert thesis_in_our_count("random") == pytest.approx(76.06 - 23 / THESIS_TRIALS)
