@@ -173,31 +173,46 @@ def evaluate_mb_cell(args: Args, domain: str, seed: int, set_name: str, folder: 
     return results
 
 
-def mb_report(args: Args) -> list[str]:
-    lines = []
+def mb_report(args: Args) -> tuple[list[str], dict]:
+    """ATLPO-MB rows pooled over the seeds whose ``<set>-mb`` cell is evaluated, like the MF table (one sample of
+    16 episodes per environment x seeds); the ``seeds`` column names them, so a partial run says which it has."""
+    from embodied_adhoc.experiments.stats import summarise_sample
+
+    evaluated: dict[tuple[str, str], list[tuple[int, dict]]] = {}
     for domain, seed, set_name, folder in mb_cells(args):
         path = folder / f"evaluation-{args.episodes}x{args.max_steps}.json"
-        if not path.exists():
-            continue
-        if not lines:
-            lines = ["ATLPO-MB and the model-based baseline (where trained; same episodes as the MF cell): mean steps "
-                     "[95 % bootstrap CI] (solved %) | thesis (ATLPO-MB; model-based RL, which knows task and team)", "",
-                     "| set | domain | seed | atlpo-mb | mb-all |",
-                     "|---|---|---|---|---|"]
-        results = json.loads(path.read_text())
-        cells = []
-        model_based, atlpo_mb = THESIS_MB[(set_name, domain)]
-        for agent, thesis in (("atlpo-mb", atlpo_mb), ("mb-all", model_based)):
-            if agent not in results:
-                cells.append("not trained")
+        if path.exists():
+            evaluated.setdefault((set_name, domain), []).append((seed, json.loads(path.read_text())))
+    if not evaluated:
+        return [], {}
+    lines = ["ATLPO-MB and the model-based baseline (where trained; same episodes as the MF cell), pooled over the "
+             "seeds listed: mean steps [95 % bootstrap CI] (solved %) | thesis (ATLPO-MB; model-based RL, which "
+             "knows task and team)", "",
+             "| set | domain | seeds | atlpo-mb | mb-all |",
+             "|---|---|---|---|---|"]
+    table = {}
+    for set_name in SETS:
+        for domain in ("foraging", "pursuit"):
+            if (set_name, domain) not in evaluated:
                 continue
-            from embodied_adhoc.experiments.stats import summarise_sample
-
-            summary = summarise_sample(np.asarray(results[agent]["steps"], float))
-            cells.append(f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] "
-                         f"({100 * np.mean(results[agent]['finished']):.0f} %) \\| {thesis}")
-        lines.append(f"| {set_name} | {domain} | {seed} | {cells[0]} | {cells[1]} |")
-    return lines
+            seeds = [seed for seed, _ in evaluated[(set_name, domain)]]
+            cells = [results for _, results in evaluated[(set_name, domain)]]
+            model_based, atlpo_mb = THESIS_MB[(set_name, domain)]
+            row = []
+            for agent, thesis in (("atlpo-mb", atlpo_mb), ("mb-all", model_based)):
+                if any(agent not in results for results in cells):
+                    row.append("not trained for every seed listed")
+                    continue
+                steps = np.concatenate([results[agent]["steps"] for results in cells]).astype(float)
+                solved = float(np.mean(np.concatenate([results[agent]["finished"] for results in cells])))
+                summary = summarise_sample(steps)
+                row.append(f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] ({100 * solved:.0f} %) "
+                           f"\\| {thesis}")
+                table.setdefault(f"{set_name}/{domain}", {"seeds": seeds})[agent] = {
+                    "mean": summary.mean, "ci": [summary.ci_low, summary.ci_high], "iqm": summary.iqm,
+                    "solved": solved, "n": summary.n, "thesis": thesis}
+            lines.append(f"| {set_name} | {domain} | {','.join(map(str, seeds))} | {row[0]} | {row[1]} |")
+    return lines, table
 
 
 def held_out_cell(args: Args, domain: str, seed: int) -> dict:
@@ -263,8 +278,9 @@ def report(args: Args) -> str:
             row.append("/".join(f"{accuracy[t]:.2f}" for t in (0, 2, 4, 6, 9) if t < len(accuracy)))
             lines.append("| " + " | ".join(row) + " |")
     held = held_out_report(args)
-    (args.out / "table.json").write_text(json.dumps({"table": table, "held_out": held[1]}, indent=1) + "\n")
-    mb = mb_report(args)
+    mb, mb_table = mb_report(args)
+    (args.out / "table.json").write_text(json.dumps({"table": table, "held_out": held[1], "mb": mb_table},
+                                                    indent=1) + "\n")
     return "\n".join(lines + [""] + held[0] + ([""] + mb if mb else []))
 
 
