@@ -303,6 +303,7 @@ def _infinite_horizon(
         upper=bounds.upper,
         converged_on_beliefs=on_beliefs,
         n_stage_vectors=len(current),
+        discount=pomdp.discount,  # closed plan values: save() may store them rounded down (policy.py)
     )
     # The policy is the whole graph: V_n and every continuation its plans use (plan_graph.py: why).
     graph.keep_closure(current, force=True)

@@ -5,11 +5,16 @@ maximising vector. Finite-horizon solutions are time dependent: each vector also
 number of steps to go it was computed for, and ``value``/``action`` take ``steps_to_go`` (default: the longest
 stage, i.e. the start of an episode). Infinite-horizon policies have every stage equal to 0, meaning "any".
 
-Saved as ``.npz`` (``allow_pickle=False`` on load), written atomically.
+Saved as a compressed ``.npz`` (``allow_pickle=False`` on load), written atomically. A closed Perseus policy
+(``stats.discount`` set, at most 0.999) is stored in float32 rounded *down* by a uniform margin, which keeps the
+earned lower bound (:meth:`AlphaVectorPolicy.as_stored`, :func:`_float32_below`); other vectors are stored exactly
+(float32 when they are float32 numbers, else float64). Old uncompressed float64
+files (format 1) load unchanged.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +25,8 @@ import scipy.sparse as sp
 from embodied_adhoc.atomic import atomic_open
 from embodied_adhoc.errors import ModelError
 
-_FORMAT_VERSION = 1
+_FORMAT_VERSION = 2  # 1: uncompressed float64; 2: compressed, float32 rounded down for closed policies
+_FLOAT32_MAX_DISCOUNT = 0.999  # above it the margin 2u/(1 - gamma) stops being small: keep float64
 
 
 @dataclass(frozen=True)
@@ -38,6 +44,9 @@ class SolverStats:
     upper: float = float("nan")
     converged_on_beliefs: bool = False  # the backups converged on the belief set (Perseus' own criterion)
     n_stage_vectors: int = 0  # vectors of the last stage V_n (the policy also keeps their continuations)
+    # The model's discount when the vectors are a closed set of exact plan values (infinite-horizon Perseus), so
+    # that greedy execution earns max_k alpha_k . b; nan otherwise. save() uses it to round down safely.
+    discount: float = float("nan")
 
     @property
     def gap(self) -> float:
@@ -126,15 +135,34 @@ class AlphaVectorPolicy:
         return self.actions[rows][np.asarray(np.argmax(beliefs @ self.alphas[rows].T, axis=1)).ravel()]
 
     # ------------------------------------------------------------------------------------------ files
+    def as_stored(self) -> AlphaVectorPolicy:
+        """The policy exactly as :meth:`save` writes it and :meth:`load` reads it back: a closed Perseus policy
+        (``stats.discount`` in (0, 0.999]) rounded down to float32 with its lower bound lowered to match
+        (:func:`_float32_below`; ``discount`` then nan, so a second call changes nothing), anything else unchanged.
+        Callers that cache policies use it so that a fresh solve and a cache hit act identically."""
+        stats = self.stats
+        if stats is None or not 0.0 < stats.discount <= _FLOAT32_MAX_DISCOUNT:
+            return self
+        alphas, lowered = _float32_below(self.alphas, stats.discount)
+        lower = float(np.nextafter(stats.lower - lowered, -np.inf))
+        stats = dataclasses.replace(stats, lower=lower, discount=float("nan"))
+        return AlphaVectorPolicy(alphas, self.actions, self.stages, stats=stats)
+
     def save(self, path: str | Path) -> Path:
         """Write the policy to exactly ``path`` (an .npz archive whatever the suffix) atomically; no pickle."""
         path = Path(path)
+        stored = self.as_stored()
+        alphas, stats = stored.alphas, stored.stats
+        as_float32 = alphas.astype(np.float32)
+        # exact in float32 (as_stored made it so): half the bytes, lossless
+        if np.array_equal(as_float32, alphas):
+            alphas = as_float32
         # The solver's report (bounds at b0, gap, convergence, trace) as a JSON string: metadata, not pickle.
-        metadata = {} if self.stats is None else {"solver_stats": np.array(json.dumps(self.stats.as_dict()))}
+        metadata = {} if stats is None else {"solver_stats": np.array(json.dumps(stats.as_dict()))}
         with atomic_open(path) as stream:  # a stream: numpy then adds no '.npz' to the name
-            np.savez(
+            np.savez_compressed(
                 stream,
-                alphas=self.alphas,
+                alphas=alphas,
                 actions=self.actions,
                 stages=self.stages,
                 format_version=np.int64(_FORMAT_VERSION),
@@ -150,6 +178,12 @@ class AlphaVectorPolicy:
                 missing = {"alphas", "actions", "stages"} - set(data.files)
                 if missing:
                     raise ModelError(f"{path}: not an alpha-vector policy file (missing {sorted(missing)})")
+                version = int(data["format_version"]) if "format_version" in data.files else 1
+                if version > _FORMAT_VERSION:
+                    raise ModelError(
+                        f"{path}: policy format {version} is newer than this version reads ({_FORMAT_VERSION}):"
+                        " update embodied-adhoc or solve again"
+                    )
                 stats = None
                 if "solver_stats" in data.files:
                     fields = json.loads(str(data["solver_stats"]))
@@ -161,3 +195,23 @@ class AlphaVectorPolicy:
             if isinstance(error, ModelError):
                 raise
             raise ModelError(f"{path}: cannot read an alpha-vector policy ({error})") from error
+
+
+def _float32_below(alphas: np.ndarray, discount: float) -> tuple[np.ndarray, float]:
+    """``(stored, lowered)``: ``alphas`` in float32 with every entry below its exact value by a margin in
+    ``[m, m + u]`` (``u`` bounds a float32 spacing, ``m = 2u / (1 - gamma)``), and ``lowered``, the largest drop.
+
+    Why the lower bound stays earned: the exact vectors are closed (each is ``r_a + gamma * sum T O`` of vectors in
+    the set), so the backup of the stored set is at least ``alpha - gamma (m + u) >= alpha - m >= stored`` for each
+    vector: the stored set is uniformly improvable, and greedy execution on it earns ``max_k stored_k . b`` (Pineau
+    et al.'s argument behind the closed policy, plan_graph.py), which is at least the solver's bound minus
+    ``lowered``. Comparisons between float32 and float64 are exact, so the rounding direction is checked, not hoped.
+    """
+    scale = max(float(np.abs(alphas).max()), 1.0)
+    spacing = scale * 2.0**-22  # >= the float32 spacing at any |x| <= 2 * scale (2**-23 * |x|)
+    margin = 2.0 * spacing / (1.0 - discount)
+    target = alphas - margin
+    stored = target.astype(np.float32)
+    above = stored.astype(np.float64) > target
+    stored[above] = np.nextafter(stored[above], np.float32(-np.inf))
+    return stored, float((alphas - stored.astype(np.float64)).max())

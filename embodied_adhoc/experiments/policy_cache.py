@@ -77,8 +77,8 @@ def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object,
     from embodied_adhoc.decision.policy import AlphaVectorPolicy
 
     _solver_digest()  # fixed now, as the solver modules were just imported
-    if not use_cache:
-        return perseus(pomdp, PerseusConfig(**settings)), False
+    if not use_cache:  # as stored (float32 rounded down): a cache hit, a miss and no cache act identically
+        return perseus(pomdp, PerseusConfig(**settings)).as_stored(), False
     key = hashlib.sha256(
         "|".join([model_digest(pomdp), json.dumps(settings, sort_keys=True), _solver_digest()]).encode()
     ).hexdigest()
@@ -88,7 +88,7 @@ def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object,
             return AlphaVectorPolicy.load(path), True
         except (OSError, ValueError):
             pass  # a damaged entry is solved again and overwritten
-    policy = perseus(pomdp, PerseusConfig(**settings))
+    policy = perseus(pomdp, PerseusConfig(**settings)).as_stored()
     if not is_blind(policy):
         path.parent.mkdir(parents=True, exist_ok=True)
         policy.save(path)

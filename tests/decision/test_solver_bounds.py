@@ -68,7 +68,9 @@ def test_saved_policy_earns_its_lower_bound_and_stays_below_the_upper(name, sett
     solved = perseus(pomdp, PerseusConfig(seed=0, **settings))
     policy = AlphaVectorPolicy.load(solved.save(tmp_path / "policy.npz"))
     stats = policy.stats  # read back from the file's metadata
-    assert stats.lower == pytest.approx(policy.value(pomdp.initial_belief), abs=1e-9)
+    # the file stores vectors rounded down (policy.py) and the bound of the stored set: still earned, barely lower
+    assert stats.lower <= policy.value(pomdp.initial_belief) <= solved.stats.lower
+    assert stats.lower == pytest.approx(solved.stats.lower, abs=1e-4 * float(np.abs(solved.alphas).max()))
     assert stats.upper >= stats.lower
     mean, half = _simulate(pomdp, policy, episodes)
     assert mean + half >= stats.lower, f"simulated {mean:.4f} +- {half:.4f}, claimed lower bound {stats.lower:.4f}"
