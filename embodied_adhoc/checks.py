@@ -7,6 +7,7 @@ that names the input and says what is accepted. Nothing is coerced silently: ``2
 
 from __future__ import annotations
 
+import argparse
 import difflib
 import math
 from collections.abc import Iterable, Mapping
@@ -15,7 +16,7 @@ import numpy as np
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["choice", "flag", "integer", "number", "refuse_unknown"]
+__all__ = ["bounded", "choice", "flag", "integer", "number", "positive_int", "refuse_unknown"]
 
 
 def _is_integer(value) -> bool:
@@ -104,3 +105,34 @@ def refuse_unknown(where: str, given: Mapping | Iterable[str], accepted: Iterabl
     raise ConfigError(
         f"{where}: unknown {what}{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; accepted: {', '.join(accepted)}"
     )
+
+
+# Command-line types (argparse ``type=``), used by commands/ and by the trial plug-ins in experiments/.
+
+
+def bounded(kind: type, minimum: float, what: str):
+    """An argparse type: a finite ``kind`` (int or float) >= ``minimum``; ``what`` names what to give
+    (e.g. ``bounded(float, math.ulp(0.0), "a finite number of seconds > 0")``)."""
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+        if not math.isfinite(value) or value < minimum:
+            raise argparse.ArgumentTypeError(f"{text} is not {what}")
+        return value
+
+    parse.__name__ = what  # argparse names the type in its messages
+    return parse
+
+
+def positive_int(text: str) -> int:
+    """A count or size: an integer >= 1 (e.g. ``--width``: 0 would silently fall back to a default size)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give an integer >= 1") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value}: give an integer >= 1")
+    return value

@@ -15,10 +15,11 @@ wrong and what to give instead`` (the one-line parser is :class:`embodied_adhoc.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import tempfile
 from pathlib import Path
+
+from embodied_adhoc.checks import bounded, positive_int  # noqa: F401  (argparse types, re-exported)
 
 
 def seed(text: str) -> int:
@@ -29,34 +30,6 @@ def seed(text: str) -> int:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give a seed >= 0") from None
     if value < 0:
         raise argparse.ArgumentTypeError(f"{value} is negative; give a seed >= 0")
-    return value
-
-
-def bounded(kind: type, minimum: float, what: str):
-    """An argparse type: a finite ``kind`` (int or float) >= ``minimum``; ``what`` names what to give
-    (e.g. ``bounded(float, math.ulp(0.0), "a finite number of seconds > 0")``)."""
-
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
-        if not math.isfinite(value) or value < minimum:
-            raise argparse.ArgumentTypeError(f"{text} is not {what}")
-        return value
-
-    parse.__name__ = what  # argparse names the type in its messages
-    return parse
-
-
-def positive_int(text: str) -> int:
-    """A count or size: an integer >= 1 (e.g. ``--width``: 0 would silently fall back to a default size)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give an integer >= 1") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value}: give an integer >= 1")
     return value
 
 

@@ -239,7 +239,7 @@ class Chapter5Domain:
             self.default_agents = self.agent_names
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
-        from embodied_adhoc.commands.arguments import bounded, positive_int
+        from embodied_adhoc.checks import bounded, positive_int
         from embodied_adhoc.domains.chapter5.options import add_library_arguments
         from embodied_adhoc.experiments.policy_cache import cache_dir
 
