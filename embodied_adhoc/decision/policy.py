@@ -199,7 +199,8 @@ class AlphaVectorPolicy:
 
 def _float32_below(alphas: np.ndarray, discount: float) -> tuple[np.ndarray, float]:
     """``(stored, lowered)``: ``alphas`` in float32 with every entry below its exact value by a margin in
-    ``[m, m + u]`` (``u`` bounds a float32 spacing, ``m = 2u / (1 - gamma)``), and ``lowered``, the largest drop.
+    ``[m, m + u]`` (``u``: the float32 spacing at the largest magnitude, ``m`` just above ``gamma u / (1 - gamma)``),
+    and ``lowered``, the largest drop.
 
     Why the lower bound stays earned: the exact vectors are closed (each is ``r_a + gamma * sum T O`` of vectors in
     the set), so the backup of the stored set is at least ``alpha - gamma (m + u) >= alpha - m >= stored`` for each
@@ -208,8 +209,10 @@ def _float32_below(alphas: np.ndarray, discount: float) -> tuple[np.ndarray, flo
     ``lowered``. Comparisons between float32 and float64 are exact, so the rounding direction is checked, not hoped.
     """
     scale = max(float(np.abs(alphas).max()), 1.0)
-    spacing = scale * 2.0**-22  # >= the float32 spacing at any |x| <= 2 * scale (2**-23 * |x|)
-    margin = 2.0 * spacing / (1.0 - discount)
+    top = scale * (1.0 + 2.0**-20 / (1.0 - discount))  # above every |alpha - m| (m < 2**-20 scale / (1 - gamma))
+    spacing = float(np.spacing(np.float32(top)))  # >= the float32 spacing at any |x| <= top
+    # m (1 - gamma) >= gamma u, with slack for the float64 rounding of alpha - m (about 1e-16 scale)
+    margin = 1.01 * (discount * spacing + 1e-12 * scale) / (1.0 - discount)
     target = alphas - margin
     stored = target.astype(np.float32)
     above = stored.astype(np.float64) > target
