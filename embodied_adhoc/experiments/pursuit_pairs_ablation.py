@@ -10,10 +10,11 @@ The thesis's Fig. 7.12 numbers are exactly the four result files of the original
   d with ``size // 2 < |d| < size`` to ``-d - size // 2`` (d < 0) or ``size // 2 - d`` (d > 0): on the 5 x 5 torus
   +3 becomes -1 and +4 becomes -2 instead of -2 and -1. A teammate or prey crossing the torus edge lands one cell
   closer than it is, and the capture test (teammate-to-prey offset through the same wrap) accepts teammates two
-  cells away: 4 goal states per task for N+S / W+E and 8 for SW+NE / NW+SE instead of 2. The emulation below is
-  the original's transition generator (greedy teammate to its closest capture cell, columns first, random prey);
-  with the modular wrap it *is* our ``pursuit-task`` library, matrix for matrix (:func:`original_library` with
-  ``wrap="modular"``; tested), so the wrap is the only model difference.
+  cells away: 4 goal states per task for N+S / W+E and 8 for SW+NE / NW+SE instead of 2. The original's
+  transition generator (greedy teammate to its closest capture cell, columns first, random prey) is our
+  ``pursuit-task`` builder with that wrap (:func:`~embodied_adhoc.domains.chapter5.pursuit.build_pursuit`'s
+  ``wrap="original"``, :func:`~embodied_adhoc.domains.chapter5.pursuit.wrap_offsets`), so the wrap is the only
+  model difference (:func:`original_library`).
 * **tasks** 2: the original built ``pomdps = [... for i in range(2)]``: the library and the draws are N+S and W+E
   only (the issue, and our figure, use all four).
 * **count**: the original stops when the reward 1 arrives, and its reward ``R(x, a)`` is paid in the step taken
@@ -40,27 +41,9 @@ import scipy.sparse as sp
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["ABLATION_AGENTS", "ablation_steps", "locate_observations", "original_library", "with_locate", "wrap_offsets"]
+__all__ = ["ABLATION_AGENTS", "ablation_steps", "locate_observations", "original_library", "with_locate"]
 
-WRAPS = ("modular", "original")
 ABLATION_AGENTS = ("oracle", "known-task", "hotspot", "random")
-MOVES = np.array([(-1, 0), (1, 0), (0, -1), (0, 1), (0, 0)])  # the library's actions (row, column)
-
-
-def wrap_offsets(values: np.ndarray, size: int, wrap: str) -> np.ndarray:
-    """Offsets on a ``size`` torus brought into ``[-(size // 2), size // 2]``: ``"modular"`` (correct) or the
-    original generator's ``toroidal_check`` (``"original"``; see the module docstring), for ``|d| <= size``."""
-    d = np.asarray(values, dtype=np.int64)
-    half = size // 2
-    if wrap == "modular":
-        return (d + half) % size - half
-    if wrap != "original":
-        raise ConfigError(f"wrap={wrap!r}: choose from {', '.join(WRAPS)}")
-    far = np.abs(d) > half
-    wrapped = np.where(far, np.where(d < 0, -d - half, half - d), d)
-    if size % 2 == 0:
-        wrapped = np.where((d < 0) & (np.abs(d) == half), half, wrapped)
-    return np.where(np.abs(d) == size, 0, wrapped)
 
 
 def locate_observations(library) -> sp.csr_matrix:
@@ -104,75 +87,57 @@ def with_locate(library):
 
     observation = locate_observations(library)
     pomdps = tuple(
-        POMDP(tuple(p.transitions) + (p.transitions[4],), np.hstack([p.rewards, p.rewards[:, 4:5]]), p.discount,
-              p.state_names, tuple(p.action_names) + ("locate",), tuple(p.observations) + (observation,),
-              p.initial_belief, p.observation_names)
-        for p in library.pomdps)
+        POMDP(
+            tuple(p.transitions) + (p.transitions[4],),
+            np.hstack([p.rewards, p.rewards[:, 4:5]]),
+            p.discount,
+            p.state_names,
+            tuple(p.action_names) + ("locate",),
+            tuple(p.observations) + (observation,),
+            p.initial_belief,
+            p.observation_names,
+        )
+        for p in library.pomdps
+    )
     return dataclasses.replace(library, domain=f"{library.domain}-locate", pomdps=pomdps)
 
 
 def original_library(library, wrap: str = "original", n_tasks: int | None = None):
-    """``library`` (the ``pursuit-task`` one) with each task's transitions, goal states, rewards and start states
-    made by the original generator with ``wrap``; the observation model is the library's. ``n_tasks`` keeps the
-    first tasks only (the original used 2)."""
-    from embodied_adhoc.domains.chapter5.library import step_rewards, task_pomdp
-    from embodied_adhoc.domains.grid_rules import pair_tasks
+    """The pursuit ``library`` (its variant, size, noise, horizon and beliefs) rebuilt with the torus ``wrap``
+    (``build_pursuit(..., wrap=wrap)``; ``"original"``: the original experiment's generator), named
+    ``<domain>-<wrap>-wrap``; its MMDPs and named teammates follow the wrap too. ``n_tasks`` keeps the first tasks
+    only (the original used 2)."""
+    from embodied_adhoc.domains.chapter5.pursuit import PURSUIT_VARIANTS, build_pursuit
 
-    size = int(library.settings.get("size", 5))
-    half = size // 2
-    cells = np.array([(r, c) for r in range(-half, half + 1) for c in range(-half, half + 1)])
-    mate, prey = cells[np.arange(len(cells) ** 2) // len(cells)], cells[np.arange(len(cells) ** 2) % len(cells)]
-    absorbing = library.absorbing_state
-    if absorbing != len(mate):
-        raise ConfigError(f"{library.domain}: not the pursuit-task state layout (absorbing {absorbing})")
-
-    def index(offsets: np.ndarray) -> np.ndarray:
-        return (offsets[..., 0] + half) * size + offsets[..., 1] + half
-
-    def wrapped(offsets: np.ndarray) -> np.ndarray:
-        return wrap_offsets(offsets, size, wrap)
-
+    variant = library.settings.get("variant")
+    if variant not in PURSUIT_VARIANTS or "models" in library.settings:
+        raise ConfigError(
+            f"{library.domain}: not a whole pursuit library (build_pursuit's); the ablation rebuilds one"
+        )
     keep = library.n_models if n_tasks is None else int(n_tasks)
     if not 1 <= keep <= library.n_models:
         raise ConfigError(f"n_tasks={n_tasks}: the library has {library.n_models} tasks")
-    tasks = pair_tasks()
-    pomdps = []
-    for model in range(keep):
-        first, second = (np.array(o) for o in tasks[model].offsets)
-        agent_from_prey = -prey  # the original does not wrap it (|offset| <= size // 2 already)
-        mate_from_prey = wrapped(mate - prey)
-        goal = ((agent_from_prey == first).all(1) & (mate_from_prey == second).all(1)) | (
-            (agent_from_prey == second).all(1) & (mate_from_prey == first).all(1))
-        prey_from_mate = wrapped(prey - mate)
-        cell_a, cell_b = wrapped(prey_from_mate + first), wrapped(prey_from_mate + second)
-        target = np.where((np.abs(cell_b).sum(1) < np.abs(cell_a).sum(1))[:, None], cell_b, cell_a)
-        d_row, d_col = target[:, 0], target[:, 1]
-        mate_move = np.select([d_col > 0, d_col < 0, d_row > 0, d_row < 0], [3, 2, 1, 0], default=4)
-        live = np.flatnonzero(~goal)
-        ended = np.append(np.flatnonzero(goal), absorbing)
-        transitions = []
-        for action in range(5):
-            mate_next = index(wrapped(mate[live] + MOVES[mate_move[live]] - MOVES[action]))
-            rows = [ended] + [live] * 5
-            cols = [np.full(ended.size, absorbing)] + [
-                mate_next * size * size + index(wrapped(prey[live] + MOVES[p] - MOVES[action])) for p in range(5)]
-            probabilities = [np.ones(ended.size)] + [np.full(live.size, 0.2)] * 5
-            matrix = sp.csr_matrix((np.concatenate(probabilities), (np.concatenate(rows), np.concatenate(cols))),
-                                   shape=(absorbing + 1, absorbing + 1))
-            matrix.sum_duplicates()
-            transitions.append(matrix)
-        goal = np.append(goal, False)
-        start = ~goal
-        start[absorbing] = False
-        source = library.pomdps[model]
-        pomdps.append(task_pomdp(transitions, step_rewards(goal, absorbing, 5), source.observations[0], start,
-                                 source.state_names, source.action_names, source.observation_names))
-    return dataclasses.replace(library, domain=f"{library.domain}-{wrap}-wrap", task_names=library.task_names[:keep],
-                               pomdps=tuple(pomdps), mmdps=library.mmdps[:keep])
+    rebuilt = build_pursuit(
+        variant,
+        size=int(library.settings["size"]),
+        noise=library.noise,
+        horizon=library.horizon,
+        n_beliefs=library.n_beliefs,
+        wrap=wrap,
+    )
+    if keep < rebuilt.n_models:
+        rebuilt = rebuilt.subset(range(keep))
+    return dataclasses.replace(rebuilt, domain=f"{library.domain}-{wrap}-wrap")
 
 
-def ablation_steps(library, agents: Sequence[str] = ABLATION_AGENTS, episodes: int = 32, seed: int = 0,
-                   cap: int = 150, reward_gain: str | None = None) -> dict[str, np.ndarray]:
+def ablation_steps(
+    library,
+    agents: Sequence[str] = ABLATION_AGENTS,
+    episodes: int = 32,
+    seed: int = 0,
+    cap: int = 150,
+    reward_gain: str | None = None,
+) -> dict[str, np.ndarray]:
     """Steps per episode (the original's count: to the capture reward) of each agent on ``library``, tasks drawn
     uniformly from its models and starts from their initial beliefs, the same draws for every agent."""
     from embodied_adhoc.decision.agents.factory import make_agent
@@ -196,10 +161,15 @@ def ablation_steps(library, agents: Sequence[str] = ABLATION_AGENTS, episodes: i
         counts = []
         for episode, (task, start) in enumerate(specs):
             agent = make_agent(name, library, true_task=task, hotspot=hotspot)
-            trace = run_episode_loop(env, agent, env_seed=seed * 100_003 + episode,
-                                     agent_rng=np.random.default_rng([seed, episode, 1]),
-                                     reset_options={"task": task, "start": start}, max_steps=cap,
-                                     observation_index=lambda observation, info: int(info["observation_index"]))
+            trace = run_episode_loop(
+                env,
+                agent,
+                env_seed=seed * 100_003 + episode,
+                agent_rng=np.random.default_rng([seed, episode, 1]),
+                reset_options={"task": task, "start": start},
+                max_steps=cap,
+                observation_index=lambda observation, info: int(info["observation_index"]),
+            )
             counts.append(len(trace.actions))
         steps[name] = np.array(counts)
     return steps

@@ -2,16 +2,18 @@
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 import pytest
 
+from embodied_adhoc.domains.chapter5.pursuit import build_pursuit, wrap_offsets
 from embodied_adhoc.envs.pursuit_pomdp import pursuit_pair_library
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.pursuit_pairs_ablation import (
     ablation_steps,
     original_library,
     with_locate,
-    wrap_offsets,
 )
 
 
@@ -24,16 +26,36 @@ def test_original_wrap_brings_far_offsets_one_cell_too_close():
         wrap_offsets(d, 5, "sideways")
 
 
-def test_emulated_generator_with_the_modular_wrap_is_our_library():
-    """The emulation of the original's generator differs from our library only by the wrap: with the correct one it
-    rebuilds every transition matrix, reward and start distribution of all four tasks exactly."""
-    library = pursuit_pair_library()
+def test_original_library_with_the_modular_wrap_is_the_library_it_was_given():
+    """``original_library`` rebuilds the library with its own settings (here a non-default noise and horizon): with the
+    correct wrap, every transition, observation, reward and start distribution comes back exactly."""
+    library = build_pursuit("pursuit-task", noise=0.1, horizon=40)
     rebuilt = original_library(library, "modular")
+    assert (rebuilt.domain, rebuilt.noise, rebuilt.horizon) == ("pursuit-task-modular-wrap", 0.1, 40)
     for ours, emulated in zip(library.pomdps, rebuilt.pomdps, strict=True):
         for a in range(ours.n_actions):
             assert abs(ours.transitions[a] - emulated.transitions[a]).max() == 0.0
+            assert abs(ours.observations[a] - emulated.observations[a]).max() == 0.0
         np.testing.assert_array_equal(ours.rewards, emulated.rewards)
         np.testing.assert_array_equal(ours.initial_belief, emulated.initial_belief)
+    with pytest.raises(ConfigError, match="not a whole pursuit library"):
+        original_library(library.subset([0, 1]), "original")
+
+
+def test_original_wrap_library_is_the_deleted_emulation_bit_for_bit():
+    """The original-wrap models equal, bit for bit, those of the original generator's separate emulation that this
+    module had until the wrap became ``build_pursuit``'s switch: SHA-256 (first 16 hex digits) of each task's dense
+    transition matrices, rewards and initial belief, recorded from that emulation before it was deleted."""
+    emulation = ["e247eeef38d6e343", "fcaa859a5a6e0ad9", "afddac902508066e", "2be829a42dd93773"]
+    digests = []
+    for pomdp in original_library(pursuit_pair_library(), "original").pomdps:
+        digest = hashlib.sha256()
+        for matrix in pomdp.transitions:
+            digest.update(matrix.toarray().tobytes())
+        digest.update(np.ascontiguousarray(pomdp.rewards).tobytes())
+        digest.update(pomdp.initial_belief.tobytes())
+        digests.append(digest.hexdigest()[:16])
+    assert digests == emulation
 
 
 def test_original_wrap_adds_false_captures_and_keeps_stochastic_rows():
@@ -69,7 +91,9 @@ def test_locate_reads_the_teammate_direction_at_any_distance():
     # teammate two rows up and two columns right (out of view), prey far: read as "up-right" w.p. 1 - eps
     state = ((-2 + 2) * 5 + (2 + 2)) * 25 + (2 + 2) * 5 + (2 + 2)
     row = pomdp.observations[5].getrow(state).toarray().ravel()
-    assert row[9 * 2 + 4] == pytest.approx(1.0 - library.noise) and row[9 * 4 + 4] == pytest.approx(library.noise)
+    assert row[9 * 2 + 4] == pytest.approx(1.0 - library.noise) and row[9 * 4 + 4] == pytest.approx(
+        library.noise
+    )
     assert pomdp.observations[0].getrow(state).toarray().ravel()[9 * 4 + 4] == pytest.approx(1.0)  # unseen
 
 

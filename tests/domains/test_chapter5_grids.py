@@ -94,6 +94,51 @@ def test_aware_teammate_walks_around_the_agent():
     assert any((greedy.transitions[a] != aware.transitions[a]).nnz for a in range(5))
 
 
+def test_pursuit_original_wrap_brings_edge_crossings_one_cell_too_close():
+    """``wrap="original"``: the original generator's torus, in every offset sum (moves, capture test, teammates)."""
+    from embodied_adhoc.domains.chapter5.library import reduce_joint
+    from embodied_adhoc.errors import ConfigError
+
+    original, modular = build_pursuit("pursuit-task", wrap="original"), build_pursuit("pursuit-task")
+    names = original.state_names
+    assert names == modular.state_names and original.settings["wrap"] == "original"
+    # teammate two columns right, prey two up and two left; the agent steps left, the teammate stays: the teammate's
+    # offset +3 becomes -1 (correct: -2), the prey's moving up -3 becomes +1 (correct: +2)
+    x = names.index("t0_2-p-2_-2")
+    assert original.pomdps[0].rewards[x, 0] < 0  # not a capture state
+    left_stay = 2 * 5 + 4
+    reached = {
+        m: sorted(names[j] for j in library.mmdps[0].transitions[left_stay][x].indices)
+        for m, library in (("original", original), ("modular", modular))
+    }
+    assert reached["original"] == [
+        "t0_-1-p-1_-1",
+        "t0_-1-p-2_-1",
+        "t0_-1-p-2_-2",
+        "t0_-1-p-2_0",
+        "t0_-1-p1_-1",
+    ]
+    assert reached["modular"] == [
+        "t0_-2-p-1_-1",
+        "t0_-2-p-2_-1",
+        "t0_-2-p-2_-2",
+        "t0_-2-p-2_0",
+        "t0_-2-p2_-1",
+    ]
+    # one mechanism: the world's transitions are its own MMDP with its own greedy teammate averaged out
+    for m, pomdp in enumerate(original.pomdps):
+        mmdp = original.mmdps[m]
+        joint = [[mmdp.transitions[a * 5 + b] for b in range(5)] for a in range(5)]
+        for ours, reduced in zip(
+            pomdp.transitions, reduce_joint(joint, original.teammates["greedy"](m)), strict=True
+        ):
+            assert abs(ours - reduced).max() == 0.0
+    with pytest.raises(ConfigError, match="wrap='sideways'"):
+        build_pursuit("pursuit-task", wrap="sideways")
+    with pytest.raises(ConfigError, match="odd size"):
+        build_pursuit("pursuit-task", size=4, wrap="original")
+
+
 @pytest.mark.parametrize("size, states", [(3, 82), (4, 257), (5, 626)])
 def test_panic_buttons_sizes(size, states):
     library = build_panic_buttons(size, "optimal")
