@@ -5,8 +5,9 @@ leaving a facility by its exits, teams altruistic, selfish, weighted-altruistic,
 
 Each agent is paired with the teammate-aware, greedy and probabilistic-destinations teams in turn for ``--steps``
 steps each, learning, evaluated (``--eval-steps`` steps, learning paused) before and after every 10 % of the
-interaction and, after each team, on all three. ``--changed P`` adds the changed-environment phase (predator
-moves fail with probability P). With ``--out`` every (agent, trial) is stored as it finishes and a rerun resumes
+interaction and, after each team, on all three. ``--changed fail:P`` adds the changed-environment phase
+(predator moves fail with probability P; a bare P means the same), ``--changed mirror`` one where the ad hoc
+agent's moves are mirrored (up <-> down, left <-> right), for ``--changed-steps`` steps (default ``--steps``). With ``--out`` every (agent, trial) is stored as it finishes and a rerun resumes
 from them; the folder gets ``summary.json``, ``table.md`` and ``curves.png``. ``--json`` prints the summary
 (accumulated reward = prey captures, mean and 95 % CI, at each evaluation point, and per 500 steps).
 """
@@ -19,7 +20,7 @@ import sys
 from pathlib import Path
 
 from embodied_adhoc.atomic import atomic_write_text
-from embodied_adhoc.commands.arguments import bounded, output_folder, positive_int, seed
+from embodied_adhoc.commands.arguments import output_folder, positive_int, seed
 from embodied_adhoc.decision.agents.teamwork import CHAPTER4_AGENTS as AGENTS
 from embodied_adhoc.errors import ConfigError
 
@@ -42,22 +43,26 @@ def handle(args: argparse.Namespace) -> int:
     agents = _agents(args.agents, args.domain)
     if args.steps % args.points:
         raise ConfigError(f"--steps {args.steps}: must be a multiple of --points {args.points}")
-    if args.changed >= 1.0:
-        raise ConfigError(f"--changed {args.changed}: a move-failure probability in [0, 1)")
+    if args.changed_steps is not None and args.changed_steps % args.points:
+        raise ConfigError(f"--changed-steps {args.changed_steps}: must be a multiple of --points {args.points}")
     from embodied_adhoc.experiments.teamster import final_table, summarise, write_outputs
     from embodied_adhoc.learning.teamster_agents import TABLE_4_1
-    from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, run_trial
+    from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, parse_change, run_trial
+
+    changed = parse_change(args.changed)
+    if args.changed_steps is not None and not changed:
+        raise ConfigError(f"--changed-steps {args.changed_steps}: only with a changed phase (--changed)")
 
     iterations, depth = TABLE_4_1[args.domain]
     config = ProtocolConfig(steps=args.steps, eval_steps=args.eval_steps, points=args.points,
-                            changed=args.changed, seed=args.seed, iterations=args.iterations or iterations,
+                            changed=changed, changed_steps=args.changed_steps, seed=args.seed, iterations=args.iterations or iterations,
                             depth=args.depth or depth, domain=args.domain, eval_episodes=args.eval_episodes)
     out = args.out
     records = []
     jobs = [(agent, trial) for agent in agents for trial in range(args.trials)]
     from tqdm import tqdm
 
-    phases = 3 + (config.changed > 0)
+    phases = 3 + bool(config.changed)
     bar = tqdm(total=len(jobs) * phases, desc="teamster", unit="team", disable=args.json or args.quiet,
                file=sys.stderr)
     try:
@@ -106,8 +111,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         help="navigation: episodes (of at most 100 steps) per evaluation (default 8)")
     parser.add_argument("--points", type=positive_int, default=10,
                         help="evaluations per interaction (default 10: every 10 %%)")
-    parser.add_argument("--changed", type=bounded(float, 0.0, "a probability in [0, 1)"), default=0.0,
-                        help="add the changed-environment phase: predator moves fail with this probability")
+    parser.add_argument("--changed", default="0", metavar="fail:P|mirror",
+                        help="add the changed-environment phase: fail:P, predator moves fail with probability P "
+                             "(a bare P: the same); mirror, the ad hoc agent's moves mirrored (default none)")
+    parser.add_argument("--changed-steps", type=positive_int, default=None,
+                        help="interaction steps of the changed phase, a multiple of --points (default --steps)")
     parser.add_argument("--iterations", type=positive_int, default=None,
                         help="UCT iterations (default Table 4.1's: pursuit and ntu 100, isr and pentagon 300)")
     parser.add_argument("--depth", type=positive_int, default=None,

@@ -14,7 +14,8 @@ stay; a move into a wall or the border stays):
 * an agent on an exit has left: it stays there whatever it does (and still holds the cell);
 * agents move one at a time in seat order 0, 1, ..., N-1, each into its target cell unless another agent holds
   that cell at its turn (agents that moved earlier at their new cells): a collision leaves it in place. The
-  dynamics are deterministic (the changed environment adds ``slip``: each move fails w.p. ``slip``);
+  dynamics are deterministic (the changed environment adds ``slip``: each move fails w.p. ``slip``; or
+  ``mirror``: the ad hoc agent's moves are mirrored, up <-> down, left <-> right);
 * the episode ends when every agent stands on an exit ("all agents have exited"). Reward -1 per step, plus 100
   on the step that completes it, so an episode's accumulated reward is ``100 - steps`` (ntu's 98 in Table 4.5:
   two moves). The thesis's original counts the +100 on one extra step taken from the finished state; the total
@@ -47,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.domains.chapter5.grid_maps import STAY, GridMap, load_map
-from embodied_adhoc.domains.pursuit4 import ExactEnvironment, ExactTeam, path_lengths
+from embodied_adhoc.domains.pursuit4 import MIRRORED, ExactEnvironment, ExactTeam, path_lengths
 from embodied_adhoc.errors import ConfigError
 
 N_ACTIONS = 5
@@ -64,6 +65,7 @@ class Navigation4:
 
     map_name: str = "ntu"
     slip: float = 0.0  # the changed environment: each agent's move fails (it stays) with this probability
+    mirror: bool = False  # the changed environment: the ad hoc agent's moves are mirrored (pursuit4.MIRRORED)
 
     teams = TEAMS
     n_actions = N_ACTIONS
@@ -115,6 +117,8 @@ class Navigation4:
              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(next states, rewards, terminal): seat-order moves, collisions stay, exits absorb (module doc)."""
         actions = np.asarray(actions, dtype=np.int64)
+        if self.mirror:
+            actions = np.concatenate([MIRRORED[actions[:, :1]], actions[:, 1:]], axis=1)
         if self.slip > 0:
             actions = np.where(rng.random(actions.shape) < self.slip, STAY, actions)
         nxt = np.array(states, dtype=np.int64, copy=True)

@@ -44,6 +44,9 @@ N_ACTIONS = 5
 STAY = 4
 TEAMS = ("teammate-aware", "greedy", "probabilistic-destinations")
 _PERMUTATIONS = np.array(list(itertools.permutations(range(4))), dtype=np.int64)  # (24, 4)
+MIRRORED = np.array([1, 0, 3, 2, 4])
+"""The mirrored changed environment: action a of the ad hoc agent (seat 0) moves it as MIRRORED[a] (up <-> down,
+left <-> right, stay stays), so that a model of the old rules is wrong about which action is best."""
 
 
 @dataclass(frozen=True)
@@ -52,6 +55,7 @@ class Pursuit4:
 
     size: int = 5
     slip: float = 0.0  # the changed environment: each predator's move fails (it stays) with this probability
+    mirror: bool = False  # the changed environment: the ad hoc predator's moves are mirrored (MIRRORED)
     teams = TEAMS
 
     def __post_init__(self) -> None:
@@ -99,10 +103,13 @@ class Pursuit4:
     def step(self, states: np.ndarray, predator_actions: np.ndarray,
              rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(next states, rewards, terminal) of the true dynamics; draws the prey's move, the move order (and
-        the slips, when ``slip`` > 0)."""
+        the slips, when ``slip`` > 0); with ``mirror`` the ad hoc agent's action ``a`` moves it as
+        ``MIRRORED[a]``."""
         count = states.shape[0]
         actions = np.empty((count, N_AGENTS), dtype=np.int64)
         actions[:, :N_PREDATORS] = predator_actions
+        if self.mirror:
+            actions[:, 0] = MIRRORED[actions[:, 0]]
         if self.slip > 0:
             actions[:, :N_PREDATORS][rng.random((count, N_PREDATORS)) < self.slip] = STAY
         actions[:, PREY] = rng.integers(0, 4, size=count)

@@ -11,9 +11,12 @@ For each team tau_i in order (teammate-aware, greedy, probabilistic destinations
 5. it is evaluated on every team;
 6. the next team.
 
-Optionally (``changed`` > 0) a last phase repeats steps 1-3 with the first team in a changed environment whose
-moves (the predators', or every agent's on a map) fail with probability ``changed`` (the robustness experiment: a
-learned environment model adapts, the exact one stays the old rules).
+Optionally (``changed``) a last phase repeats steps 1-3 with the first team in a changed environment, for
+``changed_steps`` steps (default ``steps``): ``changed`` = P, a probability, makes the moves (the predators', or
+every agent's on a map) fail with probability P; ``changed = "mirror"`` mirrors the ad hoc agent's moves (up <->
+down, left <-> right; ``pursuit4.MIRRORED``), a change that makes a model of the old rules wrong about which
+action is best (the robustness experiment: a learned environment model adapts, the exact one stays the old
+rules). :func:`parse_change` reads the command line's form (``fail:P``, ``mirror``, or a bare P).
 
 The metric is the accumulated reward of an evaluation, which on pursuit is the number of prey captures (reward 1
 each) in ``eval_steps`` steps; on the navigation maps (ntu, isr, pentagon: ``domains/navigation4.py``) it is the
@@ -39,7 +42,7 @@ import torch
 from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.navigation4 import MAPS, Navigation4
-from embodied_adhoc.domains.pursuit4 import ExactTeam, Pursuit4
+from embodied_adhoc.domains.pursuit4 import N_ACTIONS, ExactTeam, Pursuit4
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.teamster_agents import build_agent
 
@@ -50,12 +53,13 @@ class ProtocolConfig:
     eval_steps: int = 500
     points: int = 10  # evaluations during an interaction (every 100/points %)
     size: int = 5
-    changed: float = 0.0  # > 0: the changed-environment phase with this move-failure probability
+    changed: float | str = 0.0  # > 0: the changed phase with this move-failure probability; "mirror" (see above)
     seed: int = 0
     iterations: int = 100
     depth: int = 5
     domain: str = "pursuit"  # or a navigation map: ntu, isr, pentagon
     eval_episodes: int = 8  # navigation: episodes per evaluation (the original's 8)
+    changed_steps: int | None = None  # the changed phase's interaction steps (None: ``steps``)
 
     def __post_init__(self) -> None:
         if self.domain not in DOMAINS:
@@ -66,25 +70,63 @@ class ProtocolConfig:
                 raise ConfigError(f"teamster {name}={value!r}: give a positive integer")
         if self.steps % self.points:
             raise ConfigError(f"teamster steps={self.steps}: must be a multiple of points={self.points}")
-        if not 0.0 <= self.changed < 1.0:
-            raise ConfigError(f"teamster changed={self.changed}: give a move-failure probability in [0, 1)")
+        object.__setattr__(self, "changed", parse_change(self.changed, "teamster changed"))
+        if self.changed_steps is not None and (not isinstance(self.changed_steps, int) or self.changed_steps < 1
+                                               or self.changed_steps % self.points):
+            raise ConfigError(f"teamster changed_steps={self.changed_steps!r}: give a positive multiple of "
+                              f"points={self.points}")
+
+    @property
+    def phase_steps(self) -> int:
+        """The changed phase's interaction steps."""
+        return self.steps if self.changed_steps is None else self.changed_steps
 
     def as_dict(self) -> dict:
         """The settings a record is stored with; pursuit's omit the navigation fields (so folders written
         before the navigation maps existed still resume)."""
         settings = asdict(self)
+        if self.changed_steps is None:  # folders written before the option existed still resume
+            del settings["changed_steps"]
         if self.domain == "pursuit":
             del settings["domain"], settings["eval_episodes"]
         return settings
 
 
 DOMAINS = ("pursuit",) + MAPS
+CHANGES = ("fail:P", "mirror")
 
 
-def make_world(domain: str, size: int = 5, slip: float = 0.0):
-    """The chapter-4 world of ``domain``: 5x5 (``size``) pursuit or a navigation map; ``slip`` > 0 is the
-    changed environment (moves fail with that probability)."""
-    return Pursuit4(size, slip=slip) if domain == "pursuit" else Navigation4(domain, slip=slip)
+def parse_change(value, label: str = "--changed") -> float | str:
+    """The changed environment from its command-line form: ``fail:P`` or a bare ``P`` (moves fail with
+    probability P in [0, 1); 0: no changed phase) or ``mirror`` (the ad hoc agent's moves mirrored); returns P
+    (a float) or ``"mirror"``. Anything else: :class:`ConfigError` naming ``label``."""
+    text = str(value).strip()
+    if text == "mirror":
+        return "mirror"
+    number = text[len("fail:"):] if text.startswith("fail:") else text
+    try:
+        probability = float(number)
+    except ValueError:
+        probability = None
+    if probability is None or not 0.0 <= probability < 1.0 or isinstance(value, bool):
+        raise ConfigError(f"{label} {value!r}: give fail:P (moves fail with probability P in [0, 1)), a bare P, "
+                          "or mirror (the ad hoc agent's moves mirrored)")
+    return probability
+
+
+def make_world(domain: str, size: int = 5, slip: float = 0.0, mirror: bool = False):
+    """The chapter-4 world of ``domain``: 5x5 (``size``) pursuit or a navigation map; ``slip`` > 0 or ``mirror``
+    is a changed environment (moves fail with that probability; the ad hoc agent's moves mirrored)."""
+    if domain == "pursuit":
+        return Pursuit4(size, slip=slip, mirror=mirror)
+    return Navigation4(domain, slip=slip, mirror=mirror)
+
+
+def changed_world(config: ProtocolConfig):
+    """The changed environment of ``config.changed`` (a failure probability or ``"mirror"``)."""
+    if config.changed == "mirror":
+        return make_world(config.domain, config.size, mirror=True)
+    return make_world(config.domain, config.size, slip=config.changed)
 
 
 def _stream(config: ProtocolConfig, trial: int, *words: int | str) -> np.random.Generator:
@@ -99,16 +141,17 @@ def _stream_of_steps(agent, world, team: ExactTeam, rng: np.random.Generator):
     if hasattr(agent, "bind"):
         agent.bind(team.team)
     cap = getattr(world, "episode_cap", None)
-    state = world.sample_states(rng, 1)[0]
-    length = 0
+    state, length = None, 0
     while True:
+        if state is None:  # drawn when needed (nothing is drawn after the last step of a stream)
+            state = world.sample_states(rng, 1)[0]
         action = agent.act(state)
         joint = np.concatenate([[action], sample_rows(team.probs(state[None])[0], rng)])
         nxt, reward, done = world.step(state[None], joint[None], rng)
         agent.observe(state, joint, float(reward[0]), nxt[0], bool(done[0]))
         length += 1
         ended = bool(done[0]) or (cap is not None and length >= cap)
-        state, length = (world.sample_states(rng, 1)[0], 0) if ended else (nxt[0], length)
+        state, length = (None, 0) if ended else (nxt[0], length)
         yield float(reward[0]), bool(done[0]), ended
 
 
@@ -143,15 +186,37 @@ def _evaluate(agent, world, team, config, trial, *words) -> float:
         agent.set_evaluation(False)
 
 
-def _interact(agent, world, team, config, trial, phase: str) -> list[list[int]]:
-    """Steps 1-3: the learning curve [[step, captures in the evaluation], ...] (points + 1 entries)."""
+def model_fit(agent, world, rng: np.random.Generator, count: int = 256) -> list[float] | None:
+    """How well a learned environment model predicts the ad hoc agent's own move in ``world``: on ``count``
+    random states with uniform predator actions stepped by the true rules, the share where the model's most
+    likely move class for agent 0 is the one taken, and the mean probability it gives that move (None for an
+    agent without a learned transition model). Diagnoses the changed phase."""
+    environment = getattr(agent, "environment", None)
+    if not hasattr(environment, "transition_probs"):
+        return None
+    states = world.sample_states(rng, count)
+    actions = rng.integers(0, N_ACTIONS, size=(count, environment.features.n_actors))
+    moved = environment.features.move_of[states[:, 0], world.step(states, actions, rng)[0][:, 0]]
+    probs = environment.transition_probs(states, actions)[:, 0]
+    return [round(float((probs.argmax(-1) == moved).mean()), 4),
+            round(float(probs[np.arange(count), moved].mean()), 4)]
+
+
+def _interact(agent, world, team, config, trial, phase: str, steps: int,
+              fit: list | None = None) -> list[list[int]]:
+    """Steps 1-3 over ``steps`` steps: the learning curve [[step, captures in the evaluation], ...] (points + 1
+    entries)."""
     rng = _stream(config, trial, agent.name, phase)
     agent.start_team(rng)
     curve = [[0, _evaluate(agent, world, team, config, trial, phase, 0)]]
-    chunk = config.steps // config.points
-    for point in range(1, config.points + 1):
-        play(agent, world, team, chunk, rng)
-        curve.append([point * chunk, _evaluate(agent, world, team, config, trial, phase, point)])
+    chunk = steps // config.points
+    for point in range(config.points + 1):
+        if point:
+            play(agent, world, team, chunk, rng)
+            curve.append([point * chunk, _evaluate(agent, world, team, config, trial, phase, point)])
+        if fit is not None:  # the model's fit to these rules, on probes of their own stream
+            fit.append([point * chunk] + (model_fit(agent, world, _stream(config, trial, "fit", phase, point))
+                                          or []))
     return curve
 
 
@@ -166,16 +231,19 @@ def run_trial(agent_name: str, trial: int, config: ProtocolConfig,
     agent = build_agent(agent_name, world, _stream(config, trial, agent_name, "agent"), config.steps, uct)
     record = {"agent": agent_name, "trial": trial, "config": config.as_dict(), "curves": {}, "after": {}}
     for i, name in enumerate(world.teams):
-        record["curves"][name] = _interact(agent, world, teams[name], config, trial, name)
+        record["curves"][name] = _interact(agent, world, teams[name], config, trial, name, config.steps)
         agent.finish_team(name)
         record["after"][name] = {other: _evaluate(agent, world, teams[other], config, trial, "after", i, other)
                                  for other in world.teams}
         if tick is not None:
             tick()
-    if config.changed > 0:
-        changed = make_world(config.domain, config.size, slip=config.changed)
+    if config.changed:
+        changed = changed_world(config)
+        fit = [] if model_fit(agent, changed, np.random.default_rng(0), 1) is not None else None
         record["changed"] = _interact(agent, changed, ExactTeam(changed, changed.teams[0]), config, trial,
-                                      "changed")
+                                      "changed", config.phase_steps, fit)
+        if fit is not None:  # [step, agent 0's move predicted (share), P(its move)] at each evaluation point
+            record["changed_fit"] = fit
         if tick is not None:
             tick()
     record["seconds"] = round(time.perf_counter() - start, 1)

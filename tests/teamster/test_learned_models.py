@@ -29,6 +29,17 @@ def _stream(team: str, steps: int, seed: int = 0):
         state = WORLD.sample_states(rng, 1)[0] if done[0] else nxt[0]
 
 
+def _joint_sums(factors: np.ndarray) -> np.ndarray:
+    """Eq. 4.3: per (x, a) the sum over all 5**5 move combinations of the product of the five factors."""
+    count = factors.shape[0]
+    joint = np.ones((count,) + (1,) * 5)
+    for n in range(5):
+        shape = [count] + [1] * 5
+        shape[n + 1] = 5
+        joint = joint * factors[:, n].reshape(shape)
+    return joint.reshape(count, -1).sum(-1)
+
+
 def test_transition_factors_sum_to_one_and_define_a_distribution_over_next_states():
     env = LearnedEnvironment(WORLD, np.random.default_rng(0))
     for row in _stream("greedy", 40):
@@ -38,16 +49,37 @@ def test_transition_factors_sum_to_one_and_define_a_distribution_over_next_state
     actions = rng.integers(0, 5, size=(8, 4))
     factors = env.transition_probs(states, actions)
     assert factors.shape == (8, 5, 5) and np.allclose(factors.sum(-1), 1.0, atol=1e-12)
-    # Eq. 4.3: the product of the factors over all 5**5 move combinations sums to 1 for each (x, a)
-    joint = np.ones((8,) + (1,) * 5)
-    for n in range(5):
-        shape = [8] + [1] * 5
-        shape[n + 1] = 5
-        joint = joint * factors[:, n].reshape(shape)
-    assert np.allclose(joint.reshape(8, -1).sum(-1), 1.0)
+    assert np.allclose(_joint_sums(factors), 1.0)
     nxt, reward, terminal = env.step(states, actions, rng)
     assert nxt.shape == (8, 5) and ((0 <= reward) & (reward <= 1)).all()
     assert (Features(WORLD).move_of[states, nxt] >= 0).all()  # every agent moved by at most one cell
+
+
+def test_transition_model_relearns_the_mirrored_rules_and_its_factors_still_sum_to_one():
+    """After the old rules, 300 steps of --changed mirror: the model moves towards the mirrored effect of the
+    ad hoc agent's own action and P(x'|x,a) still sums to 1 over all 5**5 move combinations."""
+    env = LearnedEnvironment(WORLD, np.random.default_rng(0))
+    mirrored = Pursuit4(mirror=True)
+    lone = np.array([[12, 0, 4, 20, 24]])  # nobody next to the ad hoc agent: "up" moves it up (7) or down (17)
+    up = np.zeros((1, 4), dtype=np.int64)
+    rng = np.random.default_rng(1)
+
+    def p_up_moves_down():
+        return env.transition_probs(lone, up)[0, 0, 1]  # agent 0's factor on the move class "down"
+
+    for row in _stream("greedy", 300):
+        env.update(*row)
+    before = p_up_moves_down()
+    state = mirrored.sample_states(rng, 1)[0]
+    for _ in range(300):
+        joint = sample_rows(mirrored.team_policy("greedy", state[None], agents=(0, 1, 2, 3))[0], rng)
+        nxt, _, done = mirrored.step(state[None], joint[None], rng)
+        env.update(state, joint, float(done[0]), nxt[0], bool(done[0]))
+        state = mirrored.sample_states(rng, 1)[0] if done[0] else nxt[0]
+    after = p_up_moves_down()
+    assert before < 0.2 and after > before + 0.2
+    factors = env.transition_probs(mirrored.sample_states(rng, 6), rng.integers(0, 5, size=(6, 4)))
+    assert np.allclose(_joint_sums(factors), 1.0)
 
 
 def test_learned_models_fit_the_true_rules_and_team():
@@ -104,8 +136,15 @@ def test_protocol_records_and_same_seed_same_result():
     assert first == second
     assert set(first["curves"]) == set(TEAMS) and [p[0] for p in first["curves"]["greedy"]] == [0, 5, 10]
     assert set(first["after"]["greedy"]) == set(TEAMS) and len(first["changed"]) == 3
+    mirror = run_trial("random", 0, ProtocolConfig(steps=10, eval_steps=5, points=2, changed="mirror",
+                                                   changed_steps=20))
+    assert [p[0] for p in mirror["changed"]] == [0, 10, 20] and mirror["config"]["changed"] == "mirror"
     with pytest.raises(ConfigError, match="steps"):
         ProtocolConfig(steps=15, points=10)
+    with pytest.raises(ConfigError, match="changed_steps"):
+        ProtocolConfig(steps=10, points=2, changed=0.2, changed_steps=5)
+    with pytest.raises(ConfigError, match="changed 'flip'"):
+        ProtocolConfig(changed="flip")
     with pytest.raises(ConfigError, match="agent"):
         run_trial("oracle", 0, config)
 

@@ -62,6 +62,13 @@ def test_hand_checked_transition_on_ntu():
     moved = [slipping.step(cells(NTU, (1, 1), (0, 3), (3, 5), (5, 2))[None], np.array([[DOWN, 4, 4, 4]]), rng)[0][0, 0]
              for _ in range(400)]
     assert 0.4 < np.mean(np.array(moved) == cells(NTU, (2, 1))[0]) < 0.6
+    # the mirrored environment: the ad hoc agent's "down" from (1,1) goes up into the wall (stays), its "right"
+    # goes left into the wall; its "up" goes down to (2,1); the others' moves are unchanged
+    mirrored = Navigation4("ntu", mirror=True)
+    state = cells(NTU, (1, 1), (1, 4), (4, 1), (5, 2))[None]
+    assert mirrored.step(state, np.array([[UP, DOWN, STAY, STAY]]), rng)[0][0].tolist() == cells(
+        NTU, (2, 1), (2, 4), (4, 1), (5, 2)).tolist()
+    assert mirrored.step(state, np.array([[DOWN, STAY, STAY, STAY]]), rng)[0][0, 0] == state[0, 0]
 
 
 def test_teams_act_as_described_on_isr():

@@ -54,6 +54,28 @@ def test_changed_environment_moves_fail_with_the_slip_probability():
         Pursuit4(slip=1.0)
 
 
+def test_mirrored_environment_moves_the_ad_hoc_agent_the_opposite_way_and_nobody_else():
+    """--changed mirror: the ad hoc agent's up/down and left/right swap; same draws, so with its action mirrored
+    the old rules give the same step; the teammates and the prey are unaffected."""
+    rng = np.random.default_rng(7)
+    states = WORLD.sample_states(rng, 500)
+    actions = rng.integers(0, 5, size=(500, 4))
+    swapped = actions.copy()
+    swapped[:, 0] = np.array([1, 0, 3, 2, 4])[actions[:, 0]]
+    mirrored = Pursuit4(mirror=True).step(states, actions, np.random.default_rng(3))
+    expected = WORLD.step(states, swapped, np.random.default_rng(3))
+    for got, want in zip(mirrored, expected, strict=True):
+        assert np.array_equal(got, want)
+    old = WORLD.step(states, actions, np.random.default_rng(3))[0]
+    moving = actions[:, 0] != 4
+    assert (old[moving, 0] != mirrored[0][moving, 0]).mean() > 0.5  # the old rules are wrong about agent 0
+    # moving "up" from an empty neighbourhood: the old rules put it one row up, the mirrored world one row down
+    lone = np.array([[12, 0, 4, 20, 24]])  # ad hoc agent in the centre, nobody next to it
+    up = np.array([[0, 4, 4, 4]])
+    assert WORLD.step(lone, up, np.random.default_rng(0))[0][0, 0] == 7
+    assert Pursuit4(mirror=True).step(lone, up, np.random.default_rng(0))[0][0, 0] == 17
+
+
 def test_teammate_aware_team_holds_its_ring_positions():
     probs = WORLD.team_policy("teammate-aware", ONE_STEP[None])
     assert np.allclose(probs[0, :, 4], 1.0)  # teammates already around the prey stay

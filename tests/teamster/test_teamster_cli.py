@@ -16,7 +16,9 @@ SMALL = ["--steps", "20", "--points", "2", "--eval-steps", "10", "--trials", "2"
 @pytest.mark.parametrize("argv, fragment", [
     (["--agents", "oracle"], "--agents 'oracle'"),
     (["--steps", "45"], "--steps 45: must be a multiple of --points 10"),
-    (["--changed", "1.5"], "--changed 1.5"),
+    (["--changed", "1.5"], "--changed '1.5'"),
+    (["--changed", "fail:x"], "--changed 'fail:x': give fail:P"),
+    (["--changed", "0", "--changed-steps", "20"], "--changed-steps 20: only with a changed phase"),
     (["--trials", "0"], "--trials"),
 ])
 def test_bad_input_is_one_line_and_exit_2(argv, fragment):
