@@ -189,8 +189,10 @@ def tour_readings(row: str, seed: int) -> list[tuple[int, int | None]]:
 
 
 def localiser_cost(seconds: float) -> dict[str, float]:
-    """Wall time per control step of: the physics (its substeps), the localiser (lidar scan + filter), and the
-    physics step of the same scene without the lidar's rangefinders; one scripted tour, this process."""
+    """Wall time per control step of: the physics (its substeps: ``mj_step`` on the world's model and data, as
+    :meth:`LabWorld.tick` runs it), the localiser (lidar scan + filter: :meth:`LabWorld.sense` less its odometry),
+    the odometry (``sense`` with the localiser detached), and the physics step of the same scene without the
+    lidar's rangefinders; one scripted drive, this process."""
     import mujoco
 
     from embodied_adhoc import paths
@@ -210,9 +212,9 @@ def localiser_cost(seconds: float) -> dict[str, float]:
                 world.localiser.rng, world.odometry.pose, world.true_robot_pose(), time=world.data.time
             )
         start = time.perf_counter()
-        world._physics(world.substeps)
+        mujoco.mj_step(world.model, world.data, nstep=world.substeps)
         middle = time.perf_counter()
-        world._sense()
+        world.sense()
         end = time.perf_counter()
         physics += middle - start
         sensing += end - middle
@@ -221,7 +223,7 @@ def localiser_cost(seconds: float) -> dict[str, float]:
     odometry = 0.0
     for _ in range(ticks):
         start = time.perf_counter()
-        world._sense()
+        world.sense()
         odometry += time.perf_counter() - start
     world.localiser = localiser
     # the scene without the lidar's rangefinders: what the physics step cost before the lidar

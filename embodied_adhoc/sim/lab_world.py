@@ -364,7 +364,7 @@ class LabWorld:
         else:
             human(config.control_period)
         self._physics(self.substeps)
-        self._sense()
+        self.sense()
         self._ticks += 1
         if self._ticks % self.sensor_ticks == 0:
             self._sensed_events.extend(self.rfid.poll(data))
@@ -443,12 +443,14 @@ class LabWorld:
         self.data.ctrl[self.ids.wheel_actuators] = wheels
         for _ in range(int(round(seconds / self.config.control_period))):
             self._physics(self.substeps)
-            self._sense()
+            self.sense()
         self.data.ctrl[self.ids.wheel_actuators] = 0.0
 
-    def _sense(self) -> None:
-        """The robot's sensing at a control tick: encoders into odometry, a due lidar scan into the localiser
-        (computed only when the localiser will use it; its random numbers are drawn either way)."""
+    def sense(self) -> None:
+        """The robot's sensing at a control tick, after its physics (:meth:`tick` and :meth:`drive` call it):
+        encoders into odometry, a due lidar scan into the localiser (computed only when the localiser will use it;
+        its random numbers are drawn either way). Public so that its cost can be timed apart from the physics
+        (``scripts/bench_faults.py``)."""
         data = self.data
         pose = self.odometry.update(data.sensordata[self.ids.wheel_position_sensors])
         if self.localiser is not None:
