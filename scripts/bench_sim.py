@@ -8,8 +8,10 @@ Prints, all measured in this run on this machine:
   3. offscreen rendering frames per second per camera;
   4. dead-reckoning drift after each full tour (every edge both ways) and the node-estimate accuracy at every
      arrival (thesis Metric 7), at the default encoder noise and wheel slip;
-  5. a scripted 10-macro-step episode bare and recorded as ``run --record`` records it (overhead video at the rate
-     the video keeps, heads-up text, encoded on the writer thread; rerun poses and camera), and their ratio.
+  5. a scripted 10-macro-step episode bare and recorded as ``run --record`` records it (overhead frames with the
+     belief markers at the rate the video keeps, rendered on the render thread, heads-up text and H.264 on the writer
+     thread; rerun poses, localisation, overhead camera at 2 Hz and the robot camera each macro step), and their
+     ratio, in wall and CPU time.
 
 Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_sim.py [--tours 5] [--render-frames 30] [--width 640 --height 480]
        [--video-fps 10 --video-speed 4] [--episode-only]
@@ -30,7 +32,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco  # noqa: E402
 
-from embodied_adhoc.experiments.recorded_episode import EpisodeConfig  # noqa: E402
+from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, LabFrames  # noqa: E402
 from embodied_adhoc.experiments.script_args import parse_dataclass_args  # noqa: E402
 from embodied_adhoc.record.rerun_recorder import RerunRecorder  # noqa: E402
 from embodied_adhoc.record.video import VideoWriter  # noqa: E402
@@ -135,52 +137,78 @@ EPISODE = (
 )
 
 
+def hud(step: int, sim_time: float) -> list[str]:
+    """Heads-up lines as long as ``run toxic-waste``'s (balls, action, observation, belief, time)."""
+    return [
+        f"hotspot | balls in container {min(3, step // 3)}/3",
+        f"step {step}: move to {step % 5} open space",
+        f"observed: robot at {step % 5} open space; human at none; rfid no",
+        f"P(task): [0, 1, 2] {0.5 + step / 40:.2f}  [2, 1, 0] {0.5 - step / 40:.2f}",
+        f"t = {sim_time:.1f} s",
+    ]
+
+
 def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float, float, float, int, tuple]:
     """Wall seconds, CPU seconds (all threads of this process and the ffmpeg child, so software rendering and
-    encoding count),
-    simulated seconds, frames and final ball states of the scripted episode. With ``folder`` it is recorded as
-    ``run --record`` records: the overhead camera rendered at the rate the video keeps, each frame with a heads-up
-    text into the mp4 writer (encoded on its thread), poses into the rerun recording (camera image at
-    ``rerun_camera_hz`` of simulated time), the final state held for ``video_hold`` (``EpisodeConfig``'s
-    defaults)."""
-    frames: list[int] = []
-    video = rerun = None
+    encoding count), simulated seconds, frames and final ball states of the scripted episode. With ``folder`` it is
+    recorded as ``run --record`` records (``experiments.recorded_episode``): the overhead camera with the belief
+    markers at the rate the video keeps, each frame with five heads-up lines, rendered on the render thread
+    (``LabFrames``) into the mp4 writer; poses and the localiser's estimate into the rerun recording, its particles
+    and the overhead image at ``rerun_camera_hz`` of simulated time, the robot camera after each macro step; the
+    final state held for ``video_hold`` (``EpisodeConfig``'s defaults). The render thread's GL context is made
+    inside the timed episode, as in ``run``."""
+    count = [0]
+    step = [0]
+    video = rerun = frames = None
     next_camera = [0.0]
 
     def record(lab: LabWorld) -> None:
         truth = lab.ground_truth()
-        frame = lab.render("overhead", args.width, args.height)
-        video.write(frame, [f"step {len(frames)}", f"t = {truth.time:.1f} s"])
-        rerun.set_time(1, truth.time)
+        due = truth.time + 1e-9 >= next_camera[0]
+        frames.submit(
+            "overhead",
+            markers=True,
+            overlay=hud(step[0], truth.time),
+            camera_log=("overhead", step[0], truth.time) if due else None,
+        )
+        rerun.set_time(step[0], truth.time)
         rerun.log_poses(
             truth.robot_pose, lab.odometry_pose(), truth.human_pose[:2], np.array(truth.ball_positions)
         )
-        if truth.time >= next_camera[0]:
-            rerun.log_camera("overhead", frame)
-            while next_camera[0] <= truth.time:  # the camera's own clock, as the recorder keeps it
+        rerun.log_localisation(lab.pose_estimate(), lab.localiser.particles[:, :2].copy() if due else None)
+        if due:
+            while next_camera[0] <= truth.time + 1e-9:  # the camera's own clock, as the recorder keeps it
                 next_camera[0] += 1.0 / EpisodeConfig.rerun_camera_hz
-        frames.append(1)
+        count[0] += 1
 
     world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
     start, cpu_start, sim = time.perf_counter(), cpu_seconds(), 0.0
     if folder is not None:
         video = VideoWriter(folder / "episode.mp4", args.width, args.height, fps=args.video_fps)
         rerun = RerunRecorder(folder / "episode.rrd")
+        frames = LabFrames(world, args.width, args.height, video, rerun)
     try:
-        for target, command in EPISODE:
+        for index, (target, command) in enumerate(EPISODE, start=1):
+            step[0] = index
             sim += world.step_macro(target, command, record if folder is not None else None).sim_seconds
-        if video is not None:
-            video.write(
-                world.render("overhead", args.width, args.height),
-                ["done"],
+            if frames is not None:
+                frames.submit("robot", markers=False, repeat=0, camera_log=("robot", index, world.data.time))
+        if frames is not None:
+            frames.submit(
+                "overhead",
+                markers=False,
+                overlay=hud(len(EPISODE), world.data.time),
                 repeat=max(1, round(EpisodeConfig.video_hold * args.video_fps)),
             )
     finally:
-        if video is not None:
-            video.close()
-            rerun.close()
+        if frames is not None:
+            try:
+                frames.close()
+            finally:
+                video.close()
+                rerun.close()
     wall, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
-    return wall, cpu, sim, len(frames), world.ground_truth().ball_states
+    return wall, cpu, sim, count[0], world.ground_truth().ball_states
 
 
 def cpu_seconds() -> float:
@@ -189,15 +217,14 @@ def cpu_seconds() -> float:
     return times.user + times.system + times.children_user + times.children_system
 
 
-def recording_setup(world: LabWorld, args: Args) -> float:
+def recording_setup() -> float:
     """Wall seconds of what a process pays once before its first recorded episode, not per episode: importing
-    rerun and imageio-ffmpeg and creating the offscreen GL context. Done before the recorded episode is timed, as
-    the world itself is built before the bare one is."""
+    rerun and imageio-ffmpeg. Done before the recorded episode is timed, as the world itself is built before the
+    bare one is (the render thread's GL context is made inside the recorded episode)."""
     start = time.perf_counter()
     import imageio_ffmpeg  # noqa: F401
     import rerun  # noqa: F401
 
-    world.render("overhead", args.width, args.height)
     return time.perf_counter() - start
 
 
@@ -207,7 +234,7 @@ def episode_pair(args: Args, base: LabWorldConfig) -> tuple[tuple, tuple, float]
     config = dataclasses.replace(base, video_fps=args.video_fps / args.video_speed)
     with LabWorld(config) as world, tempfile.TemporaryDirectory() as folder:
         bare = run_episode(world, args, None)
-        setup = recording_setup(world, args)
+        setup = recording_setup()
         recorded = run_episode(world, args, Path(folder))
     return bare, recorded, setup
 
@@ -226,8 +253,8 @@ def print_episodes(args: Args, bare: tuple, recorded: tuple, setup: float) -> No
     )
     print(f"| recorded / bare episode, wall (CPU) | {rec_wall / wall:.1f}x ({rec_cpu / cpu:.1f}x) |")
     print(
-        f"| one-off recording setup per process (rerun + imageio-ffmpeg imports, GL context; not in the recorded "
-        f"episode above), wall s | {setup:.2f} |"
+        f"| one-off recording setup per process (rerun + imageio-ffmpeg imports; not in the recorded episode "
+        f"above), wall s | {setup:.2f} |"
     )
     print(
         f"| ball states at the end of the episode (bare, recorded) | {', '.join(states)}; {', '.join(rec_states)} |"

@@ -25,7 +25,7 @@ from embodied_adhoc.errors import ConfigError
 __all__ = ["ToxicWasteEnv"]
 
 BALL_STATUS = {"ground": GROUND, "held": HELD, "container": DISPOSED}
-FrameSink = Callable[[np.ndarray, dict], None]
+FrameSink = Callable[[dict], None]
 
 
 class ToxicWasteEnv(gymnasium.Env):
@@ -194,7 +194,9 @@ class ToxicWasteEnv(gymnasium.Env):
 
     # ----------------------------------------------------------------------------------------------- API
     def set_frame_sink(self, sink: FrameSink | None) -> None:
-        """Receive ``(overhead_rgb, snapshot)`` ``frame_rate`` times per simulated second during every step.
+        """Receive ``snapshot`` ``frame_rate`` times per simulated second during every step (on the simulating
+        thread, at that instant; the env renders nothing: a recorder that wants the picture takes it from
+        ``self.world``, e.g. ``world.snapshot_renderer()`` to draw it off the simulation thread).
 
         ``snapshot`` has ``step``, ``sim_time``, ``robot_pose``, ``odometry_pose``, ``estimated_pose``,
         ``particles`` (P x 2 xy of the localiser's particle cloud, None without a localiser), ``human_position``,
@@ -353,8 +355,7 @@ class ToxicWasteEnv(gymnasium.Env):
             "human_position": truth.human_pose[:2],
             "ball_positions": np.array(truth.ball_positions),
         }
-        frame = self.world.render("overhead", self.width, self.height, markers=True)  # the belief drawn too
-        self._frame_sink(frame, snapshot)
+        self._frame_sink(snapshot)
 
 
 def _human_command(status, planned, handed_over: bool, human_node: int, next_human: int):

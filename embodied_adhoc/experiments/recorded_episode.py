@@ -3,9 +3,14 @@
 Seeds, episode draw, agent construction and the loop are exactly those of the trial runner (the ``toxic-waste``
 trial domain and :func:`embodied_adhoc.experiments.episode.run_episode_loop`), so ``run --seed S`` replays
 episode 0 of ``trials toxic-waste --backend mujoco --seed S`` for the same agent. On top, an observer records every
-step: video frames (overhead camera at the rate the video keeps, encoded on a writer thread, the final state held
-for ``video_hold`` seconds), a rerun recording and ``metrics.json``. Recorders are closed in ``finally``: an
-interrupted run keeps what it finished.
+step: video frames (overhead camera at the rate the video keeps, the final state held for ``video_hold`` seconds),
+a rerun recording and ``metrics.json``. Recorders are closed in ``finally``: an interrupted run keeps what it
+finished.
+
+The simulation thread only copies what each kept frame shows (``sim.lab_render``: ``mj_copyData`` and the belief
+markers, microseconds); :class:`LabFrames` renders it on a render thread, which hands the picture to the video
+writer's thread (heads-up text, H.264 through ffmpeg) and to the rerun recorder's (JPEG). Rendering (MuJoCo releases
+the GIL while it draws), the text, the JPEGs and the encoder thus run beside the simulation instead of after it.
 """
 
 from __future__ import annotations
@@ -156,8 +161,65 @@ class _Metrics(MetricsObserver):
             self.metrics.per_step[-1].update(localisation_fields(record.info))
 
 
+class LabFrames:
+    """The lab's pictures for the recorders, rendered on one render thread (``record.worker``) from snapshots the
+    simulation thread takes (``LabWorld.snapshot_renderer``): a frame goes to ``video`` (with ``overlay`` lines,
+    ``repeat`` times) and/or to ``rerun`` as ``camera/<name>`` at a given step and time. Frames are rendered in the
+    order they were taken; at most ``max_queued`` wait (the simulation waits when rendering falls behind).
+    :meth:`close` renders what is queued and releases the GL context (the recorders are closed after it)."""
+
+    def __init__(self, world, width: int, height: int, video, rerun, max_queued: int = 8):
+        from embodied_adhoc.record.worker import BackgroundWorker
+
+        self.world, self.width, self.height, self.video, self.rerun = (
+            world,
+            int(width),
+            int(height),
+            video,
+            rerun,
+        )
+        self.high = world.config.render_quality == "high"
+        self._renderer = world.snapshot_renderer()
+        self._worker = BackgroundWorker(
+            self._render,
+            f"render {video.path.name}",
+            max_queued,
+            finish=self._renderer.close,
+        )
+
+    def submit(
+        self,
+        camera: str = "overhead",
+        markers: bool = True,
+        overlay: Sequence[str] | None = None,
+        repeat: int = 1,
+        camera_log: tuple[str, int, float] | None = None,
+    ) -> None:
+        """Take the world's picture now (``markers``: the belief drawn on the overhead camera), for the video
+        (``repeat`` frames with ``overlay``; 0: not in the video) and, with ``camera_log`` = (name, step, sim_time),
+        for rerun's ``camera/<name>``; simulation thread."""
+        world = self.world
+        snapshot = self._renderer.take(world.data, world.belief_markers() if markers else None)
+        self._worker.submit(
+            (snapshot, camera, markers, None if overlay is None else tuple(overlay), int(repeat), camera_log)
+        )
+
+    def _render(self, item: tuple) -> None:
+        snapshot, camera, markers, overlay, repeat, camera_log = item
+        frame = self._renderer.render(snapshot, camera, self.width, self.height, self.high, markers)
+        if repeat > 0:
+            self.video.write(frame, overlay, repeat=repeat)
+        if camera_log is not None:
+            name, step, sim_time = camera_log
+            self.rerun.log_camera(name, frame, step=step, sim_time=sim_time)
+
+    def close(self) -> None:
+        self._worker.close()
+
+
 class _Recording(EpisodeObserver):
-    """Video and rerun recording of a physics episode, fed by the env's frame sink and the loop's hooks."""
+    """Video and rerun recording of a physics episode, fed by the env's frame sink and the loop's hooks; the
+    pictures are rendered off the simulation thread (:class:`LabFrames`)."""
 
     def __init__(self, config: EpisodeConfig, env, library, spec: dict, files: dict[str, Path]):
         from embodied_adhoc.record.rerun_recorder import RerunRecorder
@@ -171,6 +233,7 @@ class _Recording(EpisodeObserver):
         self.video = VideoWriter(files["video"], config.width, config.height, fps=config.video_fps)
         name = f"toxic-waste {config.agent} seed {config.seed}"
         self.rerun = RerunRecorder(files["rerun"], recording_name=name)
+        self.frames = LabFrames(env.unwrapped.world, config.width, config.height, self.video, self.rerun)
         self.hud: dict[str, str] = {}
         self.labels: dict[int, str] = {}
         self._sim_time = 0.0
@@ -192,10 +255,17 @@ class _Recording(EpisodeObserver):
             )
             self.hud["belief"] = f"P(task): {beliefs}"
 
-    def _on_frame(self, frame: np.ndarray, snapshot: dict) -> None:
-        """Every frame the env renders is a frame of the video; rerun gets its poses, and the image of the first
-        frame in each ``1 / rerun_camera_hz`` slot of simulated time."""
-        self.video.write(frame, self._overlay(snapshot["sim_time"]))
+    def _on_frame(self, snapshot: dict) -> None:
+        """Every frame the env passes is a frame of the video (the overhead camera with the belief markers); rerun
+        gets its poses, and the image of the first frame in each ``1 / rerun_camera_hz`` slot of simulated
+        time."""
+        camera_due = snapshot["sim_time"] + 1e-9 >= self._next_camera
+        self.frames.submit(
+            "overhead",
+            markers=True,
+            overlay=self._overlay(snapshot["sim_time"]),
+            camera_log=("overhead", snapshot["step"], snapshot["sim_time"]) if camera_due else None,
+        )
         self.rerun.set_time(snapshot["step"], snapshot["sim_time"])
         self.rerun.log_poses(
             snapshot["robot_pose"],
@@ -203,13 +273,11 @@ class _Recording(EpisodeObserver):
             snapshot["human_position"],
             snapshot["ball_positions"],
         )
-        camera_due = snapshot["sim_time"] + 1e-9 >= self._next_camera
         if "estimated_pose" in snapshot:
             self.rerun.log_localisation(
                 snapshot["estimated_pose"], snapshot["particles"] if camera_due else None
             )
         if camera_due:
-            self.rerun.log_camera("overhead", frame)
             # the camera keeps its own clock: frames are sparser than its rate (10 fps at 4x: one every 0.4 s), so
             # "one period after this frame" would log every second frame only (1.25 Hz instead of 2)
             while self._next_camera <= snapshot["sim_time"] + 1e-9:
@@ -269,7 +337,7 @@ class _Recording(EpisodeObserver):
             rerun.log_text("events", f"step {step}: {line}", level="WARN")
         if posterior is not None:
             rerun.log_belief(posterior, max(0.0, float(normalised_entropy(posterior))))
-        rerun.log_camera("robot", self.env.unwrapped.render_camera("robot"))
+        self.frames.submit("robot", markers=False, repeat=0, camera_log=("robot", step, info["sim_time"]))
         self._hud_belief(posterior, info)
         self._sim_time = float(info["sim_time"])
         self.hud["heard"] = f"observed: {description}"
@@ -280,15 +348,17 @@ class _Recording(EpisodeObserver):
         outcome = "success" if trace.success else "truncated"
         self.rerun.log_text("events", f"outcome: {outcome} after {trace.steps} steps")
         self.hud["action"] = f"done after {trace.steps} steps: {outcome}"
-        frame = self.env.unwrapped.render_camera("overhead")
         hold = max(1, round(self.config.video_hold * self.config.video_fps))
-        self.video.write(frame, self._overlay(self._sim_time), repeat=hold)
+        self.frames.submit("overhead", markers=False, overlay=self._overlay(self._sim_time), repeat=hold)
 
     def close(self) -> None:
         try:
-            self.video.close()
+            self.frames.close()
         finally:
-            self.rerun.close()
+            try:
+                self.video.close()
+            finally:
+                self.rerun.close()
 
 
 @dataclass

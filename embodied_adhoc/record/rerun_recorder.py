@@ -336,10 +336,16 @@ class RerunRecorder:
             raise ValueError(f"text channel '{channel}' unknown; use one of {TEXT_CHANNELS}")
         self._stream.log(f"log/{channel}", self._rr.TextLog(text, level=level))
 
-    def log_camera(self, name: str, frame: np.ndarray) -> None:
-        """Log an RGB frame as a JPEG-encoded image on ``camera/<name>`` (keeps the .rrd small), at the current
-        time. The JPEG is encoded on a worker thread: do not modify ``frame`` afterwards."""
-        self._images.submit((name, self._step, self._sim_time, frame))
+    def log_camera(
+        self, name: str, frame: np.ndarray, step: int | None = None, sim_time: float | None = None
+    ) -> None:
+        """Log an RGB frame as a JPEG-encoded image on ``camera/<name>`` (keeps the .rrd small), at ``step`` and
+        ``sim_time`` (default: the current time; give them when logging from another thread, e.g. a render
+        thread, as the current time is the simulation thread's). The JPEG is encoded on a worker thread: do not
+        modify ``frame`` afterwards."""
+        step = self._step if step is None else int(step)
+        sim_time = self._sim_time if sim_time is None else float(sim_time)
+        self._images.submit((name, step, sim_time, frame))
 
     def _encode_image(self, item: tuple) -> None:
         """Worker thread: JPEG-encode and log at the time the frame was taken (rerun's time is per thread).

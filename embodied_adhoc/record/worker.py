@@ -3,8 +3,10 @@
 ``submit(item)`` hands an item to ``handle(item)`` running on the worker thread and returns at once, unless the
 queue is full (then it waits: memory stays bounded when the encoder falls behind). An exception raised by
 ``handle`` stops the worker and is raised once, wrapped in ``RuntimeError``, by the next ``submit`` or by ``close``;
-``close`` drains the queue and joins the thread. Used by ``record.video.VideoWriter`` (overlay + H.264) and
-``record.rerun_recorder.RerunRecorder`` (JPEG camera frames).
+``close`` drains the queue and joins the thread; ``finish()``, if given, runs last on the worker thread (e.g. to
+release a GL context made there), after an error too. Used by ``record.video.VideoWriter`` (overlay + H.264),
+``record.rerun_recorder.RerunRecorder`` (JPEG camera frames) and the recorded episodes' render thread
+(``experiments.recorded_episode.LabFrames``).
 """
 
 from __future__ import annotations
@@ -20,10 +22,16 @@ _DONE = object()
 class BackgroundWorker:
     """Run ``handle`` on every submitted item, in order, on one daemon thread named ``name``."""
 
-    def __init__(self, handle: Callable[[Any], None], name: str, max_queued: int = 16):
+    def __init__(
+        self,
+        handle: Callable[[Any], None],
+        name: str,
+        max_queued: int = 16,
+        finish: Callable[[], None] | None = None,
+    ):
         if int(max_queued) < 1:
             raise ValueError(f"BackgroundWorker max_queued={max_queued}: must be >= 1")
-        self._handle = handle
+        self._handle, self._finish = handle, finish
         self._queue: queue.Queue = queue.Queue(maxsize=int(max_queued))
         self._error: BaseException | None = None
         self._reported = False
@@ -70,3 +78,9 @@ class BackgroundWorker:
                 self._handle(item)
         except BaseException as error:  # reported on the caller's thread by submit() or close()
             self._error = error
+        finally:
+            if self._finish is not None:
+                try:
+                    self._finish()
+                except BaseException as error:
+                    self._error = self._error or error

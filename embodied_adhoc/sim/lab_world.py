@@ -31,7 +31,8 @@ from embodied_adhoc.control.waypoint_controller import ControllerConfig, Waypoin
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.sim.human import HumanCommand, HumanSenses, HumanWalker
 from embodied_adhoc.sim.lab_layout import LAB_LAYOUT, LabLayout
-from embodied_adhoc.sim.lab_model import CAMERA_ALIASES, LabIds, load_lab_model, yaw_of
+from embodied_adhoc.sim.lab_model import LabIds, load_lab_model, yaw_of
+from embodied_adhoc.sim.lab_render import MAX_PARTICLE_MARKERS, BeliefMarkers, LabRenderer, SnapshotRenderer
 from embodied_adhoc.sim.lidar import Lidar, LidarConfig
 from embodied_adhoc.sim.localisation import LikelihoodField, LocalisationConfig, MonteCarloLocaliser
 from embodied_adhoc.sim.odometry import OdometryConfig, WheelOdometry
@@ -40,9 +41,6 @@ from embodied_adhoc.sim.sensing import RfidReader, WallContact
 __all__ = ["GroundTruth", "HumanCommand", "LabWorld", "LabWorldConfig", "MacroStepResult"]
 
 RENDER_QUALITIES = ("fast", "high")
-FAST_TESSELLATION = (10, 6, 1)
-"""Slices and stacks of round shapes and quads per plane side of "fast" renders (``<quality numslices numstacks
-numquads>``; the scene's own values serve "high")."""
 
 
 @dataclass(frozen=True)
@@ -184,10 +182,7 @@ class LabWorld:
         self.rfid = RfidReader(
             self.model, self.ids, self.config.rfid_miss_probability, np.random.default_rng(0)
         )
-        self._renderers: dict[tuple[int, int], mujoco.Renderer] = {}
-        # images show the world, not the sensors: no lidar rays (MuJoCo draws every rangefinder by default)
-        self._scene_option = mujoco.MjvOption()
-        self._scene_option.flags[mujoco.mjtVisFlag.mjVIS_RANGEFINDER] = False
+        self._renderer = LabRenderer(self.model, self.ids)  # sim.lab_render: cameras, markers, fast quality
         self._next_frame = 0.0
         self._reset_done = False
         self.wall_contact = WallContact(self.ids)
@@ -513,74 +508,28 @@ class LabWorld:
         (orange square with a heading bar); flat boxes, the cheapest geoms for software rendering."""
         width = width or self.config.render_width
         height = height or self.config.render_height
-        name = CAMERA_ALIASES.get(camera, camera)
-        if mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, name) < 0:
-            cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
-            raise ConfigError(f"no camera '{camera}' in the lab scene; available: {cameras} (or 'robot')")
-        max_width, max_height = self.model.vis.global_.offwidth, self.model.vis.global_.offheight
-        if not (1 <= width <= max_width and 1 <= height <= max_height):
-            raise ConfigError(
-                f"render size {width}x{height} outside 1x1..{max_width}x{max_height} (the scene's offscreen "
-                "buffer, <visual><global offwidth offheight> in scenes/lab.xml)"
-            )
         high = self.config.render_quality == "high"
-        renderer = self._renderers.get((width, height, high))
-        if renderer is None:
-            renderer = self._make_renderer(width, height, high)
-            self._renderers[(width, height, high)] = renderer
-        self.model.geom_matid[self.ids.floor_tiles] = (
-            self.ids.floor_textured if high else self.ids.floor_plain
-        )
-        renderer.update_scene(self.data, camera=name, scene_option=self._scene_option)
-        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = high
-        renderer.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = high
-        if markers and name == "overhead":
-            self._draw_markers(renderer.scene)
-        return renderer.render()
+        markers_drawn = self.belief_markers() if markers else None
+        return self._renderer.render(self.data, camera, width, height, high, markers_drawn)
 
-    def _draw_markers(self, scene: mujoco.MjvScene, height: float = 1.3, max_particles: int = 50) -> None:
-        """Append the belief markers of :meth:`render` to ``scene`` as decor geoms (drawn, never simulated)."""
-        identity = np.eye(3).ravel()
-
-        def add(kind: int, size, pos, rgba, mat=identity) -> None:
-            if scene.ngeom >= scene.maxgeom:
-                return  # the scene is full: the markers are decoration, the image stays valid without them
-            mujoco.mjv_initGeom(
-                scene.geoms[scene.ngeom],
-                kind,
-                np.asarray(size, float),
-                np.asarray(pos, float),
-                np.asarray(mat, float),
-                np.asarray(rgba, np.float32),
-            )
-            scene.ngeom += 1
-
-        def pose_marker(pose, rgba, z) -> None:
-            x, y, yaw = pose
-            c, s = np.cos(yaw), np.sin(yaw)
-            rotation = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).ravel()
-            add(mujoco.mjtGeom.mjGEOM_BOX, (0.08, 0.08, 0.005), (x, y, z), rgba, rotation)
-            add(
-                mujoco.mjtGeom.mjGEOM_BOX,
-                (0.12, 0.02, 0.006),
-                (x + 0.16 * c, y + 0.16 * s, z),
-                rgba,
-                rotation,
-            )
-
+    def belief_markers(self) -> BeliefMarkers:
+        """What :meth:`render` draws with ``markers``: the localiser's particles (at most ``MAX_PARTICLE_MARKERS``,
+        evenly strided) and estimate, and the odometry pose (copies)."""
+        particles = estimate = None
         if self.localiser is not None:
-            particles = self.localiser.particles
-            stride = max(1, len(particles) // max_particles)
-            for x, y in particles[::stride, :2]:
-                add(mujoco.mjtGeom.mjGEOM_BOX, (0.02, 0.02, 0.004), (x, y, height), (0.35, 0.6, 1.0, 0.9))
-            pose_marker(self.localiser.pose, (0.1, 0.35, 1.0, 1.0), height + 0.02)
-        pose_marker(self.odometry_pose(), (1.0, 0.55, 0.0, 1.0), height + 0.04)
+            cloud = self.localiser.particles
+            particles = cloud[:: max(1, len(cloud) // MAX_PARTICLE_MARKERS), :2].copy()
+            estimate = tuple(float(v) for v in self.localiser.pose)
+        return BeliefMarkers(particles, estimate, tuple(float(v) for v in self.odometry_pose()))
+
+    def snapshot_renderer(self) -> SnapshotRenderer:
+        """A renderer of this world's snapshots for another thread (``sim.lab_render``): ``take(world.data,
+        world.belief_markers())`` on the simulation thread, ``render(...)`` on its own."""
+        return SnapshotRenderer(self.model, self.ids)
 
     def close(self) -> None:
         """Release the offscreen renderers (their GL contexts)."""
-        for renderer in self._renderers.values():
-            renderer.close()
-        self._renderers.clear()
+        self._renderer.close()
 
     def __enter__(self) -> LabWorld:
         return self
@@ -589,31 +538,6 @@ class LabWorld:
         self.close()
 
     # ------------------------------------------------------------------------------------------ internals
-    def _make_renderer(self, width: int, height: int, high: bool) -> mujoco.Renderer:
-        """An offscreen renderer whose framebuffer is exactly ``width`` x ``height``; "fast" quality also drops
-        multisample anti-aliasing and tessellates round shapes more coarsely. MuJoCo sizes the framebuffer from
-        ``<global offwidth offheight>`` and ``<quality offsamples>`` (1920x1536 and 4 samples in
-        ``scenes/lab.xml``, for stills) when the context is made; with software EGL clearing and resolving that
-        buffer dominated a small frame (4x the CPU per 640x512 frame, ``scripts/bench_sim.py``). Spheres,
-        capsules and cylinders are drawn with ``FAST_TESSELLATION`` (slices, stacks, quads per plane side)
-        instead of the scene's 28/16/4: at the overhead camera's scale (a ball is ~10 px) it looks the same and
-        software rendering costs ~40 % less a frame. The model's values are restored right after."""
-        visual = self.model.vis
-        settings = [(visual.global_, "offwidth", width), (visual.global_, "offheight", height)]
-        if not high:
-            slices, stacks, quads = FAST_TESSELLATION
-            quality = visual.quality
-            settings += [(quality, "offsamples", 0), (quality, "numslices", slices)]
-            settings += [(quality, "numstacks", stacks), (quality, "numquads", quads)]
-        saved = [(owner, name, getattr(owner, name)) for owner, name, _ in settings]
-        for owner, name, value in settings:
-            setattr(owner, name, value)
-        try:
-            return mujoco.Renderer(self.model, height=height, width=width)
-        finally:
-            for owner, name, value in saved:
-                setattr(owner, name, value)
-
     def _physics(self, steps: int) -> None:
         mujoco.mj_step(self.model, self.data, nstep=steps)
 

@@ -34,3 +34,25 @@ def test_an_error_stops_the_worker_and_is_raised_once():
             worker.submit(item)
     worker.close()  # already reported
     assert worker.failed
+
+
+def test_finish_runs_last_on_the_worker_thread_after_an_error_too():
+    for fail in (False, True):
+        events = []
+
+        def handle(item, fail=fail, events=events):
+            events.append(("item", threading.current_thread().name))
+            if fail:
+                raise ValueError("broken")
+
+        def finish(events=events):
+            events.append(("finish", threading.current_thread().name))
+
+        worker = BackgroundWorker(handle, "finishing worker", max_queued=4, finish=finish)
+        worker.submit(1)
+        if fail:
+            with pytest.raises(RuntimeError, match="broken"):
+                worker.close()
+        else:
+            worker.close()
+        assert events == [("item", "finishing worker"), ("finish", "finishing worker")]
