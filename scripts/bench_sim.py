@@ -148,15 +148,16 @@ def hud(step: int, sim_time: float) -> list[str]:
     ]
 
 
-def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float, float, float, int, tuple]:
+def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple:
     """Wall seconds, CPU seconds (all threads of this process and the ffmpeg child, so software rendering and
-    encoding count), simulated seconds, frames and final ball states of the scripted episode. With ``folder`` it is
+    encoding count), simulated seconds, frames and final ball states of the scripted episode, and the wall and CPU
+    seconds of opening the recorders (0 without ``folder``): the video writer (ffmpeg started), the rerun file and
+    the render thread with its GL context, timed apart as a one-off per recording. With ``folder`` it is
     recorded as ``run --record`` records (``experiments.recorded_episode``): the overhead camera with the belief
     markers at the rate the video keeps, each frame with five heads-up lines, rendered on the render thread
     (``LabFrames``) into the mp4 writer; poses and the localiser's estimate into the rerun recording, its particles
     and the overhead image at ``rerun_camera_hz`` of simulated time, the robot camera after each macro step; the
-    final state held for ``video_hold`` (``EpisodeConfig``'s defaults). The render thread's GL context is made
-    inside the timed episode, as in ``run``."""
+    final state held for ``video_hold`` (``EpisodeConfig``'s defaults)."""
     count = [0]
     step = [0]
     video = rerun = frames = None
@@ -187,6 +188,9 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float
         video = VideoWriter(folder / "episode.mp4", args.width, args.height, fps=args.video_fps)
         rerun = RerunRecorder(folder / "episode.rrd")
         frames = LabFrames(world, args.width, args.height, video, rerun)
+        frames.prepared.wait(timeout=60)
+    opening, opening_cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
+    start, cpu_start = time.perf_counter(), cpu_seconds()
     try:
         for index, (target, command) in enumerate(EPISODE, start=1):
             step[0] = index
@@ -208,7 +212,7 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple[float
                 video.close()
                 rerun.close()
     wall, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
-    return wall, cpu, sim, count[0], world.ground_truth().ball_states
+    return wall, cpu, sim, count[0], world.ground_truth().ball_states, opening, opening_cpu
 
 
 def cpu_seconds() -> float:
@@ -240,18 +244,26 @@ def episode_pair(args: Args, base: LabWorldConfig) -> tuple[tuple, tuple, float]
 
 
 def print_episodes(args: Args, bare: tuple, recorded: tuple, setup: float) -> None:
-    wall, cpu, sim, _, states = bare
+    wall, cpu, sim, _, states, _, _ = bare
     print(
         f"| scripted episode, {len(EPISODE)} macro steps, {sim:.0f} sim s, no video: wall s / CPU s | "
         f"{wall:.2f} / {cpu:.2f} |"
     )
-    rec_wall, rec_cpu, _, count, rec_states = recorded
+    rec_wall, rec_cpu, _, count, rec_states, opening, opening_cpu = recorded
     print(
         f"| same, recorded as `run --record` (video {args.width}x{args.height} at {args.video_fps:g} fps, "
         f"{args.video_speed:g}x time-lapse: {count} frames + 1 s hold; rerun): wall s / CPU s | "
         f"{rec_wall:.2f} / {rec_cpu:.2f} |"
     )
     print(f"| recorded / bare episode, wall (CPU) | {rec_wall / wall:.1f}x ({rec_cpu / cpu:.1f}x) |")
+    print(
+        "| opening the recorders (ffmpeg started, rerun file, render thread's GL context; not in the recorded "
+        f"episode above), wall s / CPU s | {opening:.2f} / {opening_cpu:.2f} |"
+    )
+    print(
+        "| recorded / bare episode with the recorders' opening, wall (CPU) | "
+        f"{(rec_wall + opening) / wall:.1f}x ({(rec_cpu + opening_cpu) / cpu:.1f}x) |"
+    )
     print(
         f"| one-off recording setup per process (rerun + imageio-ffmpeg imports; not in the recorded episode "
         f"above), wall s | {setup:.2f} |"

@@ -15,6 +15,7 @@ the GIL while it draws), the text, the JPEGs and the encoder thus run beside the
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -165,10 +166,12 @@ class LabFrames:
     """The lab's pictures for the recorders, rendered on one render thread (``record.worker``) from snapshots the
     simulation thread takes (``LabWorld.snapshot_renderer``): a frame goes to ``video`` (with ``overlay`` lines,
     ``repeat`` times) and/or to ``rerun`` as ``camera/<name>`` at a given step and time. Frames are rendered in the
-    order they were taken; at most ``max_queued`` wait (the simulation waits when rendering falls behind).
-    :meth:`close` renders what is queued and releases the GL context (the recorders are closed after it)."""
+    order they were taken. The render thread makes its GL context as soon as it starts (``prepared`` is set when it
+    is made; making it holds the GIL for ~0.1-0.3 s with software EGL, a one-off per recording); at most ``max_queued`` snapshots wait (an ``MjData`` copy each, ~40 kB for the lab: the simulation runs ahead
+    while the context is made, and waits only when rendering falls that far behind). :meth:`close` renders what is
+    queued and releases the GL context (the recorders are closed after it)."""
 
-    def __init__(self, world, width: int, height: int, video, rerun, max_queued: int = 8):
+    def __init__(self, world, width: int, height: int, video, rerun, max_queued: int = 128):
         from embodied_adhoc.record.worker import BackgroundWorker
 
         self.world, self.width, self.height, self.video, self.rerun = (
@@ -179,6 +182,7 @@ class LabFrames:
             rerun,
         )
         self.high = world.config.render_quality == "high"
+        self.prepared = threading.Event()
         self._renderer = world.snapshot_renderer()
         self._worker = BackgroundWorker(
             self._render,
@@ -186,6 +190,7 @@ class LabFrames:
             max_queued,
             finish=self._renderer.close,
         )
+        self._worker.submit(None)  # make the GL context now, not at the first frame
 
     def submit(
         self,
@@ -204,7 +209,11 @@ class LabFrames:
             (snapshot, camera, markers, None if overlay is None else tuple(overlay), int(repeat), camera_log)
         )
 
-    def _render(self, item: tuple) -> None:
+    def _render(self, item: tuple | None) -> None:
+        if item is None:
+            self._renderer.prepare(self.width, self.height, self.high)
+            self.prepared.set()
+            return
         snapshot, camera, markers, overlay, repeat, camera_log = item
         frame = self._renderer.render(snapshot, camera, self.width, self.height, self.high, markers)
         if repeat > 0:

@@ -166,8 +166,9 @@ class LiveSession:
             record_dir=self.folder,
             width=settings.width,
             height=settings.height,
-            video_speed=1.0,  # real time: the video plays at the speed the participant lived it
-            video_fps=15.0,
+            # real time: the video plays at the speed the participant lived it, at run --record's frame rate
+            # (EpisodeConfig.video_fps: one setting for every recorded episode)
+            video_speed=1.0,
         )
         from embodied_adhoc.live.episode import open_realtime_episode
 

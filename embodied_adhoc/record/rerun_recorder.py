@@ -35,8 +35,8 @@ entity                           archetype          content
 
 Timelines: ``step`` (macro step, sequence) and ``sim_time`` (simulated seconds, duration).
 
-Batching: per-frame poses (robot, odometry, human, balls, odometry error) are buffered and sent as columns
-(``send_columns``); everything else is logged row by row and compacted by the SDK's batcher, which flushes by size
+Batching: per-frame poses (robot, odometry, human, balls, odometry error) and the localiser's estimate and particle
+clouds are buffered and sent as columns (``send_columns``), their colours and sizes logged once (static); everything else is logged row by row and compacted by the SDK's batcher, which flushes by size
 only (no 200 ms wall-clock tick). An episode's file thus holds one or two chunks per entity (the main job: 47
 chunks in all, of which 20 are the blueprint's, instead of 530). Camera frames are JPEG-encoded on a worker
 thread (``record.worker``).
@@ -146,6 +146,9 @@ class RerunRecorder:
         self._ground_truth_track: list[np.ndarray] = []
         self._odometry_track: list[np.ndarray] = []
         self._frames: list[tuple] = []
+        self._estimates: list[tuple] = []  # (step, sim_time, x, y)
+        self._clouds: list[tuple] = []  # (step, sim_time, P x 3 points)
+        self._localisation_styled = False
         self._ball_style: int | None = None
         self._step, self._sim_time = 0, 0.0
         self._images = BackgroundWorker(self._encode_image, f"rerun images {self.path.name}", max_queued=8)
@@ -262,6 +265,7 @@ class RerunRecorder:
 
     def _send_frames(self) -> None:
         """Send the buffered frames as one column per entity."""
+        self._send_localisation()
         if not self._frames:
             return
         rr, send = self._rr, self._stream.send_columns
@@ -298,6 +302,34 @@ class RerunRecorder:
         error = np.hypot(robot[:, 0] - odometry[:, 0], robot[:, 1] - odometry[:, 1])
         send("metrics/odometry_error", indexes=indexes, columns=rr.Scalars.columns(scalars=error))
 
+    def _send_localisation(self) -> None:
+        """Send the buffered estimates and particle clouds as columns."""
+        rr, send = self._rr, self._stream.send_columns
+
+        def indexes(rows):
+            return [
+                rr.TimeColumn("step", sequence=np.array([row[0] for row in rows])),
+                rr.TimeColumn("sim_time", duration=np.array([row[1] for row in rows])),
+            ]
+
+        if self._estimates:
+            rows, self._estimates = self._estimates, []
+            points = np.array([(x, y, 0.05) for _, _, x, y in rows])
+            send(
+                "world/localisation/estimate",
+                indexes=indexes(rows),
+                columns=rr.Points3D.columns(positions=points),
+            )
+        if self._clouds:
+            rows, self._clouds = self._clouds, []
+            send(
+                "world/localisation/particles",
+                indexes=indexes(rows),
+                columns=rr.Points3D.columns(positions=np.concatenate([row[2] for row in rows])).partition(
+                    [len(row[2]) for row in rows]
+                ),
+            )
+
     def _log_tracks(self) -> None:
         """The ground-truth and odometry tracks so far, one row each at the current time."""
         if len(self._ground_truth_track) >= 2:
@@ -316,19 +348,29 @@ class RerunRecorder:
 
     def log_localisation(self, estimate: Sequence[float], particles: np.ndarray | None = None) -> None:
         """Log the localiser's pose estimate (x, y[, yaw]) and, if given, its particle cloud (P x 2 xy) at the
-        current time, beside the ground truth and odometry of :meth:`log_poses`."""
-        rr, log = self._rr, self._stream.log
-        log(
-            "world/localisation/estimate",
-            rr.Points3D(
-                [[float(estimate[0]), float(estimate[1]), 0.05]], colors=[(30, 110, 255)], radii=0.07
-            ),
-        )
+        current time, beside the ground truth and odometry of :meth:`log_poses`. Buffered and sent as columns with
+        the poses (module docstring)."""
+        if not self._localisation_styled:
+            self._localisation_styled = True
+            rr, log = self._rr, self._stream.log
+            log(
+                "world/localisation/estimate",
+                rr.Points3D.from_fields(colors=[(30, 110, 255)], radii=0.07),
+                static=True,
+            )
+            log(
+                "world/localisation/particles",
+                rr.Points3D.from_fields(colors=[(90, 160, 255)], radii=0.02),
+                static=True,
+            )
+        self._estimates.append((self._step, self._sim_time, float(estimate[0]), float(estimate[1])))
         if particles is not None:
-            cloud = np.zeros((len(particles), 3))
+            cloud = np.empty((len(particles), 3))
             cloud[:, :2] = np.asarray(particles, dtype=np.float64)[:, :2]
             cloud[:, 2] = 0.02
-            log("world/localisation/particles", rr.Points3D(cloud, colors=[(90, 160, 255)], radii=0.02))
+            self._clouds.append((self._step, self._sim_time, cloud))
+        if len(self._estimates) >= FRAME_BATCH:
+            self._send_frames()
 
     def log_text(self, channel: str, text: str, level: str = "INFO") -> None:
         """Log a line on ``log/<channel>``; channel is one of observations, actions, utterances, events."""

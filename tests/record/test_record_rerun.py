@@ -85,6 +85,8 @@ def test_frames_are_batched_and_images_keep_their_own_time(tmp_path):
             recorder.log_poses(
                 (0.01 * frame, 0.0, 0.1), (0.01 * frame, 0.02, 0.1), (1.0, 1.0), np.zeros((3, 3))
             )
+            cloud = np.full((4, 2), float(frame)) if frame % 10 == 0 else None
+            recorder.log_localisation((0.01 * frame, 0.5, 0.0), cloud)
             if frame % 20 == 0:
                 recorder.log_camera("overhead", np.full((24, 32, 3), frame % 250, np.uint8))
                 recorder.log_text("actions", f"step {step}")
@@ -93,8 +95,28 @@ def test_frames_are_batched_and_images_keep_their_own_time(tmp_path):
     chunks: dict[str, list] = {}
     for chunk in RrdReader(path).store().stream().to_chunks():
         chunks.setdefault(chunk.entity_path.lstrip("/"), []).append(chunk.to_record_batch())
-    for entity in ("world/robot", "world/balls", "metrics/odometry_error", "camera/overhead", "log/actions"):
+    batched = ("world/robot", "world/balls", "metrics/odometry_error", "camera/overhead", "log/actions")
+    for entity in (*batched, "world/localisation/estimate", "world/localisation/particles"):
         assert len(chunks[entity]) <= 2, (entity, len(chunks[entity]))
+
+    def temporal(entity):  # (sim_time in s, positions) of the rows logged on the timeline
+        rows = []
+        for batch in chunks[entity]:
+            if "sim_time" not in batch.schema.names:
+                continue  # the static colours and radii
+            column = next(name for name in batch.schema.names if name.endswith("Points3D:positions"))
+            times = batch.column("sim_time").cast("int64").to_pylist()  # nanoseconds
+            rows += [
+                (t / 1e9, np.array(p)) for t, p in zip(times, batch.column(column).to_pylist(), strict=True)
+            ]
+        return sorted(rows, key=lambda row: row[0])
+
+    estimates = temporal("world/localisation/estimate")
+    assert len(estimates) == 300
+    np.testing.assert_allclose(estimates[7][1], [[0.07, 0.5, 0.05]])
+    clouds = temporal("world/localisation/particles")
+    assert [t for t, _ in clouds] == [0.25 * f for f in range(0, 300, 10)]
+    np.testing.assert_allclose(clouds[3][1], np.column_stack([np.full((4, 2), 30.0), np.full(4, 0.02)]))
     robot_rows = sum(batch.num_rows for batch in chunks["world/robot"])
     assert robot_rows == 300
     image_steps = sorted(
