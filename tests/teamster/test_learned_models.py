@@ -12,7 +12,7 @@ from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.blocks import NumpyMlp
 from embodied_adhoc.learning.dqn import Dqn
 from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
-from embodied_adhoc.learning.teamster_protocol import ProtocolConfig, run_trial
+from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, run_trial
 from embodied_adhoc.learning.weights import WeightsError
 
 torch.set_num_threads(1)
@@ -147,6 +147,29 @@ def test_protocol_records_and_same_seed_same_result():
         ProtocolConfig(changed="flip")
     with pytest.raises(ConfigError, match="agent"):
         run_trial("oracle", 0, config)
+
+
+def test_protocol_interaction_runs_the_rules_through_the_episode_loop():
+    """play() steps TeamworkEnv episodes through run_episode_loop; with one generator for the configurations, the
+    teammates and the rules it gives the captures of stepping the rules directly (a fresh configuration after
+    each capture, drawn when needed)."""
+    from embodied_adhoc.decision.agents.teamwork import OriginalTeammate
+    from embodied_adhoc.domains.pursuit4 import ExactTeam
+    from embodied_adhoc.experiments.teamster_protocol import play
+
+    team = ExactTeam(WORLD, "teammate-aware")
+    agent = OriginalTeammate({"teammate-aware": team.seat})
+    agent.rng = np.random.default_rng(1)
+    captures = play(agent, WORLD, team, 300, np.random.default_rng(2))
+    rng, mine = np.random.default_rng(2), np.random.default_rng(1)
+    state, direct = WORLD.sample_states(rng, 1)[0], 0
+    for _ in range(300):
+        action = sample_rows(team.seat(state[None]), mine)[0]
+        joint = np.concatenate([[action], sample_rows(team.probs(state[None])[0], rng)])
+        nxt, _, done = WORLD.step(state[None], joint[None], rng)
+        direct += int(done[0])
+        state = WORLD.sample_states(rng, 1)[0] if done[0] else nxt[0]
+    assert captures == direct and captures > 20
 
 
 def test_numpy_inference_follows_the_torch_network_through_adam_steps():

@@ -1,4 +1,8 @@
-"""The sequential-teams protocol of thesis section 4.1.4 on chapter-4 pursuit, one (agent, trial) at a time.
+"""The sequential-teams protocol of thesis section 4.1.4 on chapter-4 pursuit and the navigation maps, one
+(agent, trial) at a time. Every step runs in the project's one episode loop: the interaction and the evaluations
+are :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv` episodes through
+:func:`~embodied_adhoc.experiments.episode.run_episode_loop`, the agent seated by
+:class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`.
 
 For each team tau_i in order (teammate-aware, greedy, probabilistic destinations):
 
@@ -30,20 +34,21 @@ agents' draws.
 
 from __future__ import annotations
 
-import itertools
 import time
 import zlib
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 
 import numpy as np
-import torch
 
-from embodied_adhoc.decision.agents.teamwork import sample_rows
+from embodied_adhoc.decision.agents.teamwork import EpisodeSeat
 from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.navigation4 import MAPS, Navigation4
 from embodied_adhoc.domains.pursuit4 import N_ACTIONS, ExactTeam, Pursuit4
+from embodied_adhoc.envs.teamwork import TeamworkEnv
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.episode import run_episode_loop
+from embodied_adhoc.learning.blocks import one_thread
 from embodied_adhoc.learning.teamster_agents import build_agent
 
 
@@ -134,44 +139,41 @@ def _stream(config: ProtocolConfig, trial: int, *words: int | str) -> np.random.
     return np.random.default_rng(np.random.SeedSequence(keys))
 
 
-def _stream_of_steps(agent, world, team: ExactTeam, rng: np.random.Generator):
-    """The agent with ``team`` from a random configuration, step after step without end: yields (reward,
-    terminal, episode ended) per step; a new episode starts from a random configuration after a terminal step
-    or after the world's ``episode_cap`` steps (navigation; pursuit has none)."""
+def _episodes(agent, world, team: ExactTeam, rng: np.random.Generator, steps: int | None = None,
+              episodes: int | None = None) -> list:
+    """The agent with ``team`` in ``world`` as :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv` episodes through
+    the one episode loop (:func:`~embodied_adhoc.experiments.episode.run_episode_loop`, the agent seated by
+    :class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`): episode after episode, each from a random
+    configuration, until ``steps`` steps have been taken (the last episode cut there) or ``episodes`` episodes
+    have ended; an episode stops at its end (a capture, everyone out) or after the world's ``episode_cap``
+    steps (navigation; pursuit has none). ``rng`` draws the configurations, the teammates' actions and the
+    rules' chances (the env's generator); the agent keeps its own (``agent.rng``). Whether it learns is the
+    caller's (``set_evaluation``). Returns the episodes' traces."""
     if hasattr(agent, "bind"):
         agent.bind(team.team)
+    env = TeamworkEnv(world=world, teams=team.team)
+    env.np_random = rng  # one stream for the whole interaction: episodes continue it (env_seed=None)
+    seat = EpisodeSeat(agent, env.n_agents)
     cap = getattr(world, "episode_cap", None)
-    state, length = None, 0
-    while True:
-        if state is None:  # drawn when needed (nothing is drawn after the last step of a stream)
-            state = world.sample_states(rng, 1)[0]
-        action = agent.act(state)
-        joint = np.concatenate([[action], sample_rows(team.probs(state[None])[0], rng)])
-        nxt, reward, done = world.step(state[None], joint[None], rng)
-        agent.observe(state, joint, float(reward[0]), nxt[0], bool(done[0]))
-        length += 1
-        ended = bool(done[0]) or (cap is not None and length >= cap)
-        state, length = (None, 0) if ended else (nxt[0], length)
-        yield float(reward[0]), bool(done[0]), ended
+    traces, left = [], steps
+    while (left is None or left > 0) and (episodes is None or len(traces) < episodes):
+        limit = cap if left is None else (left if cap is None else min(cap, left))
+        trace = run_episode_loop(env, seat, env_seed=None, agent_rng=agent.rng, reset_options=None,
+                                 max_steps=limit, observation_index=env.observation_index)
+        traces.append(trace)
+        left = None if left is None else left - trace.steps
+    return traces
 
 
 def play(agent, world, team: ExactTeam, steps: int, rng: np.random.Generator) -> int:
     """``steps`` steps of the agent with ``team`` from a random configuration; returns the episodes finished
     (the prey captures on pursuit)."""
-    return sum(done for _, done, _ in itertools.islice(_stream_of_steps(agent, world, team, rng), steps))
+    return sum(trace.terminated for trace in _episodes(agent, world, team, rng, steps=steps))
 
 
 def play_episodes(agent, world, team: ExactTeam, episodes: int, rng: np.random.Generator) -> list[float]:
     """Each of ``episodes`` episodes' accumulated reward (an episode stopped by the cap keeps what it got)."""
-    returns, total = [], 0.0
-    for reward, _, ended in _stream_of_steps(agent, world, team, rng):
-        total += reward
-        if ended:
-            returns.append(total)
-            total = 0.0
-            if len(returns) == episodes:
-                return returns
-    raise AssertionError("unreachable: the stream of steps is endless")
+    return [float(sum(trace.rewards)) for trace in _episodes(agent, world, team, rng, episodes=episodes)]
 
 
 def _evaluate(agent, world, team, config, trial, *words) -> float:
@@ -223,7 +225,7 @@ def _interact(agent, world, team, config, trial, phase: str, steps: int,
 def run_trial(agent_name: str, trial: int, config: ProtocolConfig,
               tick: Callable[[], None] | None = None) -> dict:
     """The whole protocol for one agent and one trial (see the module docstring); ``tick`` after each phase."""
-    torch.set_num_threads(1)
+    one_thread()
     start = time.perf_counter()
     world = make_world(config.domain, config.size)
     teams = {name: ExactTeam(world, name) for name in world.teams}
