@@ -69,6 +69,10 @@ def summarise(records: list[dict]) -> dict:
                                 for i, (s, _) in enumerate(mine[0]["changed"])]
             # the robustness measure: each trial's mean over the evaluations after learning began (not step 0)
             entry["changed_after"] = (points[:, 1:].mean(axis=1) * (1.0 if navigation else scale)).tolist()
+        if all("changed_fit" in r for r in mine):  # a learned model's fit to the changed rules (agent 0's move)
+            fit = np.array([r["changed_fit"] for r in mine], dtype=float)  # (trials, points, [step, share, P])
+            entry["changed_fit"] = [{"step": int(fit[0, i, 0]), "share": _cell(fit[:, i, 1], 1.0),
+                                     "probability": _cell(fit[:, i, 2], 1.0)} for i in range(fit.shape[1])]
         entry["seconds"] = float(np.mean([r.get("seconds", np.nan) for r in mine]))
         out[agent] = entry
     return out
@@ -147,6 +151,36 @@ def changed_table(summary: dict, markdown: bool = False) -> str:
             + format_table(["a vs b", "Welch t", "p", "p < 0.05", "P(a scores more)"], pairs, markdown))
 
 
+def plot_changed(summary: dict, path: str | Path) -> Path:
+    """The changed phase: each agent's evaluations (CI bands) and, beside it, the learned environment models'
+    share of the ad hoc agent's moves predicted in the changed rules (``changed_fit``)."""
+    plt = _pyplot()
+    figure, (left, right) = plt.subplots(1, 2, figsize=(8.4, 3.4))
+    for agent, entry in summary.items():
+        if "changed" not in entry:
+            continue
+        key = _metric(entry)
+        points = entry["changed"]
+        x = [p["step"] for p in points]
+        left.plot(x, [p[key]["mean"] for p in points], label=agent)
+        low, high = np.array([p[key]["ci"] for p in points], dtype=float).T
+        if not np.isnan(low).all():
+            left.fill_between(x, low, high, alpha=0.2)
+        if "changed_fit" in entry:
+            fit = entry["changed_fit"]
+            right.plot([p["step"] for p in fit], [p["share"]["mean"] for p in fit], marker="o", label=agent)
+    navigation = _metric(next(iter(summary.values()))) == "reward"
+    left.set_ylabel("accumulated episode reward" if navigation else "prey captures per 500 steps")
+    left.set_title("changed environment")
+    right.set_ylabel("agent 0's move predicted (share)")
+    right.set_ylim(0, 1)
+    right.set_title("learned model vs the changed rules")
+    for axis in (left, right):
+        axis.set_xlabel("steps in the changed environment")
+        axis.legend(fontsize=7)
+    return _save(figure, Path(path))
+
+
 def write_outputs(summary: dict, folder: str | Path) -> list[Path]:
     folder = Path(folder)
     changed = changed_table(summary, True)
@@ -155,4 +189,6 @@ def write_outputs(summary: dict, folder: str | Path) -> list[Path]:
                                + "\n\n## End of each interaction\n\n" + final_table(summary, True) + "\n"
                                + (f"\n## Changed environment\n\n{changed}\n" if changed else "")),
              plot_curves(summary, folder / "curves.png")]
+    if any("changed" in entry for entry in summary.values()):
+        paths.append(plot_changed(summary, folder / "changed.png"))
     return paths

@@ -43,8 +43,8 @@ def test_out_resumes_and_json_summary(tmp_path, capsys):
     assert "written with other settings" in capsys.readouterr().err
 
 
-def test_changed_environment_table_tests_agents_on_their_trials_after_learning_began():
-    from embodied_adhoc.experiments.teamster import changed_table, summarise
+def test_changed_environment_table_tests_agents_on_their_trials_after_learning_began(tmp_path):
+    from embodied_adhoc.experiments.teamster import changed_table, plot_changed, summarise
 
     config = {"eval_steps": 50, "steps": 100, "points": 2}
     curves = {"teammate-aware": [[0, 1], [50, 2], [100, 3]]}
@@ -62,3 +62,9 @@ def test_changed_environment_table_tests_agents_on_their_trials_after_learning_b
     assert "a vs b" in table and "yes" in table.splitlines()[-1]
     no_phase = [{key: value for key, value in r.items() if key != "changed"} for r in records]
     assert changed_table(summarise(no_phase)) == ""
+    for r, share in zip(records[:3], (0.2, 0.4, 0.6), strict=True):  # a learned model's fit, per point
+        r["changed_fit"] = [[0, 0.1, 0.15], [50, share, 0.5], [100, 0.9, 0.8]]
+    fit = summarise(records)["a"]["changed_fit"]
+    assert [p["step"] for p in fit] == [0, 50, 100] and abs(fit[1]["share"]["mean"] - 0.4) < 1e-12
+    assert "changed_fit" not in summarise(records)["b"]
+    assert plot_changed(summarise(records), tmp_path / "changed.png").stat().st_size > 0
