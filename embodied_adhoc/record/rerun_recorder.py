@@ -39,7 +39,7 @@ Batching: per-frame poses (robot, odometry, human, balls, odometry error) and th
 clouds are buffered and sent as columns (``send_columns``), their colours and sizes logged once (static); everything else is logged row by row and compacted by the SDK's batcher, which flushes by size
 only (no 200 ms wall-clock tick). An episode's file thus holds one or two chunks per entity (the main job: 47
 chunks in all, of which 20 are the blueprint's, instead of 530). Camera frames are JPEG-encoded on a worker
-thread (``record.worker``).
+thread (``record.worker``) and sent as columns too, every ``IMAGE_BATCH`` images and on close.
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.atomic import publish, temporary_sibling
-from embodied_adhoc.record.worker import BackgroundWorker
+from embodied_adhoc.record.worker import RECORDING_NICE, BackgroundWorker
 
 ENTITY_PATHS: tuple[str, ...] = (
     "world/lab/outline",
@@ -80,6 +80,8 @@ ENTITY_PATHS: tuple[str, ...] = (
 TEXT_CHANNELS = ("observations", "actions", "utterances", "events")
 FRAME_BATCH = 1024
 """Per-frame poses are buffered and sent as columns at least this often (bounds the buffer)."""
+IMAGE_BATCH = 64
+"""Camera JPEGs are buffered and sent as columns at least this often (bounds the buffer: ~3 MB at 640x480)."""
 BATCH_BYTES = 32 * 1024 * 1024
 """The SDK's batcher flushes row-logged data past this many bytes (bounds its memory)."""
 BALL_COLOURS = ((220, 50, 47), (235, 200, 40), (40, 110, 220), (133, 153, 0), (108, 113, 196))
@@ -151,7 +153,10 @@ class RerunRecorder:
         self._localisation_styled = False
         self._ball_style: int | None = None
         self._step, self._sim_time = 0, 0.0
-        self._images = BackgroundWorker(self._encode_image, f"rerun images {self.path.name}", max_queued=8)
+        self._images = BackgroundWorker(
+            self._encode_image, f"rerun images {self.path.name}", max_queued=8, nice=RECORDING_NICE
+        )
+        self._jpegs: list[tuple] = []  # (camera, step, sim_time, JPEG bytes), filled on the images thread
         self._closed = False
 
     # -- time ---------------------------------------------------------------------------------------------
@@ -390,8 +395,10 @@ class RerunRecorder:
         self._images.submit((name, step, sim_time, frame))
 
     def _encode_image(self, item: tuple) -> None:
-        """Worker thread: JPEG-encode and log at the time the frame was taken (rerun's time is per thread).
-        Pillow (libjpeg-turbo) encodes a 640x512 frame in about half the CPU time of ``rr.Image.compress``."""
+        """Worker thread: JPEG-encode the frame and buffer it with the time it was taken; every ``IMAGE_BATCH``
+        images (and on close) they go out as columns, one call per camera instead of one per image (each call
+        holds the GIL, which the simulation thread then waits for). Pillow (libjpeg-turbo) encodes a 640x512
+        frame in about half the CPU time of ``rr.Image.compress``."""
         import io
 
         from PIL import Image
@@ -399,10 +406,25 @@ class RerunRecorder:
         name, step, sim_time, frame = item
         jpeg = io.BytesIO()
         Image.fromarray(np.ascontiguousarray(frame)).save(jpeg, format="JPEG", quality=self.jpeg_quality)
-        image = self._rr.EncodedImage(contents=jpeg.getvalue(), media_type="image/jpeg")
-        self._stream.set_time("step", sequence=step)
-        self._stream.set_time("sim_time", duration=sim_time)
-        self._stream.log(f"camera/{name}", image)
+        self._jpegs.append((name, step, sim_time, jpeg.getvalue()))
+        if len(self._jpegs) >= IMAGE_BATCH:
+            self._send_images()
+
+    def _send_images(self) -> None:
+        """Send the buffered JPEGs as one column per camera (images thread, or after it has stopped)."""
+        rr, buffered, self._jpegs = self._rr, self._jpegs, []
+        for name in dict.fromkeys(row[0] for row in buffered):
+            rows = [row for row in buffered if row[0] == name]
+            self._stream.send_columns(
+                f"camera/{name}",
+                indexes=[
+                    rr.TimeColumn("step", sequence=np.array([row[1] for row in rows])),
+                    rr.TimeColumn("sim_time", duration=np.array([row[2] for row in rows])),
+                ],
+                columns=rr.EncodedImage.columns(
+                    blob=[row[3] for row in rows], media_type=["image/jpeg"] * len(rows)
+                ),
+            )
 
     def log_audio(self, wav_bytes: bytes) -> None:
         """Log a WAV clip (e.g. the human's synthesised reply) on ``speech/audio``."""
@@ -416,6 +438,7 @@ class RerunRecorder:
             try:
                 self._images.close()
             finally:
+                self._send_images()
                 self._send_frames()
                 self._log_tracks()
                 self._stream.flush()
