@@ -172,7 +172,7 @@ class LabFrames:
     queued and releases the GL context (the recorders are closed after it)."""
 
     def __init__(self, world, width: int, height: int, video, rerun, max_queued: int = 128):
-        from embodied_adhoc.record.worker import RECORDING_NICE, BackgroundWorker
+        from embodied_adhoc.record.worker import BackgroundWorker
 
         self.world, self.width, self.height, self.video, self.rerun = (
             world,
@@ -189,7 +189,6 @@ class LabFrames:
             f"render {video.path.name}",
             max_queued,
             finish=self._renderer.close,
-            nice=RECORDING_NICE,  # the simulation first; llvmpipe's threads, made here, inherit it
         )
         self._worker.submit(None)  # make the GL context now, not at the first frame
 

@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.atomic import publish, temporary_sibling
-from embodied_adhoc.record.worker import RECORDING_NICE, BackgroundWorker
+from embodied_adhoc.record.worker import BackgroundWorker
 
 ENTITY_PATHS: tuple[str, ...] = (
     "world/lab/outline",
@@ -153,9 +153,7 @@ class RerunRecorder:
         self._localisation_styled = False
         self._ball_style: int | None = None
         self._step, self._sim_time = 0, 0.0
-        self._images = BackgroundWorker(
-            self._encode_image, f"rerun images {self.path.name}", max_queued=8, nice=RECORDING_NICE
-        )
+        self._images = BackgroundWorker(self._encode_image, f"rerun images {self.path.name}", max_queued=8)
         self._jpegs: list[tuple] = []  # (camera, step, sim_time, JPEG bytes), filled on the images thread
         self._closed = False
 

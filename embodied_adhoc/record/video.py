@@ -1,9 +1,9 @@
 """MP4 writer: H.264 (libx264, preset ultrafast), yuv420p, fixed frame rate, through imageio-ffmpeg's ffmpeg binary.
 
 Frames are encoded off the caller's thread: :meth:`VideoWriter.write` checks a frame and puts it on a bounded
-queue; a writer thread (``record.worker``, at ``RECORDING_NICE``) starts ffmpeg (which inherits its lower
-priority), draws the heads-up text (``record.overlay``) and streams the frames to ffmpeg. The queue bound (``queue_frames``) keeps memory flat: when ffmpeg falls
-behind, ``write`` waits. The file is written under a temporary name and renamed to its final name by
+queue; a writer thread (``record.worker``) draws the heads-up text (``record.overlay``) and streams the frames to
+ffmpeg, so the caller (for the lab, the render thread of ``experiments.recorded_episode.LabFrames``) only hands
+frames over. The queue bound (``queue_frames``) keeps memory flat: when ffmpeg falls behind, ``write`` waits. The file is written under a temporary name and renamed to its final name by
 :meth:`VideoWriter.close`, so an mp4 that exists is complete; closing after an interruption keeps the frames
 written so far. An error on the writer thread is raised by the next ``write`` or by ``close``.
 """
@@ -19,7 +19,7 @@ from embodied_adhoc import checks
 from embodied_adhoc.atomic import publish, temporary_sibling
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.record.overlay import annotate
-from embodied_adhoc.record.worker import RECORDING_NICE, BackgroundWorker
+from embodied_adhoc.record.worker import BackgroundWorker
 
 
 class VideoWriter:
@@ -70,10 +70,8 @@ class VideoWriter:
             # One encoder thread: on a busy machine more threads only add synchronisation.
             output_params=["-preset", "ultrafast", "-crf", str(crf), "-x264-params", "threads=1"],
         )
-        self._worker = BackgroundWorker(
-            self._encode, f"video {self.path.name}", int(queue_frames), nice=RECORDING_NICE
-        )
-        self._worker.submit(None)  # start the ffmpeg process from the writer thread (its priority)
+        self._writer.send(None)  # start the ffmpeg process
+        self._worker = BackgroundWorker(self._encode, f"video {self.path.name}", int(queue_frames))
         self._closed = False
 
     def write(self, frame: np.ndarray, overlay: Sequence[str] | None = None, repeat: int = 1) -> None:
@@ -110,11 +108,8 @@ class VideoWriter:
             return None
         return publish(self._temporary, self.path)
 
-    def _encode(self, item: tuple | None) -> None:
-        """Worker thread: start ffmpeg (``None``), or draw the heads-up text and stream the frame to ffmpeg."""
-        if item is None:
-            self._writer.send(None)
-            return
+    def _encode(self, item: tuple) -> None:
+        """Worker thread: draw the heads-up text and stream the frame to ffmpeg."""
         frame, overlay, repeat = item
         image = np.ascontiguousarray(frame if overlay is None else annotate(frame, overlay))
         for _ in range(repeat):

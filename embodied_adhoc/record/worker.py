@@ -4,28 +4,19 @@
 queue is full (then it waits: memory stays bounded when the encoder falls behind). An exception raised by
 ``handle`` stops the worker and is raised once, wrapped in ``RuntimeError``, by the next ``submit`` or by ``close``;
 ``close`` drains the queue and joins the thread; ``finish()``, if given, runs last on the worker thread (e.g. to
-release a GL context made there), after an error too.
-
-``nice`` lowers the worker thread's scheduling priority (Linux, where niceness is per thread; elsewhere ignored):
-recorders run their threads at ``RECORDING_NICE`` so that the simulation thread keeps a core of its own and the
-recording work (and the threads and processes it starts: llvmpipe's rasterisers, the ffmpeg encoder) takes what
-is left; on a busy 2-core machine the simulation would otherwise get one share among five runnable threads. Used by ``record.video.VideoWriter`` (overlay + H.264),
+release a GL context made there), after an error too. Used by ``record.video.VideoWriter`` (overlay + H.264),
 ``record.rerun_recorder.RerunRecorder`` (JPEG camera frames) and the recorded episodes' render thread
 (``experiments.recorded_episode.LabFrames``).
 """
 
 from __future__ import annotations
 
-import os
 import queue
-import sys
 import threading
 from collections.abc import Callable
 from typing import Any
 
 _DONE = object()
-RECORDING_NICE = 10
-"""Niceness added to the recorders' threads (0 = the caller's priority; 10 gives the simulation ~10x their share)."""
 
 
 class BackgroundWorker:
@@ -37,11 +28,10 @@ class BackgroundWorker:
         name: str,
         max_queued: int = 16,
         finish: Callable[[], None] | None = None,
-        nice: int = 0,
     ):
         if int(max_queued) < 1:
             raise ValueError(f"BackgroundWorker max_queued={max_queued}: must be >= 1")
-        self._handle, self._finish, self._nice = handle, finish, int(nice)
+        self._handle, self._finish = handle, finish
         self._queue: queue.Queue = queue.Queue(maxsize=int(max_queued))
         self._error: BaseException | None = None
         self._reported = False
@@ -83,12 +73,6 @@ class BackgroundWorker:
                 continue
 
     def _run(self) -> None:
-        if self._nice > 0 and sys.platform.startswith("linux"):
-            thread = threading.get_native_id()
-            try:  # niceness is per thread on Linux; raising it needs no privilege
-                os.setpriority(os.PRIO_PROCESS, thread, os.getpriority(os.PRIO_PROCESS, thread) + self._nice)
-            except OSError:
-                pass  # a priority is a preference: the work is the same without it
         try:
             while (item := self._queue.get()) is not _DONE:
                 self._handle(item)

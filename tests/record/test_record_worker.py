@@ -1,6 +1,5 @@
 """The recorders' background worker: items handled in order off the caller's thread; errors surface once."""
 
-import sys
 import threading
 
 import pytest
@@ -57,20 +56,3 @@ def test_finish_runs_last_on_the_worker_thread_after_an_error_too():
         else:
             worker.close()
         assert events == [("item", "finishing worker"), ("finish", "finishing worker")]
-
-
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="niceness is per thread on Linux only")
-def test_a_nice_worker_runs_below_the_callers_priority():
-    import os
-
-    seen = []
-
-    def handle(item):
-        seen.append(os.getpriority(os.PRIO_PROCESS, threading.get_native_id()))
-
-    caller = os.getpriority(os.PRIO_PROCESS, threading.get_native_id())
-    worker = BackgroundWorker(handle, "nice worker", nice=5)
-    worker.submit(1)
-    worker.close()
-    assert seen == [min(19, caller + 5)]
-    assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == caller  # the caller keeps its own
