@@ -32,16 +32,31 @@ class ArenaRerunRecorder(RerunRecorder):
     def log_cells(self, rows: int, cols: int, cell: float) -> None:
         """The ``rows x cols`` grid of ``cell``-metre cells centred on the origin, once (static)."""
         width, height = cols * cell, rows * cell
-        lines = [np.array([[x, -height / 2, 0.0], [x, height / 2, 0.0]]) for x in np.linspace(-width / 2, width / 2, cols + 1)]
-        lines += [np.array([[-width / 2, y, 0.0], [width / 2, y, 0.0]]) for y in np.linspace(-height / 2, height / 2, rows + 1)]
-        self._stream.log("world/arena/cells", self._rr.LineStrips3D(lines, colors=[(170, 170, 170)], radii=0.004),
-                         static=True)
+        lines = [
+            np.array([[x, -height / 2, 0.0], [x, height / 2, 0.0]])
+            for x in np.linspace(-width / 2, width / 2, cols + 1)
+        ]
+        lines += [
+            np.array([[-width / 2, y, 0.0], [width / 2, y, 0.0]])
+            for y in np.linspace(-height / 2, height / 2, rows + 1)
+        ]
+        self._stream.log(
+            "world/arena/cells",
+            self._rr.LineStrips3D(lines, colors=[(170, 170, 170)], radii=0.004),
+            static=True,
+        )
 
-    def log_robots(self, poses: np.ndarray, labels: Sequence[str], colors: Sequence[tuple[int, int, int]]) -> None:
+    def log_robots(
+        self, poses: np.ndarray, labels: Sequence[str], colors: Sequence[tuple[int, int, int]]
+    ) -> None:
         """Robot positions and headings (``poses``: (n, 3) x, y, yaw) at the current time."""
         poses = np.asarray(poses, dtype=np.float64).reshape(-1, 3)
         points = np.column_stack([poses[:, :2], np.full(len(poses), 0.05)])
         arrows = 0.1 * np.column_stack([np.cos(poses[:, 2]), np.sin(poses[:, 2]), np.zeros(len(poses))])
         rr = self._rr
-        self._stream.log("world/arena/robots", rr.Points3D(points, labels=list(labels), colors=list(colors), radii=0.06))
-        self._stream.log("world/arena/headings", rr.Arrows3D(origins=points, vectors=arrows, colors=list(colors)))
+        self._stream.log(
+            "world/arena/robots", rr.Points3D(points, labels=list(labels), colors=list(colors), radii=0.06)
+        )
+        self._stream.log(
+            "world/arena/headings", rr.Arrows3D(origins=points, vectors=arrows, colors=list(colors))
+        )
