@@ -220,6 +220,7 @@ def _infinite_horizon(
         improvement = float(np.max(stage.values - values))
         stage_seconds = clock() - stage_start
         current = _record(graph, current, stage, rows, witness)
+        stage.score_rows = None  # (vectors x |B|) floats, no longer needed
         witness = stage.witness if stage.witness is not None else np.full(len(current), -1)
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
         lower_b0 = float((alphas @ b0).max())
@@ -408,6 +409,7 @@ class _Stage:
     values: np.ndarray
     timed_out: bool = False
     witness: np.ndarray | None = None  # a belief of B where each vector is the best one (None: not known)
+    score_rows: list[np.ndarray] | None = None  # per vector, its value at every belief of B (None: not kept)
 
     def with_old(self, alphas: np.ndarray, actions: np.ndarray) -> _Stage:
         """This stage together with every vector of V_n."""
@@ -449,7 +451,10 @@ def _record(
         unknown = witnesses < 0
         if unknown.any():
             witnesses[unknown] = np.asarray(np.argmax(rows @ old[unknown].T, axis=0)).ravel()
-        scores = np.asarray(rows[witnesses] @ stage.vectors.T)  # (dropped, new)
+        if stage.score_rows is not None:  # the same products, kept from the stage
+            scores = np.stack([row[witnesses] for row in stage.score_rows], axis=1)  # (dropped, new)
+        else:
+            scores = np.asarray(rows[witnesses] @ stage.vectors.T)
         candidates = np.argsort(-scores, axis=1)[:, : _DOMINANCE_CANDIDATES]
         dominates = np.all(stage.vectors[candidates] >= old[:, None, :], axis=2)  # (dropped, candidates)
         found = dominates.any(axis=1)
@@ -487,6 +492,12 @@ def _perseus_iteration(
     kept_old: set[int] = set()
     order = rng.permutation(n)
     prepared = operator.prepare(alphas)
+    # With a sparse (CSR) belief set, each batch's vectors are valued at every belief of B, not only the pending
+    # ones: the row of each kept vector is then its value everywhere, and V_{n+1} on B, the stage's pruning and
+    # _record's dominance candidates need no further product (each entry is the same CSR row product, so the
+    # values are bit-identical to a product over the whole stage). A dense belief set keeps the pending products.
+    everywhere = sp.issparse(rows)
+    score_rows: list[np.ndarray] = []  # with `everywhere`: per kept vector, its values on B
     size = min(batch_size, 16)
     while True:
         if deadline is not None and clock() > deadline:
@@ -500,9 +511,8 @@ def _perseus_iteration(
         size = min(batch_size, 2 * size)
         vectors, vector_actions, _, children = operator.backup(beliefs[batch], prepared, with_children=True)
         pending_beliefs = rows[pending]
-        candidate_values = (
-            pending_beliefs @ vectors.T
-        )  # (P, m): pending beliefs' values under the new vectors
+        candidate_values = pending_beliefs @ vectors.T  # (P, m): pending beliefs' values under the new vectors
+        kept_here: list[int | np.ndarray] = []  # with `everywhere`: a new vector's column j, or an old one's values
         pending_new = new_values[pending]
         pending_old = values[pending]
         for j, index in enumerate(batch):  # batch == pending[:m], so belief `index` sits at row j
@@ -515,6 +525,7 @@ def _perseus_iteration(
                 kept_origin.append(-1)
                 kept_children.append(children[j])
                 np.maximum(pending_new, candidate_values[:, j], out=pending_new)
+                kept_here.append(j)
             else:
                 old = int(np.argmax(alphas @ beliefs[index]))
                 if old not in kept_old:
@@ -523,25 +534,84 @@ def _perseus_iteration(
                     kept_actions.append(int(actions[old]))
                     kept_origin.append(old)
                     kept_children.append(no_children)
-                    np.maximum(pending_new, (pending_beliefs @ alphas[old][:, None]).ravel(), out=pending_new)
+                    if everywhere:
+                        kept_here.append(np.asarray(rows @ alphas[old][:, None]).ravel())
+                        np.maximum(pending_new, kept_here[-1][pending], out=pending_new)
+                    else:
+                        np.maximum(pending_new, (pending_beliefs @ alphas[old][:, None]).ravel(), out=pending_new)
                 # V_n(b) is kept exactly (guards against a last-bit difference between matvec and matmul).
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
+        if everywhere and kept_here:
+            score_rows.extend(_values_everywhere(rows, vectors, kept_here, pending, candidate_values))
     stage = _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, False)
     # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning
     # of the vectors maximal at no belief of B: V_{n+1} on B is unchanged and later backups get cheaper (the
     # plan graph still keeps those that remaining plans continue with).
-    scores = rows @ stage.vectors.T
-    best = np.argmax(scores, axis=1)
+    if everywhere:
+        best, values = _first_max_over_rows(score_rows, n)
+    else:
+        scores = rows @ stage.vectors.T
+        best = np.argmax(scores, axis=1)
+        values = scores[np.arange(n), best]
     keep, witness = np.unique(best, return_index=True)
     return _Stage(
         stage.vectors[keep],
         stage.actions[keep],
         stage.origin[keep],
         stage.children[keep],
-        scores[np.arange(len(best)), best],
+        values,
         witness=witness,
+        score_rows=[score_rows[k] for k in keep] if everywhere else None,
     )
+
+
+def _first_max_over_rows(rows: list[np.ndarray], n: int, block: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """``np.argmax(np.stack(rows), axis=0)`` and the maxima, by blocks of rows (stacking them all, then an argmax
+    over the first axis, copied the (vectors x |B|) array twice: 5-7 % of a pursuit solve's samples). The first row
+    of equal maxima wins, as with argmax."""
+    best = np.zeros(n, dtype=np.int64)
+    values = np.full(n, -np.inf)
+    for first in range(0, len(rows), block):
+        part = np.stack(rows[first : first + block])
+        where = np.argmax(part, axis=0)
+        top = part[where, np.arange(part.shape[1])]
+        better = top > values
+        best[better] = first + where[better]
+        values[better] = top[better]
+    return best, values
+
+
+def _values_everywhere(
+    rows: sp.csr_matrix,
+    vectors: np.ndarray,
+    kept: list[int | np.ndarray],
+    pending: np.ndarray,
+    candidate_values: np.ndarray,
+) -> list[np.ndarray]:
+    """The values on all of B of the vectors a batch kept (``kept``: a column of ``vectors``, or an old vector's
+    values already computed), in order. The pending beliefs' values are ``candidate_values``; the others are
+    computed on their rows alone (gathered), unless recomputing the pending ones costs less than that gather (a
+    row gather costs about three products per entry)."""
+    n = rows.shape[0]
+    new = [j for j in kept if isinstance(j, int)]
+    if not new:
+        return list(kept)
+    if len(new) * len(pending) < 3 * (n - len(pending)):
+        everywhere = np.ascontiguousarray(np.asarray(rows @ vectors[new].T).T)  # (new, n)
+        by_column = dict(zip(new, everywhere, strict=True))
+    else:
+        others = np.ones(n, dtype=bool)
+        others[pending] = False
+        others = np.flatnonzero(others)
+        rest = np.asarray(rows[others] @ vectors[new].T)
+        by_column = {}
+        for k, j in enumerate(new):
+            row = np.empty(n)
+            row[pending] = candidate_values[:, j]
+            row[others] = rest[:, k]
+            by_column[j] = row
+    return [by_column[entry] if isinstance(entry, int) else entry for entry in kept]
 
 
 def _blas_threads(count: int | None) -> contextlib.AbstractContextManager:

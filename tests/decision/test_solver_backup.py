@@ -26,17 +26,25 @@ def _sparse_identity_pomdp(n_states: int = 60, n_actions: int = 3, seed: int = 4
     """Sparse O (the state is observed) with predicted beliefs dense enough that the old code took its sparse
     projection path: the support-restricted scores must cover it."""
     rng = np.random.default_rng(seed)
+    noisy = 0.7 * np.eye(n_states) + 0.3 * np.roll(np.eye(n_states), 1, axis=1)
+    return _random_pomdp(rng, n_states, n_actions, noisy, density=0.4, bump=0.3)
+
+
+def _random_pomdp(
+    rng: np.random.Generator, n_states: int, n_actions: int, observation: np.ndarray, density: float, bump: float
+) -> POMDP:
+    """Random sparse transitions (each row: entries with probability ``density``, plus ``bump`` on one random
+    successor), normal rewards, discount 0.9, the same observation matrix for every action, uniform b0."""
     transitions = []
     for _ in range(n_actions):
-        matrix = rng.random((n_states, n_states)) * (rng.random((n_states, n_states)) < 0.4)
-        matrix[np.arange(n_states), rng.integers(n_states, size=n_states)] += 0.3
+        matrix = rng.random((n_states, n_states)) * (rng.random((n_states, n_states)) < density)
+        matrix[np.arange(n_states), rng.integers(n_states, size=n_states)] += bump
         transitions.append(matrix / matrix.sum(axis=1, keepdims=True))
-    noisy = 0.7 * np.eye(n_states) + 0.3 * np.roll(np.eye(n_states), 1, axis=1)
     return POMDP(
         transitions,
         rng.normal(size=(n_states, n_actions)),
         0.9,
-        observations=[noisy] * n_actions,
+        observations=[observation] * n_actions,
         initial_belief=np.full(n_states, 1.0 / n_states),
     )
 
@@ -81,3 +89,69 @@ def test_backup_equals_the_naive_one_and_each_vector_is_its_plan(name):
         continuation = sum(observation[:, z] * alphas[plan[z]] for z in range(pomdp.n_observations))
         rebuilt = pomdp.rewards[:, action] + pomdp.discount * (pomdp.transitions[action] @ continuation)
         np.testing.assert_allclose(vector, rebuilt, rtol=0, atol=1e-9)
+
+
+def _single_state_observation_pomdp(n_states: int = 40, n_actions: int = 3, seed: int = 7) -> POMDP:
+    """The first half of the states is observed exactly (an observation emitted by that state alone), the second
+    half emits one shared observation with probability 0.6 and its own with 0.4 (pursuit: 64 of 81 observations
+    are emitted by one state, one by every state)."""
+    half = n_states // 2
+    observation = np.zeros((n_states, n_states + 1))
+    observation[np.arange(half), np.arange(half)] = 1.0
+    observation[np.arange(half, n_states), np.arange(half, n_states)] = 0.4
+    observation[half:, n_states] = 0.6
+    return _random_pomdp(np.random.default_rng(seed), n_states, n_actions, observation, density=0.3, bump=0.2)
+
+
+def test_single_state_observations_choose_what_the_scores_choose():
+    """Branches of observations that one state emits take that state's first best vector without a product; the
+    choices (and so the vectors, values and plans) must be bit-identical to the product's argmax, including exact
+    ties, near-ties a few units in the last place apart (not 'clean': left to the product) and tiny weights."""
+    pomdp = _single_state_observation_pomdp()
+    operator = BackupOperator(pomdp)
+    assert operator.single_state_observations[0].sum() == pomdp.n_states  # all but the shared one
+    rng = np.random.default_rng(11)
+    alphas = rng.normal(size=(30, pomdp.n_states)) * 5.0
+    alphas[7] = alphas[3]  # an exact duplicate: the first of the two must win
+    alphas[12, :5] = alphas[4, :5]  # ties on some states only
+    top = alphas.argmax(axis=0)
+    near = np.nextafter(alphas[top, np.arange(pomdp.n_states)].astype(np.float32), np.float32(-np.inf))
+    alphas[20, 5:10] = near[5:10]  # one float32 step below the best at states 5-9: not clean
+    beliefs = collect_beliefs(pomdp, 300, np.random.default_rng(5))
+    beliefs[:4] = 0.0
+    beliefs[:4, 0] = 1.0 - 1e-35  # a branch of weight ~1e-35: left to the product
+    beliefs[:4, 1] = 1e-35
+    with_states = operator.backup(beliefs, alphas, with_children=True)
+    # The same operator with the per-state path switched off: every branch goes through the product.
+    operator.single_state_observations = tuple(np.zeros_like(m) for m in operator.single_state_observations)
+    products_only = operator.backup(beliefs, alphas, with_children=True)
+    for got, expected in zip(with_states, products_only, strict=True):
+        np.testing.assert_array_equal(got, expected)
+
+
+def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
+    """With a CSR belief set a Perseus stage values each batch's kept vectors at all beliefs as it goes (the pending
+    ones from the acceptance products); the result must be bit-identical to one product over the whole stage."""
+    import scipy.sparse as sp
+
+    from embodied_adhoc.decision import perseus as perseus_module
+    from embodied_adhoc.decision.backup import blind_policy_vectors
+
+    pomdp = _single_state_observation_pomdp()
+    operator = BackupOperator(pomdp)
+    beliefs = collect_beliefs(pomdp, 400, np.random.default_rng(2))
+    rows = sp.csr_matrix(beliefs)
+    alphas = blind_policy_vectors(pomdp)
+    actions = np.arange(pomdp.n_actions)
+    values = (beliefs @ alphas.T).max(axis=1)
+    rng = np.random.default_rng(0)
+    for _ in range(4):  # a few stages, so that old vectors are kept and batches grow
+        stage = perseus_module._perseus_iteration(
+            operator, beliefs, rows, alphas, actions, values, rng, 32, None, lambda: 0.0
+        )
+        scores_t = np.stack(stage.score_rows)
+        np.testing.assert_array_equal(scores_t, (rows @ stage.vectors.T).T)
+        np.testing.assert_array_equal(stage.values, scores_t.max(axis=0))
+        assert np.all(stage.values >= values)
+        np.testing.assert_array_equal(np.argmax(scores_t[:, stage.witness], axis=0), np.arange(len(stage.witness)))
+        alphas, actions, values = stage.vectors, stage.actions, stage.values
