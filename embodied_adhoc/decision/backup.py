@@ -74,11 +74,6 @@ class BackupOperator:
         self.sparse_observations = tuple(
             matrix.nnz < _DENSE_DENSITY * pomdp.n_states * pomdp.n_observations for matrix in self.observation_rows
         )
-        # Per action and observation: whether a single end state emits it (its branches' best vector is then a
-        # per-state maximum, _state_best). The pursuit model: 64 of 81 observations, 61 % of a batch's branches.
-        self.single_state_observations = tuple(
-            np.bincount(matrix.indices, minlength=pomdp.n_observations) == 1 for matrix in self.observation_rows
-        )
 
     def prepare(self, alphas: np.ndarray) -> PreparedAlphas:
         """A value function ready for many :meth:`backup` calls against it (projections built lazily)."""
@@ -91,11 +86,11 @@ class BackupOperator:
         """Per end state ``s``: the largest float32 value ``m_s`` of any vector, the first vector reaching it, and
         whether it is *clean*: no other vector lies within ``2^-20 |m_s|`` below ``m_s``.
 
-        A branch whose observation only one state ``s`` emits has one entry ``w > 0``: its scores are the float32
-        products ``w * alpha_k(s)``, whose first maximum is that first vector when ``s`` is clean and ``w m_s`` is a
-        normal float32 (rounding is monotone, and values farther below ``m_s`` stay several units in the last place
-        below it after the product), i.e. exactly what the product and argmax would pick. Built once per value
-        function, on first use."""
+        A branch with a single entry ``w > 0`` at ``s`` (an observation only ``s`` emits, or only one reachable state
+        emitting it) has the float32 scores ``w * alpha_k(s)``, whose first maximum is that first vector when ``s``
+        is clean and ``w m_s`` is a normal float32 (rounding is monotone, and values farther below ``m_s`` stay
+        several units in the last place below it after the product), i.e. exactly what the product and argmax would
+        pick. Built once per value function, on first use."""
         if not prepared.state_best:
             values = prepared.alphas_t  # (S, K) float32
             top = values.max(axis=1)
@@ -157,15 +152,15 @@ class BackupOperator:
         weights32 = entries.astype(np.float32)
         best = np.empty(len(branch_keys), dtype=np.int64)
         scored = np.ones(len(branch_keys), dtype=bool)  # branches left to the product
-        single = self.single_state_observations[action][branch_keys % n_obs]
+        single = np.bincount(rows, minlength=len(branch_keys)) == 1  # branches with one entry (one state)
         if np.count_nonzero(single) * 8 >= self.pomdp.n_states:  # else the per-state maxima cost more than they save
-            # Branches of single-state observations (one entry each): the first vector best at that state, where
-            # that provably equals the product's argmax (_state_best); the others stay in the product.
-            top, first, clean = self._state_best(prepared)
+            # Their best vector is the first one best at that state where that provably equals the product's argmax
+            # (_state_best; the pursuit model: 63 % of a batch's branches); the others stay in the product.
+            top, leader, clean = self._state_best(prepared)
             lone = single[rows]
             lone_rows, lone_states = rows[lone], states[lone]
             exact = clean[lone_states] & (np.abs(weights32[lone].astype(np.float64) * top[lone_states]) >= 1e-30)
-            best[lone_rows[exact]] = first[lone_states[exact]]
+            best[lone_rows[exact]] = leader[lone_states[exact]]
             scored[lone_rows[exact]] = False
         if scored.all():
             weights = sp.csr_matrix((weights32, (rows, states)), shape=(len(branch_keys), self.pomdp.n_states))

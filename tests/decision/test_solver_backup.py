@@ -103,13 +103,13 @@ def _single_state_observation_pomdp(n_states: int = 40, n_actions: int = 3, seed
     return _random_pomdp(np.random.default_rng(seed), n_states, n_actions, observation, density=0.3, bump=0.2)
 
 
-def test_single_state_observations_choose_what_the_scores_choose():
-    """Branches of observations that one state emits take that state's first best vector without a product; the
-    choices (and so the vectors, values and plans) must be bit-identical to the product's argmax, including exact
-    ties, near-ties a few units in the last place apart (not 'clean': left to the product) and tiny weights."""
+def test_single_entry_branches_choose_what_the_scores_choose():
+    """Branches with one entry (observations that one state emits) take that state's first best vector without a
+    product; the choices (and so the vectors, values and plans) must be bit-identical to the product's argmax,
+    including exact ties, near-ties a few units in the last place apart (not 'clean': left to the product) and
+    tiny weights."""
     pomdp = _single_state_observation_pomdp()
     operator = BackupOperator(pomdp)
-    assert operator.single_state_observations[0].sum() == pomdp.n_states  # all but the shared one
     rng = np.random.default_rng(11)
     alphas = rng.normal(size=(30, pomdp.n_states)) * 5.0
     alphas[7] = alphas[3]  # an exact duplicate: the first of the two must win
@@ -121,10 +121,13 @@ def test_single_state_observations_choose_what_the_scores_choose():
     beliefs[:4] = 0.0
     beliefs[:4, 0] = 1.0 - 1e-35  # a branch of weight ~1e-35: left to the product
     beliefs[:4, 1] = 1e-35
-    with_states = operator.backup(beliefs, alphas, with_children=True)
-    # The same operator with the per-state path switched off: every branch goes through the product.
-    operator.single_state_observations = tuple(np.zeros_like(m) for m in operator.single_state_observations)
-    products_only = operator.backup(beliefs, alphas, with_children=True)
+    prepared = operator.prepare(alphas)
+    with_states = operator.backup(beliefs, prepared, with_children=True)
+    top, leader, clean = operator._state_best(prepared)
+    assert 0 < clean.sum() < pomdp.n_states  # both kinds of state occur
+    # The same operator with no clean state: every branch goes through the product.
+    operator._state_best = lambda prepared: (top, leader, np.zeros_like(clean))
+    products_only = operator.backup(beliefs, prepared, with_children=True)
     for got, expected in zip(with_states, products_only, strict=True):
         np.testing.assert_array_equal(got, expected)
 
