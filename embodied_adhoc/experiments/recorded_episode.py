@@ -166,21 +166,17 @@ class LabFrames:
     """The lab's pictures for the recorders, rendered on one render thread (``record.worker``) from snapshots the
     simulation thread takes (``LabWorld.snapshot_renderer``): a frame goes to ``video`` (with ``overlay`` lines,
     ``repeat`` times) and/or to ``rerun`` as ``camera/<name>`` at a given step and time. Frames are rendered in the
-    order they were taken. The render thread makes its GL context as soon as it starts (``prepared`` is set when it
-    is made; making it holds the GIL for ~0.1-0.3 s with software EGL, a one-off per recording); at most ``max_queued`` snapshots wait (an ``MjData`` copy each, ~40 kB for the lab: the simulation runs ahead
-    while the context is made, and waits only when rendering falls that far behind). :meth:`close` renders what is
-    queued and releases the GL context (the recorders are closed after it)."""
+    order they were taken. The render thread makes its GL context as soon as it starts, not at the first frame
+    (``prepared`` is set then; making it holds the GIL for ~0.1-0.3 s with software EGL, once per recording). At
+    most ``max_queued`` snapshots wait (an ``MjData`` copy each, ~40 kB for the lab; the simulation waits only when
+    rendering falls that far behind). :meth:`close` renders what is queued and releases the GL context (the
+    recorders are closed after it)."""
 
     def __init__(self, world, width: int, height: int, video, rerun, max_queued: int = 128):
         from embodied_adhoc.record.worker import BackgroundWorker
 
-        self.world, self.width, self.height, self.video, self.rerun = (
-            world,
-            int(width),
-            int(height),
-            video,
-            rerun,
-        )
+        self.world, self.video, self.rerun = world, video, rerun
+        self.width, self.height = int(width), int(height)
         self.high = world.config.render_quality == "high"
         self.prepared = threading.Event()
         self._renderer = world.snapshot_renderer()
