@@ -1,7 +1,11 @@
 """Reproduce thesis chapter 4 on 5x5 pursuit: the PLASTIC reference and the sequential-teams protocol.
 
     .venv/bin/python scripts/reproduce_teamster.py [--trials 8] [--steps 5000] [--eval-steps 500] [--points 10]
-        [--agents ...] [--changed 0.25] [--out runs/teamster-pursuit] [--skip-protocol]
+        [--agents ...] [--changed fail:0.25|mirror] [--changed-steps N] [--out runs/teamster-pursuit] [--skip-protocol]
+
+The mirrored-environment study (docs/teamster.md, Part B3): ``--agents teamster,plastic-model,learns-team,
+plastic-policy --trials 8 --steps 500 --eval-steps 50 --points 5 --changed mirror --changed-steps 2500 --out
+runs/teamster-mirror-t500`` (each (agent, trial) record depends only on the seed, the trial and the agent).
 
 Part A, the PLASTIC reference (results-to-reproduce.md): prey captures per 500 steps with the teammate-aware
 team for the ad hoc seat filled by a teammate-aware, greedy or probabilistic-destinations agent, by a random
@@ -94,13 +98,22 @@ def part_c(map_name: str, episodes: int, seed: int) -> list[list[str]]:
     return rows
 
 
+def _changed(args: argparse.Namespace) -> list[str]:
+    """The command's changed-phase options (none when --changed is 0)."""
+    if args.changed.strip() in ("0", "0.0", "fail:0"):
+        return []
+    steps = [] if args.changed_steps is None else ["--changed-steps", str(args.changed_steps)]
+    return ["--changed", args.changed] + steps
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=8)
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--eval-steps", type=int, default=500)
     parser.add_argument("--points", type=int, default=10)
-    parser.add_argument("--changed", type=float, default=0.0)
+    parser.add_argument("--changed", default="0", help="the changed phase: fail:P (or P) or mirror (default none)")
+    parser.add_argument("--changed-steps", type=int, default=None, help="its interaction steps (default --steps)")
     parser.add_argument("--agents", default="teamster,plastic-model,learns-team,learns-environment,plastic-policy,"
                                             "random,original")
     parser.add_argument("--seed", type=int, default=0)
@@ -121,8 +134,7 @@ def main() -> None:
             command = ["teamster", map_name, "--agents", args.agents, "--steps", str(args.steps), "--trials",
                        str(args.trials), "--eval-episodes", str(args.eval_episodes), "--points", str(args.points),
                        "--seed", str(args.seed), "--out", out, "--quiet"]
-            if args.changed > 0:
-                command += ["--changed", str(args.changed)]
+            command += _changed(args)
             if cli_main(command) != 0:
                 raise SystemExit(2)
             print("\n" + Path(out, "table.md").read_text())
@@ -140,8 +152,7 @@ def main() -> None:
     command = ["teamster", "pursuit", "--agents", args.agents, "--steps", str(args.steps), "--trials",
                str(args.trials), "--eval-steps", str(args.eval_steps), "--points", str(args.points), "--seed",
                str(args.seed), "--out", args.out, "--quiet"]
-    if args.changed > 0:
-        command += ["--changed", str(args.changed)]
+    command += _changed(args)
     if cli_main(command) != 0:
         raise SystemExit(2)
     summary = json.loads(Path(args.out, "summary.json").read_text())
