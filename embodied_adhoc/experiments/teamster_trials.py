@@ -37,6 +37,8 @@ _LEARNED: dict = {}  # (agent, learn_steps, learn_seed) -> the agent after learn
 class Pursuit4Session:
     """The learned agents (built once per process), the env of one backend."""
 
+    blas_threads = 1  # trials run with one BLAS thread (executors.execute_job): the networks' products are small
+
     def __init__(self, backend: str, options: dict) -> None:
         import gymnasium
 
