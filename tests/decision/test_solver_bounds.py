@@ -229,3 +229,23 @@ def test_time_limit_counts_the_configured_clock(monkeypatch):
     assert 30.0 <= policy.stats.seconds < 60.0  # stopped by the limit on that clock, not by convergence
     with pytest.raises(SolverError, match="clock must be one of cpu, wall|clock must be one of wall, cpu"):
         PerseusConfig(clock="sundial")
+
+
+def test_plan_graph_closure_equals_a_plain_search():
+    """The closure by levels of marks equals a depth-first search over continuations, on a random layered graph."""
+    rng = np.random.default_rng(8)
+    layers, children = [np.arange(3)], [np.repeat(np.arange(3)[:, None], 4, axis=1)]
+    for _ in range(12):
+        previous = layers[-1]
+        children.append(previous[rng.integers(0, len(previous), size=(20, 4))])
+        layers.append(np.arange(layers[-1][-1] + 1, layers[-1][-1] + 21))
+    children = np.vstack(children)
+    graph = PlanGraph(np.zeros((len(children), 2)), np.zeros(len(children), dtype=np.int64), children)
+    roots = rng.choice(layers[-1], size=3, replace=False)
+    seen, stack = set(), list(roots)
+    while stack:
+        row = int(stack.pop())
+        if row not in seen:
+            seen.add(row)
+            stack.extend(children[row])
+    assert graph.closure(roots).tolist() == sorted(seen)
