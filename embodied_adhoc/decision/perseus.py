@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
+from embodied_adhoc.decision.backup import BackupOperator, RowProducts, blind_policy_vectors
 from embodied_adhoc.decision.belief_expansion import sample_path
 from embodied_adhoc.decision.beliefs import _key as _belief_key
 from embodied_adhoc.decision.beliefs import collect_beliefs
@@ -61,6 +61,10 @@ class PerseusConfig:
     epsilon: float = 0.5  # exploration: probability of a random action (else greedy on the MDP's Q*)
     batch_size: int = 256  # beliefs backed up together in one vectorised call
     blas_threads: int | None = 1  # BLAS threads during the solve (None: library default); see _blas_threads
+    # Threads that split the backups' branch scores and the belief set's value products by rows (backup.RowProducts):
+    # bit-identical results for any count; 1 (default) starts none, as chapter-5 runs already use worker processes.
+    # With clock="cpu", time_limit and the reported seconds count the CPU time of all of them.
+    threads: int = 1
     # Anytime expansion: once the backups converge on B (and periodically), add beliefs sampled as B was and
     # continue, until the time limit, a gap <= precision at b0, max_beliefs (None: 10 x n_beliefs with a time
     # limit, 3 x without), or a round that moves neither bound by more than the tolerance. False: the fixed
@@ -83,6 +87,8 @@ class PerseusConfig:
             raise SolverError(f"horizon must be a positive number of steps, got {self.horizon}")
         if not 0.0 <= self.epsilon <= 1.0:
             raise SolverError(f"epsilon must lie in [0, 1], got {self.epsilon}")
+        if not isinstance(self.threads, int) or self.threads < 1:
+            raise SolverError(f"threads must be an integer >= 1, got {self.threads!r}")
         if self.batch_size < 1:
             raise SolverError(f"batch_size must be >= 1, got {self.batch_size}")
         if self.precision < 0:
@@ -139,10 +145,13 @@ def _solve(pomdp: POMDP, config: PerseusConfig, progress: ProgressCallback | Non
     beliefs = collect_beliefs(
         pomdp, config.n_beliefs, rng, greedy_q=greedy_q, epsilon=config.epsilon, max_depth=config.horizon
     )
-    operator = BackupOperator(pomdp)
-    if config.horizon is not None:
-        return _finite_horizon(pomdp, config, operator, beliefs, start, progress)
-    return _infinite_horizon(pomdp, config, operator, beliefs, rng, greedy_q, start, progress)
+    operator = BackupOperator(pomdp, threads=config.threads)
+    try:
+        if config.horizon is not None:
+            return _finite_horizon(pomdp, config, operator, beliefs, start, progress)
+        return _infinite_horizon(pomdp, config, operator, beliefs, rng, greedy_q, start, progress)
+    finally:
+        operator.close()
 
 
 def _infinite_horizon(
@@ -511,7 +520,8 @@ def _perseus_iteration(
         size = min(batch_size, 2 * size)
         vectors, vector_actions, _, children = operator.backup(beliefs[batch], prepared, with_children=True)
         pending_beliefs = rows[pending]
-        candidate_values = pending_beliefs @ vectors.T  # (P, m): pending beliefs' values under the new vectors
+        # (P, m): pending beliefs' values under the new vectors
+        candidate_values = operator.products(pending_beliefs, vectors.T)
         kept_here: list[int | np.ndarray] = []  # with `everywhere`: a new vector's column j, or an old one's values
         pending_new = new_values[pending]
         pending_old = values[pending]
@@ -543,7 +553,9 @@ def _perseus_iteration(
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
         if everywhere and kept_here:
-            score_rows.extend(_values_everywhere(rows, vectors, kept_here, pending, candidate_values))
+            score_rows.extend(
+                _values_everywhere(rows, vectors, kept_here, pending, candidate_values, operator.products)
+            )
     stage = _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, False)
     # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning
     # of the vectors maximal at no belief of B: V_{n+1} on B is unchanged and later backups get cheaper (the
@@ -588,6 +600,7 @@ def _values_everywhere(
     kept: list[int | np.ndarray],
     pending: np.ndarray,
     candidate_values: np.ndarray,
+    products: RowProducts,
 ) -> list[np.ndarray]:
     """The values on all of B of the vectors a batch kept (``kept``: a column of ``vectors``, or an old vector's
     values already computed), in order. The pending beliefs' values are ``candidate_values``; the others are
@@ -598,13 +611,13 @@ def _values_everywhere(
     if not new:
         return list(kept)
     if len(new) * len(pending) < 3 * (n - len(pending)):
-        everywhere = np.ascontiguousarray(np.asarray(rows @ vectors[new].T).T)  # (new, n)
+        everywhere = np.ascontiguousarray(products(rows, vectors[new].T).T)  # (new, n)
         by_column = dict(zip(new, everywhere, strict=True))
     else:
         others = np.ones(n, dtype=bool)
         others[pending] = False
         others = np.flatnonzero(others)
-        rest = np.asarray(rows[others] @ vectors[new].T)
+        rest = products(rows[others], vectors[new].T)
         by_column = {}
         for k, j in enumerate(new):
             row = np.empty(n)

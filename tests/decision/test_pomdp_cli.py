@@ -98,6 +98,7 @@ def assert_one_line_error(result: subprocess.CompletedProcess, *fragments: str) 
         (("--seed", "-1"), ("--seed", "negative")),
         (("--precision", "nan"), ("--precision", "nan is not a finite number >= 0")),
         (("--clock", "sundial"), ("--clock", "invalid choice: 'sundial'")),
+        (("--threads", "0"), ("--threads", "0 is not an integer >= 1")),
         (("--solver", "vi", "--save-policy", "vi.npz"), ("--save-policy needs an alpha-vector policy",)),
     ],
 )

@@ -171,3 +171,61 @@ def test_batch_size_does_not_change_the_solve(name):
     np.testing.assert_array_equal(solves[0].alphas, solves[1].alphas)
     np.testing.assert_array_equal(solves[0].actions, solves[1].actions)
     assert solves[0].stats.trace[-1][1] == solves[1].stats.trace[-1][1]
+
+
+@pytest.mark.parametrize("name", ["sarsop-TagAvoid.pomdp", "single-state"])
+def test_threads_do_not_change_the_solve(name, monkeypatch):
+    """threads=2 splits the branch scores and the belief set's value products by rows (each row is the same sum in
+    the same order): the same vectors, plans, stage values and stage count as threads=1, bit for bit. The split
+    threshold is lowered so that the small test products are split too."""
+    from embodied_adhoc.decision import backup as backup_module
+
+    pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
+    monkeypatch.setattr(backup_module, "_SPLIT_MIN_WORK", 1)
+    traces = {1: [], 2: []}
+    split = []
+    original = backup_module.RowProducts.__call__
+
+    def counting(self, matrix, dense, reduce=None):
+        if self.threads > 1 and getattr(matrix, "nnz", 0) and matrix.shape[0] > 1:
+            split.append(matrix.shape[0])
+        return original(self, matrix, dense, reduce)
+
+    monkeypatch.setattr(backup_module.RowProducts, "__call__", counting)
+    solves = {
+        threads: perseus(
+            pomdp,
+            PerseusConfig(n_beliefs=300, max_iterations=12, seed=1, threads=threads),
+            progress=lambda report, threads=threads: traces[threads].append(
+                (report.iteration, report.value_b0, report.n_vectors, report.improvement)
+            ),
+        )
+        for threads in (1, 2)
+    }
+    assert split, "no product was split over the threads"
+    np.testing.assert_array_equal(solves[1].alphas, solves[2].alphas)
+    np.testing.assert_array_equal(solves[1].actions, solves[2].actions)
+    assert solves[1].stats.iterations == solves[2].stats.iterations
+    assert [value for _, value in solves[1].stats.trace] == [value for _, value in solves[2].stats.trace]
+    assert traces[1] == traces[2] and max(report[0] for report in traces[1]) == solves[1].stats.iterations
+
+
+def test_row_products_equal_the_whole_product_and_refuse_zero_threads():
+    import scipy.sparse as sp
+
+    from embodied_adhoc.decision import backup as backup_module
+    from embodied_adhoc.errors import SolverError
+
+    rng = np.random.default_rng(3)
+    matrix = sp.random(997, 211, density=0.1, format="csr", dtype=np.float32, random_state=rng)
+    matrix.data[:] = rng.random(matrix.nnz, dtype=np.float32)
+    dense = rng.random((300, 211), dtype=np.float32).T  # not contiguous, as alphas.T
+    products = backup_module.RowProducts(3)
+    try:
+        whole = matrix @ dense
+        np.testing.assert_array_equal(products(matrix, dense), whole)
+        np.testing.assert_array_equal(products(matrix, dense, lambda s: np.argmax(s, axis=1)), np.argmax(whole, axis=1))
+    finally:
+        products.close()
+    with pytest.raises(SolverError, match="threads must be an integer >= 1, got 0"):
+        PerseusConfig(threads=0)
