@@ -169,7 +169,8 @@ class LearnedEnvironment:
 
     def capture_probability(self, states: np.ndarray) -> np.ndarray:
         logit = self.reward_forward(self.features.reward(states))[:, 0].astype(np.float64)
-        return 1.0 / (1.0 + np.exp(-logit))
+        with np.errstate(over="ignore"):  # exp(-logit) = inf for logit < -709 gives 1 / inf = 0.0, the exact limit
+            return 1.0 / (1.0 + np.exp(-logit))
 
     def step(self, states: np.ndarray, joint_actions: np.ndarray, rng: np.random.Generator):
         """Sample each agent's move from its factor, then the predicted reward ``P(capture | x')`` (terminal
