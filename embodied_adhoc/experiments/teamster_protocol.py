@@ -188,13 +188,19 @@ def _evaluate(agent, world, team, config, trial, *words) -> float:
         agent.set_evaluation(False)
 
 
+def _learned_environment(agent):
+    """The agent's learned environment model (one with ``transition_probs``), or None."""
+    environment = getattr(agent, "environment", None)
+    return environment if hasattr(environment, "transition_probs") else None
+
+
 def model_fit(agent, world, rng: np.random.Generator, count: int = 256) -> list[float] | None:
     """How well a learned environment model predicts the ad hoc agent's own move in ``world``: on ``count``
     random states with uniform predator actions stepped by the true rules, the share where the model's most
     likely move class for agent 0 is the one taken, and the mean probability it gives that move (None for an
     agent without a learned transition model). Diagnoses the changed phase."""
-    environment = getattr(agent, "environment", None)
-    if not hasattr(environment, "transition_probs"):
+    environment = _learned_environment(agent)
+    if environment is None:
         return None
     states = world.sample_states(rng, count)
     actions = rng.integers(0, N_ACTIONS, size=(count, environment.features.n_actors))
@@ -250,7 +256,7 @@ def _run_trial(agent_name: str, trial: int, config: ProtocolConfig, tick: Callab
             tick()
     if config.changed:
         changed = changed_world(config)
-        fit = [] if model_fit(agent, changed, np.random.default_rng(0), 1) is not None else None
+        fit = [] if _learned_environment(agent) is not None else None
         record["changed"] = _interact(agent, changed, ExactTeam(changed, changed.teams[0]), config, trial,
                                       "changed", config.phase_steps, fit)
         if fit is not None:  # [step, agent 0's move predicted (share), P(its move)] at each evaluation point
