@@ -185,26 +185,16 @@ def test_stored_policy_stays_uniformly_improvable(tmp_path):
 
 
 def test_old_and_newer_policy_files(tiger_policy, tmp_path):
+    def uncompressed(version: int):
+        path = tmp_path / f"v{version}.npz"
+        np.savez(path, alphas=tiger_policy.alphas, actions=tiger_policy.actions, stages=tiger_policy.stages,
+                 format_version=np.int64(version))
+        return path
+
     # format 1: uncompressed float64 (the files cached before format 2) loads as it was
-    old = tmp_path / "v1.npz"
-    np.savez(
-        old,
-        alphas=tiger_policy.alphas,
-        actions=tiger_policy.actions,
-        stages=tiger_policy.stages,
-        format_version=np.int64(1),
-    )
-    np.testing.assert_array_equal(AlphaVectorPolicy.load(old).alphas, tiger_policy.alphas)
-    newer = tmp_path / "v9.npz"
-    np.savez(
-        newer,
-        alphas=tiger_policy.alphas,
-        actions=tiger_policy.actions,
-        stages=tiger_policy.stages,
-        format_version=np.int64(9),
-    )
+    np.testing.assert_array_equal(AlphaVectorPolicy.load(uncompressed(1)).alphas, tiger_policy.alphas)
     with pytest.raises(ModelError, match="v9.npz: policy format 9 is newer"):
-        AlphaVectorPolicy.load(newer)
+        AlphaVectorPolicy.load(uncompressed(9))
 
 
 def test_saved_closed_policy_is_small(tmp_path):
