@@ -74,6 +74,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "on the belief set is <= tolerance; 'gain' = the classic rule, that gain itself is <= tolerance",
     )
     solve.add_argument(
+        "--update",
+        choices=("gauss-seidel", "perseus"),
+        default="gauss-seidel",
+        help="Perseus stages: 'gauss-seidel' (default) = each batch also continues with the vectors its stage "
+        "already kept (fewer stages); 'perseus' = the classic stage, every backup against V_n (Spaan & Vlassis; "
+        "the values of the fixed-set solver before issue 12's fourth session, and chapter 5's policies)",
+    )
+    solve.add_argument(
         "--precision",
         type=bounded(float, 0.0, "a finite number >= 0"),
         default=1e-3,
@@ -204,6 +212,7 @@ def _solve(args: argparse.Namespace) -> int:
                 n_beliefs=args.beliefs,
                 tolerance=1e-3 if args.tolerance is None else args.tolerance,
                 stop=args.stop,
+                update=args.update,
                 time_limit=args.time_limit,
                 seed=args.seed,
                 horizon=args.horizon,

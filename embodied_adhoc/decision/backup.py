@@ -145,8 +145,23 @@ class BackupOperator:
         """A value function ready for many :meth:`backup` calls against it (projections built lazily)."""
         alphas = np.ascontiguousarray(alphas, dtype=np.float64)
         # For branches impossible at a belief: the vector best for a uniform spread over the states emitting z.
-        fallbacks = tuple(np.argmax(entry[4] @ alphas.T, axis=1) for entry in self.entries)
+        fallbacks = tuple(np.argmax(scores, axis=1) for scores in self.fallback_scores(alphas))
         return PreparedAlphas(alphas, np.ascontiguousarray(alphas.T, dtype=np.float32), {}, fallbacks, {})
+
+    def fallback_scores(self, alphas: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Per action, the (Z, K) values of each vector for a uniform spread over the states emitting each
+        observation (the fallback continuation of impossible branches is each row's first maximum)."""
+        alphas_t = np.ascontiguousarray(np.atleast_2d(alphas).T)
+        return tuple(np.asarray(entry[4] @ alphas_t) for entry in self.entries)
+
+    def prepare_parts(
+        self, alphas: np.ndarray, alphas_t: np.ndarray, fallback_scores: tuple[np.ndarray, ...]
+    ) -> PreparedAlphas:
+        """:meth:`prepare` from parts a caller keeps up to date as its vectors change (the solver's Gauss-Seidel
+        stages): ``alphas`` (K, S) float64, ``alphas_t`` its (S, K) float32 transpose, and
+        :meth:`fallback_scores` of it. The same object as ``prepare(alphas)``."""
+        fallbacks = tuple(np.argmax(scores, axis=1) for scores in fallback_scores)
+        return PreparedAlphas(alphas, alphas_t, {}, fallbacks, {})
 
     def _state_best(self, prepared: PreparedAlphas) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Per end state ``s``: the largest float32 value ``m_s`` of any vector, the first vector reaching it, and

@@ -10,6 +10,11 @@ Vectorisation: beliefs are backed up in random batches of ``batch_size`` against
 the sequential algorithm computes, since each backup only reads ``V_n``); the Perseus acceptance rule then runs
 over the batch in random order. Batches are skipped once their beliefs are all improved.
 
+Gauss-Seidel stages (``update="gauss-seidel"``, the default): each batch is backed up against the vectors of V_n
+still best at a belief not yet improved and every new vector the stage already kept, so improvements found early
+in a stage propagate within it (fewer stages to the same stop rule); the acceptance rule, and with it
+``V_{n+1} >= V_n`` on B, is Perseus'. ``update="perseus"`` is the classic stage above.
+
 Finite horizon (``horizon=H``, mandatory when the discount is 1.0): ``H`` exact point-based stages
 ``V_t = backup(V_{t-1})`` over every belief, from ``V_0 = 0``; the policy keeps each stage's vectors.
 """
@@ -25,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.backup import BackupOperator, RowProducts, blind_policy_vectors
+from embodied_adhoc.decision.backup import BackupOperator, PreparedAlphas, RowProducts, blind_policy_vectors
 from embodied_adhoc.decision.belief_expansion import sample_path
 from embodied_adhoc.decision.beliefs import _key as _belief_key
 from embodied_adhoc.decision.beliefs import collect_beliefs
@@ -37,6 +42,7 @@ from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import SolverError
 
 STOP_RULES = ("bound", "gain")
+UPDATES = ("gauss-seidel", "perseus")
 # Looked up in the time module at each reading, so that a patched time.perf_counter (tests simulating load) reaches
 # the solver.
 CLOCKS: dict[str, Callable[[], float]] = {"wall": lambda: time.perf_counter(), "cpu": lambda: time.process_time()}
@@ -54,12 +60,16 @@ class PerseusConfig:
     # <= tolerance; stop="gain": the classic Perseus rule, stop when improvement itself is <= tolerance.
     tolerance: float = 1e-3
     stop: str = "bound"
+    # update="gauss-seidel": each batch of a stage is backed up against the vectors of V_n still best at a belief
+    # not improved yet and every vector the stage kept so far (_perseus_iteration with a _Seidel: fewer stages, the same
+    # acceptance rule); "perseus": the classic stage, every backup against V_n (chapter 5 and ATPO pin it).
+    update: str = "gauss-seidel"
     max_iterations: int = 10_000
     time_limit: float | None = None
     seed: int = 0
     horizon: int | None = None
     epsilon: float = 0.5  # exploration: probability of a random action (else greedy on the MDP's Q*)
-    batch_size: int = 256  # beliefs backed up together in one vectorised call
+    batch_size: int = 128  # beliefs backed up together in one vectorised call (at most: batches grow from 16)
     blas_threads: int | None = 1  # BLAS threads during the solve (None: library default); see _blas_threads
     # Threads that split the backups' branch scores and the belief set's value products by rows (backup.RowProducts):
     # bit-identical results for any count; 1 (default) starts none, as chapter-5 runs already use worker processes.
@@ -83,6 +93,8 @@ class PerseusConfig:
             raise SolverError(f"tolerance must be >= 0, got {self.tolerance}")
         if self.stop not in STOP_RULES:
             raise SolverError(f"stop must be one of {', '.join(STOP_RULES)}, got {self.stop!r}")
+        if self.update not in UPDATES:
+            raise SolverError(f"update must be one of {', '.join(UPDATES)}, got {self.update!r}")
         if self.horizon is not None and self.horizon < 1:
             raise SolverError(f"horizon must be a positive number of steps, got {self.horizon}")
         if not 0.0 <= self.epsilon <= 1.0:
@@ -191,6 +203,8 @@ def _infinite_horizon(
     round_start, last_round, last_round_time = bounds, 0, clock()
     stage_seconds, stage_gain, trial_wait, trial_skip, trial_seconds = 0.0, 0.0, 0, 0, 0.0
     witness = np.full(len(current), -1)  # per row of current: a belief of B where it is best (-1: unknown)
+    owner = None  # per belief of B: the row of current first best there (None: not known)
+    old_rows = None  # per row of current: its values on B (None: not known)
     for iteration in range(1, config.max_iterations + 1):
         now = clock()
         if config.expand and trial_wait <= 0 and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start)):
@@ -204,6 +218,7 @@ def _infinite_horizon(
                 added = graph.vectors[grown[len(current) :]]
                 witness = np.concatenate([witness, np.full(len(grown) - len(current), -1)])
                 current, alphas, actions = grown, graph.vectors[grown], graph.actions[grown]
+                owner, old_rows = None, None
                 values = np.maximum(values, np.asarray(rows @ added.T).max(axis=1))
             lower_b0 = float((alphas @ b0).max())
             gain = lower_b0 - bounds.lower
@@ -216,9 +231,12 @@ def _infinite_horizon(
         else:
             trial_wait -= 1
         stage_start = clock()
+        seidel = _Seidel(graph, current, owner, old_rows) if config.update == "gauss-seidel" else None
         stage = _perseus_iteration(
-            operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline, clock
+            operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline, clock, seidel
         )
+        if seidel is not None:  # the stage's new vectors are in the graph already; origin indexes extended
+            current, witness = seidel.extended, np.concatenate([witness, seidel.new_witness])
         if stage.timed_out and not stage.vectors.shape[0]:
             iteration -= 1
             break
@@ -229,8 +247,10 @@ def _infinite_horizon(
         improvement = float(np.max(stage.values - values))
         stage_seconds = clock() - stage_start
         current = _record(graph, current, stage, rows, witness)
-        stage.score_rows = None  # (vectors x |B|) floats, no longer needed
+        # (vectors x |B|) floats: a Gauss-Seidel stage reuses them for the vectors it keeps as they are.
+        old_rows, stage.score_rows = stage.score_rows if config.update == "gauss-seidel" else None, None
         witness = stage.witness if stage.witness is not None else np.full(len(current), -1)
+        owner = stage.owner
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
         lower_b0 = float((alphas @ b0).max())
         stage_gain, bounds = lower_b0 - bounds.lower, _Bounds(lower_b0, bounds.upper)
@@ -254,7 +274,7 @@ def _infinite_horizon(
             residual, fixes = _full_backup_check(operator, beliefs, rows, alphas, values, threshold, config)
             if residual > threshold:
                 current = _record(graph, current, fixes.with_old(alphas, actions), rows, witness)
-                witness = np.full(len(current), -1)
+                witness, owner, old_rows = np.full(len(current), -1), None, None
                 alphas, actions = graph.vectors[current], graph.actions[current]
                 values = (rows @ alphas.T).max(axis=1)
                 continue
@@ -299,7 +319,7 @@ def _infinite_horizon(
             beliefs = np.vstack([beliefs, added])
             rows = _belief_rows(beliefs)
             values = np.concatenate([values, (added @ alphas.T).max(axis=1)])
-            on_beliefs = False
+            on_beliefs, owner, old_rows = False, None, None
     report(iteration, improvement)  # the bounds as returned (a last upper-bound round may have moved them)
     stats = SolverStats(
         "perseus",
@@ -419,6 +439,7 @@ class _Stage:
     timed_out: bool = False
     witness: np.ndarray | None = None  # a belief of B where each vector is the best one (None: not known)
     score_rows: list[np.ndarray] | None = None  # per vector, its value at every belief of B (None: not kept)
+    owner: np.ndarray | None = None  # per belief of B, the first vector best there (None: not known)
 
     def with_old(self, alphas: np.ndarray, actions: np.ndarray) -> _Stage:
         """This stage together with every vector of V_n."""
@@ -475,6 +496,58 @@ def _record(
     return graph.keep_closure(new_rows)
 
 
+@dataclass
+class _Seidel:
+    """What a Gauss-Seidel stage (:func:`_perseus_iteration` with ``seidel``) reads and adds beyond a classic one.
+
+    ``current``: the graph rows of V_n; ``owner``: per belief of B, the first vector of V_n best there (None: one
+    product); ``old_rows``: per vector of V_n, its values on B (None: products when needed). The stage adds its new
+    vectors to ``graph`` as it accepts them and sets ``extended`` (``current`` and then their rows: the stage's
+    ``origin`` indexes it) and ``new_witness`` (per new row, the belief it was backed up at)."""
+
+    graph: PlanGraph
+    current: np.ndarray
+    owner: np.ndarray | None
+    old_rows: list[np.ndarray] | None
+    extended: np.ndarray | None = None
+    new_witness: np.ndarray | None = None
+
+
+class _ScoredSet:
+    """The vectors a Gauss-Seidel batch is backed up against: the vectors of V_n marked alive, then every new vector
+    of the stage, in that order (``codes``: V_n's index, or ``count`` + the new vector's). Prepared from parts kept
+    up to date (V_n's float32 columns and fallback scores once per stage, new vectors appended as they come), not
+    anew per batch: the same :class:`PreparedAlphas` as ``operator.prepare`` of those vectors."""
+
+    def __init__(self, operator: BackupOperator, alphas: np.ndarray) -> None:
+        self.operator, self.alphas, self.count = operator, alphas, alphas.shape[0]
+        self.old_t = np.ascontiguousarray(alphas.T, dtype=np.float32)
+        self.old_fallback = operator.fallback_scores(alphas)
+        self.new = np.zeros((0, alphas.shape[1]))
+        self.new_t = np.zeros((alphas.shape[1], 0), dtype=np.float32)
+        self.new_fallback = tuple(np.zeros((scores.shape[0], 0)) for scores in self.old_fallback)
+        self.codes: np.ndarray | None = None
+        self.prepared: PreparedAlphas | None = None
+
+    def prepared_for(self, alive: np.ndarray) -> PreparedAlphas:
+        old = np.flatnonzero(alive)
+        codes = np.concatenate([old, self.count + np.arange(self.new.shape[0])])
+        if self.codes is None or not np.array_equal(codes, self.codes):
+            self.codes = codes
+            self.prepared = self.operator.prepare_parts(
+                np.concatenate([self.alphas[old], self.new]),
+                np.concatenate([self.old_t[:, old], self.new_t], axis=1),
+                tuple(np.concatenate([o[:, old], m], axis=1) for o, m in zip(self.old_fallback, self.new_fallback, strict=True)),
+            )
+        return self.prepared
+
+    def add(self, vectors: np.ndarray) -> None:
+        self.new = np.concatenate([self.new, vectors])
+        self.new_t = np.concatenate([self.new_t, vectors.T.astype(np.float32)], axis=1)
+        scores = self.operator.fallback_scores(vectors)
+        self.new_fallback = tuple(np.concatenate([m, f], axis=1) for m, f in zip(self.new_fallback, scores, strict=True))
+
+
 def _perseus_iteration(
     operator: BackupOperator,
     beliefs: np.ndarray,
@@ -486,21 +559,34 @@ def _perseus_iteration(
     batch_size: int,
     deadline: float | None,
     clock: Callable[[], float],
+    seidel: _Seidel | None = None,
 ) -> _Stage:
     """One Perseus stage ``V_n -> V_{n+1}`` (its vectors, their plans, V_{n+1} on B, whether it timed out).
 
-    ``rows`` is ``beliefs`` in the form used for value products (sparse when the beliefs are).
+    ``rows`` is ``beliefs`` in the form used for value products (sparse when the beliefs are). With ``seidel`` a
+    Gauss-Seidel stage: each batch is backed up against the vectors of V_n still best at a belief not improved yet
+    (or kept as they are) and every new vector the stage accepted so far (same acceptance rule); the new vectors
+    go into ``seidel.graph`` as they are accepted, and ``origin`` indexes ``seidel.extended`` (see :class:`_Seidel`).
     """
     n = beliefs.shape[0]
+    count = alphas.shape[0]
     new_values = np.full(n, -np.inf)
     kept_vectors: list[np.ndarray] = []
     kept_actions: list[int] = []
-    kept_origin: list[int] = []  # index in V_n of a vector kept as it is, -1 for a new backup
+    kept_origin: list[int] = []  # index in V_n of a vector kept as it is; -1 (Gauss-Seidel: extended) for a backup
     kept_children: list[np.ndarray] = []
     no_children = np.zeros(operator.n_observations, dtype=np.int64)
-    kept_old: set[int] = set()
+    kept_old = np.zeros(count, dtype=bool)
     order = rng.permutation(n)
-    prepared = operator.prepare(alphas)
+    if seidel is None:
+        prepared = operator.prepare(alphas)
+    else:
+        scored = _ScoredSet(operator, alphas)
+        owner = seidel.owner
+        if owner is None:
+            owner = np.asarray(np.argmax(rows @ alphas.T, axis=1)).ravel()
+        new_rows: list[np.ndarray] = []
+        new_witness: list[np.ndarray] = []
     # With a sparse (CSR) belief set, each batch's vectors are valued at every belief of B, not only the pending
     # ones: the row of each kept vector is then its value everywhere, and V_{n+1} on B, the stage's pruning and
     # _record's dominance candidates need no further product (each entry is the same CSR row product, so the
@@ -508,21 +594,30 @@ def _perseus_iteration(
     everywhere = sp.issparse(rows)
     score_rows: list[np.ndarray] = []  # with `everywhere`: per kept vector, its values on B
     size = min(batch_size, 16)
+    timed_out = False
     while True:
         if deadline is not None and clock() > deadline:
-            return _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, True)
+            timed_out = True
+            break
         pending = order[new_values[order] < values[order]]  # B~: not improved yet, in random order
         if pending.size == 0:
             break
+        if seidel is not None:
+            alive = kept_old.copy()
+            alive[owner[new_values < values]] = True
+            prepared = scored.prepared_for(alive)
         # Growing batches: early in a stage a few vectors cover most beliefs, so small batches avoid
         # computing backups that the Perseus rule would discard; later batches amortise the fixed costs.
         batch = pending[:size]
         size = min(batch_size, 2 * size)
         vectors, vector_actions, _, children = operator.backup(beliefs[batch], prepared, with_children=True)
+        if seidel is not None:
+            children = scored.codes[children]
         pending_beliefs = rows[pending]
         # (P, m): pending beliefs' values under the new vectors
         candidate_values = operator.products(pending_beliefs, vectors.T)
         kept_here: list[int | np.ndarray] = []  # with `everywhere`: a new vector's column j, or an old one's values
+        accepted: list[int] = []
         pending_new = new_values[pending]
         pending_old = values[pending]
         for j, index in enumerate(batch):  # batch == pending[:m], so belief `index` sits at row j
@@ -532,31 +627,44 @@ def _perseus_iteration(
             if candidate_values[j, j] >= pending_old[j]:
                 kept_vectors.append(vectors[j])
                 kept_actions.append(int(vector_actions[j]))
-                kept_origin.append(-1)
+                kept_origin.append(-1 if seidel is None else count + scored.new.shape[0] + len(accepted))
                 kept_children.append(children[j])
+                accepted.append(j)
                 np.maximum(pending_new, candidate_values[:, j], out=pending_new)
                 kept_here.append(j)
             else:
-                old = int(np.argmax(alphas @ beliefs[index]))
-                if old not in kept_old:
-                    kept_old.add(old)
+                # V_n's best vector at b (b is pending: V_n's value there is still its value)
+                old = int(np.argmax(alphas @ beliefs[index])) if seidel is None else int(owner[index])
+                if not kept_old[old]:
+                    kept_old[old] = True
                     kept_vectors.append(alphas[old])
                     kept_actions.append(int(actions[old]))
                     kept_origin.append(old)
                     kept_children.append(no_children)
                     if everywhere:
-                        kept_here.append(np.asarray(rows @ alphas[old][:, None]).ravel())
+                        known = None if seidel is None or seidel.old_rows is None else seidel.old_rows[old]
+                        kept_here.append(np.asarray(rows @ alphas[old][:, None]).ravel() if known is None else known)
                         np.maximum(pending_new, kept_here[-1][pending], out=pending_new)
                     else:
                         np.maximum(pending_new, (pending_beliefs @ alphas[old][:, None]).ravel(), out=pending_new)
                 # V_n(b) is kept exactly (guards against a last-bit difference between matvec and matmul).
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
+        if seidel is not None and accepted:
+            extended = np.concatenate([seidel.current, *new_rows])
+            new_rows.append(seidel.graph.add(vectors[accepted], vector_actions[accepted], extended[children[accepted]]))
+            new_witness.append(batch[accepted])
+            scored.add(vectors[accepted])
         if everywhere and kept_here:
             score_rows.extend(
                 _values_everywhere(rows, vectors, kept_here, pending, candidate_values, operator.products)
             )
-    stage = _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, False)
+    if seidel is not None:
+        seidel.extended = np.concatenate([seidel.current, *new_rows])
+        seidel.new_witness = np.concatenate(new_witness) if new_witness else np.zeros(0, dtype=np.int64)
+    stage = _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, timed_out)
+    if timed_out:
+        return stage
     # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning
     # of the vectors maximal at no belief of B: V_{n+1} on B is unchanged and later backups get cheaper (the
     # plan graph still keeps those that remaining plans continue with).
@@ -575,6 +683,7 @@ def _perseus_iteration(
         values,
         witness=witness,
         score_rows=[score_rows[k] for k in keep] if everywhere else None,
+        owner=np.searchsorted(keep, best),
     )
 
 

@@ -540,7 +540,8 @@ def sweep_config(
 def solver_settings(library, options: dict) -> dict:
     """The Perseus settings (``PerseusConfig`` fields, part of the policy-cache key) of a session's ``options``:
     Table 5.2's belief-set size unless ``beliefs``, Table 5.4's tolerance, at most ``solve_stages`` stages (default
-    :data:`SOLVE_STAGES`), ``solve_seconds`` of wall-clock time if given (else none), seed 0."""
+    :data:`SOLVE_STAGES`), ``solve_seconds`` of wall-clock time if given (else none), seed 0, classic Perseus stages
+    (``update="perseus"``)."""
     stages = options.get("solve_stages") or SOLVE_STAGES.get(library.domain, SOLVE_STAGES["map"])
     return {
         "n_beliefs": int(options.get("beliefs") or library.n_beliefs),
@@ -548,6 +549,7 @@ def solver_settings(library, options: dict) -> dict:
         "max_iterations": int(stages),
         "time_limit": options.get("solve_seconds"),
         "seed": 0,
+        "update": "perseus",  # the thesis's solver (Perseus' own stages): the tables keep their policies
     }
 
 

@@ -26,8 +26,9 @@ __all__ = ["AGENT_NAMES", "DEFAULT_PERSEUS", "clear_cache", "hotspot_plan", "mak
 AGENT_NAMES: tuple[str, ...] = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
 """Agents ``make_agent`` builds. ``oracle`` and ``bopa`` observe the state (``observes_state = True``)."""
 
-DEFAULT_PERSEUS = {"n_beliefs": 200, "tolerance": 1e-2, "time_limit": 60.0, "seed": 0}
-"""ATPO's Perseus settings (``PerseusConfig`` fields) unless ``perseus`` is given (Table 5.2: tolerance 0.01).
+DEFAULT_PERSEUS = {"n_beliefs": 200, "tolerance": 1e-2, "time_limit": 60.0, "seed": 0, "update": "perseus"}
+"""ATPO's Perseus settings (``PerseusConfig`` fields) unless ``perseus`` is given (Table 5.2: tolerance 0.01; the
+classic Perseus stage the thesis used, so the reproduced figures keep their policies).
 The solver seed is part of these settings, not of ``rng_seed``, so every trial reuses the cached solution."""
 
 _CACHE: dict[tuple[int, ...], dict] = {}
