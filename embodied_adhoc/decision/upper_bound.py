@@ -121,7 +121,10 @@ class SawtoothBound:
             positions = np.repeat(self._starts[points] - np.cumsum(lengths) + lengths, lengths) + np.arange(
                 lengths.sum()
             )
-            ratios = beliefs[np.repeat(rows, lengths), self._support[positions]] / self._masses[positions]
+            # A mass near the smallest doubles can make its ratio overflow to inf: harmless, since a point's masses
+            # sum to 1, so one of them is >= 1 / its support size and phi (their minimum) stays finite.
+            with np.errstate(over="ignore"):
+                ratios = beliefs[np.repeat(rows, lengths), self._support[positions]] / self._masses[positions]
             phi = np.minimum.reduceat(ratios, np.cumsum(lengths) - lengths)
             np.minimum.at(terms, rows, phi * self._excess[points])
         sawtooth = beliefs @ self.corners + terms
