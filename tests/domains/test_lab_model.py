@@ -5,9 +5,9 @@ import pytest
 
 from embodied_adhoc.domains.lab import LabGraph, LabReward, apply_step, build_lab_library
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND, HELD
+from embodied_adhoc.domains.lab_human import HumanOutcome, LabHuman
 from embodied_adhoc.domains.lab_observations import LabObservation
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.domains.lab_human import HumanOutcome, LabHuman
 
 
 @pytest.fixture(scope="module")

@@ -9,10 +9,10 @@ import torch
 from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.domains.pursuit4 import TEAMS, Pursuit4
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, run_trial
 from embodied_adhoc.learning.blocks import NumpyMlp
 from embodied_adhoc.learning.dqn import Dqn
 from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
-from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, run_trial
 from embodied_adhoc.learning.weights import WeightsError
 
 torch.set_num_threads(1)
