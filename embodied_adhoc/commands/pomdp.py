@@ -79,7 +79,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default="gauss-seidel",
         help="Perseus stages: 'gauss-seidel' (default) = each batch also continues with the vectors its stage "
         "already kept (fewer stages); 'perseus' = the classic stage, every backup against V_n (Spaan & Vlassis; "
-        "the values of the fixed-set solver before issue 12's fourth session, and chapter 5's policies)",
+        "the values of the fixed-set solver before the Gauss-Seidel stages, and chapter 5's policies)",
     )
     solve.add_argument(
         "--precision",

@@ -585,7 +585,7 @@ def _perseus_iteration(
         owner = seidel.owner
         if owner is None:
             owner = np.asarray(np.argmax(rows @ alphas.T, axis=1)).ravel()
-        new_rows: list[np.ndarray] = []
+        extended = seidel.current  # V_n's rows, then the stage's new ones as they enter the graph
         new_witness: list[np.ndarray] = []
     # With a sparse (CSR) belief set, each batch's vectors are valued at every belief of B, not only the pending
     # ones: the row of each kept vector is then its value everywhere, and V_{n+1} on B, the stage's pruning and
@@ -651,8 +651,8 @@ def _perseus_iteration(
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
         if seidel is not None and accepted:
-            extended = np.concatenate([seidel.current, *new_rows])
-            new_rows.append(seidel.graph.add(vectors[accepted], vector_actions[accepted], extended[children[accepted]]))
+            added = seidel.graph.add(vectors[accepted], vector_actions[accepted], extended[children[accepted]])
+            extended = np.concatenate([extended, added])
             new_witness.append(batch[accepted])
             scored.add(vectors[accepted])
         if everywhere and kept_here:
@@ -660,7 +660,7 @@ def _perseus_iteration(
                 _values_everywhere(rows, vectors, kept_here, pending, candidate_values, operator.products)
             )
     if seidel is not None:
-        seidel.extended = np.concatenate([seidel.current, *new_rows])
+        seidel.extended = extended
         seidel.new_witness = np.concatenate(new_witness) if new_witness else np.zeros(0, dtype=np.int64)
     stage = _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, timed_out)
     if timed_out:
