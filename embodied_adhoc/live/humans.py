@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import queue
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -40,6 +41,7 @@ DIRECTIONS = {"up": (0.0, 1.0), "down": (0.0, -1.0), "left": (-1.0, 0.0), "right
 
 WALL_MARGIN = 0.25  # m the human's centre keeps from a wall (its shoulders are ~0.25 m from the centre)
 REACH = 1.5  # m within which the participant's pick key takes a ball lying in the same area
+ROBOT_CLEARANCE = 0.55  # m between the walker's and the robot's centres (chassis half-length + shoulders)
 
 
 @dataclass(frozen=True)
@@ -181,6 +183,8 @@ class Participant:
         )
         self._pending_motion: tuple[int, float] | None = None  # (seq, wall time received) of a key change
         self._reply: Reply | None = None
+        self._motion: tuple[str, int] | None = None  # the pick or drop under way: (kind, ball)
+        self.on_event: Callable[[dict], None] | None = None  # question asked, pick/drop outcome (sim thread)
 
     # ---------------------------------------------------------------- other threads
     def keys(self, held, seq: int) -> None:
@@ -200,7 +204,7 @@ class Participant:
 
     # ---------------------------------------------------------------- simulation thread
     def reset(self, env) -> None:
-        self.held, self.question_open, self._reply = frozenset(), False, None
+        self.held, self.question_open, self._reply, self._motion = frozenset(), False, None, None
 
     def tick(self, env, dt: float) -> None:
         while True:
@@ -214,6 +218,7 @@ class Participant:
             env.tick_walker(dt)
             if walker.finished:
                 self.notice = walker.status  # "picked ball 2", or why a drop failed
+                self._motion_finished(env, walker)
             return
         direction = np.zeros(2)
         for key in self.held:
@@ -229,8 +234,9 @@ class Participant:
             np.array([0.0, step[1]]),
             _towards_passage(env.layout, walker.xy, step),
         )
+        robot = np.asarray(env.world.true_robot_pose()[:2])
         for move in moves:  # straight, else slide along the wall, else towards a nearby passage
-            if np.any(move) and walkable(env.layout, walker.xy + move):
+            if np.any(move) and walkable(env.layout, walker.xy + move) and _clear_of(robot, walker.xy, move):
                 walker.xy = walker.xy + move
                 moved = True
                 break
@@ -246,9 +252,18 @@ class Participant:
             self.log.motion_latency_s.append(time.perf_counter() - self._pending_motion[1])
             self._pending_motion = None
 
+    def _motion_finished(self, env, walker) -> None:
+        """The outcome of a pick or drop motion, for the log and the page."""
+        kind, ball = self._motion if self._motion is not None else ("motion", None)
+        self._motion = None
+        entry = _entry(env, kind, ball=ball, result=walker.status, succeeded=bool(walker.succeeded))
+        self.log.entries.append(entry)
+        if self.on_event is not None:
+            self.on_event(entry)
+
     def _apply(self, env, kind: str, value, seq: int, received: float) -> None:
         self.last_seq = max(self.last_seq, seq)
-        entry = {"seq": seq, "kind": kind, "sim_time": round(float(env.world.data.time), 3)}
+        entry = _entry(env, kind, seq=seq)
         if kind == "keys":
             if value - self.held:
                 self._pending_motion = (seq, received)
@@ -277,6 +292,7 @@ class Participant:
             robot_node = env.true_robot_node(truth)
             if robot_node != walker.node:
                 return self._say("the robot must be in your area to drop the ball into its container")
+            self._motion = ("drop", walker.holding)
             walker.start(HumanCommand.drop_into_container(walker.holding), world.senses())
             return self._say(f"dropping ball {walker.holding}")
         candidates = [
@@ -287,6 +303,7 @@ class Participant:
         if not candidates or min(candidates)[0] > REACH:
             return self._say(f"no ball on the floor within {REACH} m in your area")
         ball = min(candidates)[1]
+        self._motion = ("pick", ball)
         walker.start(HumanCommand.pick(ball), world.senses())
         return self._say(f"picking up ball {ball}")
 
@@ -296,9 +313,10 @@ class Participant:
 
     def ask(self, env, true_node: int) -> None:
         self.question_open, self._reply = True, None
-        self.log.entries.append(
-            {"kind": "question", "text": WHERE_ARE_YOU, "sim_time": round(float(env.world.data.time), 3)}
-        )
+        entry = _entry(env, "question", text=WHERE_ARE_YOU)
+        self.log.entries.append(entry)
+        if self.on_event is not None:
+            self.on_event(entry)
 
     def reply(self, env) -> Reply | None:
         reply, self._reply = self._reply, None
@@ -307,3 +325,24 @@ class Participant:
     def close_question(self) -> None:
         """The robot stopped waiting (timeout): a late answer is ignored."""
         self.question_open = False
+
+    def note(self, env, kind: str, **detail) -> None:
+        """An event of the session (a page connected or left) in the input log, at the simulation's time."""
+        self.log.entries.append(_entry(env, kind, **detail))
+
+
+def _entry(env, kind: str, **detail) -> dict:
+    """One input-log entry: what happened, at which simulated and wall-clock (Unix, UTC) time."""
+    return {
+        "kind": kind,
+        "sim_time": round(float(env.world.data.time), 3),
+        "wall_time": round(time.time(), 3),
+        **detail,
+    }
+
+
+def _clear_of(robot: np.ndarray, xy: np.ndarray, move: np.ndarray) -> bool:
+    """The walker stops at the robot's footprint: a step may not end within ``ROBOT_CLEARANCE`` of the robot's
+    centre unless it leads away from it (so a walker the robot drove up to can always step back)."""
+    after = float(np.hypot(*(xy + move - robot)))
+    return after >= ROBOT_CLEARANCE or after > float(np.hypot(*(xy - robot)))

@@ -95,6 +95,14 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
     | ``reply_timeout`` | 20.0 | simulated seconds "locate human" waits for an answer before it hears none |
     | ``tick_listener`` | None | called with the env after every control tick (simulation thread): live frames |
     | ``stop`` | None | a ``threading.Event`` that ends the loop (:class:`LiveStopped`) |
+    | ``question_interval`` | 0.0 | simulated seconds after an answer before the robot asks again (it stays meanwhile) |
+    | ``question_gate`` | None | called when a question is held back: True lets it through at once (the agent's belief moved) |
+
+    Contact: a ball the human carries touches nothing (its geoms' collision bits are cleared while its grasp weld
+    is active, restored on release), so the kinematic walker cannot push the robot or knock balls out of its
+    container; the walker itself has no contacts (``assets/props/human.xml``). A hand-over under way (the walker's
+    drop motion) holds the robot still (``LabWorld.tick(drive=False)``: its route waits) and the robot's action
+    does not complete before the drop has succeeded or failed.
 
     Extra ``info`` keys: ``realtime_slip_s`` (wall seconds the clock skipped, 0 when it kept up),
     ``reply_wait_s`` (simulated seconds the robot waited for an answer), ``decision_wait_s`` (simulated seconds
@@ -108,9 +116,22 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         reply_timeout: float = 20.0,
         tick_listener: Callable[[RealtimeToxicWasteEnv], None] | None = None,
         stop: threading.Event | None = None,
+        question_interval: float = 0.0,
+        question_gate: Callable[[], bool] | None = None,
         **kwargs,
     ) -> None:
         super().__init__(**kwargs)
+        model = self.world.model
+        self._ball_geoms = [
+            np.flatnonzero(model.geom_bodyid == body) for body in self.world.ids.ball_bodies.tolist()
+        ]
+        self._ball_collision = [
+            (model.geom_contype[g].copy(), model.geom_conaffinity[g].copy()) for g in self._ball_geoms
+        ]
+        self._ball_held = [False] * len(self._ball_geoms)
+        self.question_interval = checks.number("question_interval", question_interval, 0.0)
+        self.question_gate = question_gate
+        self.last_answer_time: float | None = None
         self.human_driver = human if human is not None else ScriptedHuman()
         self.clock = RealtimeClock(speed, stop=stop)
         self.reply_timeout = checks.number("reply_timeout", reply_timeout, 0.0, low_open=True)
@@ -136,13 +157,37 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         return _area(self.layout, truth.robot_pose, truth.robot_node)
 
     def tick_walker(self, dt: float) -> None:
-        """Advance the walker's motion script one tick and apply its grasp/release events and pose."""
+        """Advance the walker's motion script one tick and apply its grasp/release events and pose; a carried
+        ball's collisions are off while it is carried (class docstring)."""
         self.world.tick_human(dt)
+        self._sync_ball_contacts()
+
+    def _sync_ball_contacts(self) -> None:
+        world = self.world
+        held = world.data.eq_active[world.ids.grasp_welds].tolist()
+        for ball, now_held in enumerate(held):
+            if bool(now_held) == self._ball_held[ball]:
+                continue
+            geoms, (contype, conaffinity) = self._ball_geoms[ball], self._ball_collision[ball]
+            world.model.geom_contype[geoms] = 0 if now_held else contype
+            world.model.geom_conaffinity[geoms] = 0 if now_held else conaffinity
+            self._ball_held[ball] = bool(now_held)
+
+    @property
+    def handover_under_way(self) -> bool:
+        """The walker is playing its drop motion (stepping up to the container, reaching, letting go)."""
+        walker = self.world.human
+        return not walker.finished and walker.status == "drop_into_container started"
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         observation, info = super().reset(seed=seed, options=options)
         self.current_action, self.question_open = None, False
+        self.last_answer_time = None
+        self._ball_held = [False] * len(self._ball_geoms)
+        model = self.world.model
+        for geoms, (contype, conaffinity) in zip(self._ball_geoms, self._ball_collision, strict=True):
+            model.geom_contype[geoms], model.geom_conaffinity[geoms] = contype, conaffinity
         self._warnings_mark = self.world.warning_count()
         self.human_driver.reset(self)
         self.clock.start(self.world.data.time)
@@ -169,6 +214,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
         asking = self.speech is not None and action == lib.locate_action
         reply = None
         if asking:
+            self._hold_question()
             self.question_open = True
             self.human_driver.ask(self, world.ground_truth().human_node)
             reply = self.human_driver.reply(self)
@@ -176,11 +222,15 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
             while True:
                 elapsed = data.time - start
                 answered = not asking or reply is not None or elapsed >= self.reply_timeout
+                handing_over = self.handover_under_way
                 if elapsed >= world.config.macro_timeout or (
-                    answered and controller.finished and elapsed >= world.config.min_macro_seconds
+                    answered
+                    and controller.finished
+                    and elapsed >= world.config.min_macro_seconds
+                    and not handing_over
                 ):
                     break
-                self._tick(drive=True)
+                self._tick(drive=not handing_over)
                 if asking and reply is None:
                     reply = self.human_driver.reply(self)
                 self.clock.wait_for(data.time)
@@ -189,9 +239,23 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
             data.ctrl[world.ids.wheel_actuators] = 0.0
         if asking and reply is None and hasattr(self.human_driver, "close_question"):
             self.human_driver.close_question()
+        if asking:
+            self.last_answer_time = data.time
         return self._finish_step(action, target, reward, start, kidnaps_before, asking, reply, decision_wait)
 
     # ------------------------------------------------------------------ internals
+    def _hold_question(self) -> None:
+        """Stay (the robot's "locate human" has no route) until ``question_interval`` simulated seconds have
+        passed since the previous question closed, unless ``question_gate`` lets the question through."""
+        if self.last_answer_time is None or self.question_interval <= 0:
+            return
+        data = self.world.data
+        while data.time - self.last_answer_time < self.question_interval - 1e-9:
+            if self.question_gate is not None and self.question_gate():
+                return
+            self._tick(drive=not self.handover_under_way)
+            self.clock.wait_for(data.time)
+
     def _tick(self, drive: bool) -> None:
         """One control tick of the world (``LabWorld.tick``: the robot's current macro action when ``drive``,
         else standing still while its agent decides) with the human moved by its driver, then the listener."""

@@ -212,6 +212,7 @@ class LabWorld:
         odometry_seed, rfid_seed, lidar_seed, localiser_seed = np.random.SeedSequence(int(seed)).spawn(4)
         self.odometry.rng = np.random.default_rng(odometry_seed)
         self._lidar_rng = np.random.default_rng(lidar_seed)
+        self.lidar.reset_counts()
         self.rfid.reset(np.random.default_rng(rfid_seed))
         mujoco.mj_resetData(self.model, self.data)
         qpos = self.data.qpos
@@ -353,6 +354,11 @@ class LabWorld:
                     self._stalled = True
                 self._progress_pose, self._progress_time = estimate, data.time
             wheels = controller.update(data.time - self._action_start, estimate)
+        elif not controller.finished:
+            # a robot held still (its agent deciding, a hand-over under way) resumes its route where it stopped:
+            # the route's time reference and the stall window wait with it
+            self._action_start += config.control_period
+            self._progress_time += config.control_period
         data.ctrl[self.ids.wheel_actuators] = wheels
         if human is None:
             self.tick_human(config.control_period)
@@ -389,6 +395,24 @@ class LabWorld:
         """The current/last macro action could not reach its goal: the stall detector stopped it, or the
         controller gave up (or ran out of time) short of the goal. False for "stay"."""
         return self._stalled or (self._action_target is not None and not self.controller.arrived)
+
+    def fault_counts(self) -> dict[str, int | float]:
+        """The sensor faults injected since the reset, by what they did (diagnostics, never robot observations):
+
+        ``rfid_reads`` balls that entered the container (one read attempt each), ``rfid_misses`` of those the
+        reader missed; ``lidar_beams`` beams of the scans the localiser read, ``lidar_dropped_beams`` of those lost
+        to dropout or a dead lidar; ``wheel_slip_m`` and ``encoder_noise_m`` metres of wheel travel the radius
+        error and the encoder noise added to or removed from the odometry (``WheelOdometry``);
+        ``relocalisations`` times the localiser declared itself lost and re-seeded."""
+        return {
+            "rfid_reads": self.rfid.attempts,
+            "rfid_misses": self.rfid.misses,
+            "lidar_beams": self.lidar.beams_read,
+            "lidar_dropped_beams": self.lidar.dropped_beams,
+            "wheel_slip_m": self.odometry.slip_distance,
+            "encoder_noise_m": self.odometry.noise_distance,
+            "relocalisations": 0 if self.localiser is None else self.localiser.kidnaps,
+        }
 
     def warning_count(self) -> int:
         """MuJoCo warnings raised since the reset (0 in a healthy run)."""

@@ -46,11 +46,17 @@ def test_unpaced_scripted_episode_is_a_function_of_the_seed():
 
 def test_macro_actions_end_when_the_robot_is_done_not_when_the_human_is():
     """Turn-based steps last until both teammates are done; here a "locate human" or "stay" step lasts the
-    minimum (1 s simulated) while the human's own commands run on across steps."""
+    minimum (1 s simulated) while the human's own commands run on across steps, unless a hand-over is under way:
+    then the robot waits for the ball, and the step ends with one more ball in the container."""
     _, steps = _run(1, 14, speed=None)
     times = np.diff([0.0] + [t for _, _, t, _ in steps])
-    short = [dt for (action, _, _, _), dt in zip(steps, times, strict=True) if action >= 3]
-    assert short and all(0.99 <= dt <= 1.1 for dt in short), short
+    disposed = [sum(s == 2 for s in status) for _, _, _, status in steps]
+    gained = np.diff([0, *disposed])
+    short = [
+        (dt, int(more)) for (action, *_), dt, more in zip(steps, times, gained, strict=True) if action >= 3
+    ]
+    assert short and all(0.99 <= dt <= 1.1 or (dt > 1.1 and more == 1) for dt, more in short), short
+    assert any(0.99 <= dt <= 1.1 for dt, _ in short)
 
 
 def test_a_full_scripted_episode_finishes():
@@ -124,7 +130,8 @@ def test_the_participant_picks_a_ball_in_reach_and_answers_by_typing():
         _, _, _, _, info = env.step(env.library.locate_action)
         assert env.library.decode_observation(info["observation_index"]).human_node == 1
         assert info["utterances"] == ("typed",)
-        assert [e["kind"] for e in person.log.entries] == ["act", "question", "reply"]
+        assert [e["kind"] for e in person.log.entries] == ["act", "pick", "question", "reply"]
+        assert person.log.entries[1]["succeeded"] and person.log.entries[1]["result"] == "picked ball 1"
     finally:
         env.close()
 
@@ -185,5 +192,77 @@ def test_a_slow_decision_passes_in_the_simulation_and_a_slow_machine_slips():
         env.clock.start(env.world.data.time + 3.0)  # three seconds behind: more than max_lag
         _, _, _, _, info = env.step(env.library.stay_action)
         assert info["realtime_slip_s"] >= 1.0
+    finally:
+        env.close()
+
+
+def _upright(env) -> float:
+    """The z component of the robot base's up axis (1: upright)."""
+    body = env.world.model.body("base").id
+    return float(env.world.data.xmat[body].reshape(3, 3)[2, 2])
+
+
+def test_pushing_the_walker_with_a_ball_against_the_robot_moves_nothing():
+    """The walker stops at the robot's footprint and a carried ball touches nothing: five seconds of walking
+    into the robot leave it upright and in place, and the ball already in its container stays there."""
+    from embodied_adhoc.live.humans import ROBOT_CLEARANCE
+
+    person = Participant()
+    env = _env(person)
+    try:
+        world = env.world
+        data, ids = world.data, world.ids
+        address = ids.ball_qpos[0]  # ball 0 into the container, then let it settle
+        data.qpos[address : address + 3] = data.site_xpos[ids.rfid_site] + [0.0, 0.0, 0.05]
+        data.qvel[ids.ball_dof[0] : ids.ball_dof[0] + 6] = 0.0
+        for _ in range(100):
+            env._tick(False)
+        assert world.ground_truth().ball_states[0] == "container"
+        ball = np.array(world.ground_truth().ball_positions[1][:2])
+        world.human.xy = ball + [0.6, 0.0]
+        person.act(seq=1)
+        for _ in range(300):
+            env._tick(False)
+        assert world.human.holding == 1
+        carried = world.model.geom_bodyid == ids.ball_bodies[1]
+        assert not world.model.geom_contype[carried].any() and not world.model.geom_conaffinity[carried].any()
+        robot = np.array(world.true_robot_pose()[:2])
+        keys = {(1.0, 0.0): "left", (-1.0, 0.0): "right", (0.0, 1.0): "down", (0.0, -1.0): "up"}
+        pushed = 0
+        for side, key in keys.items():  # from every side the walker can stand on, the ball hand first or not
+            for lateral in (-0.3, 0.0, 0.3):
+                start = robot + 1.0 * np.array(side) + lateral * np.array(side[::-1])
+                if not walkable(env.layout, start):
+                    continue
+                world.human.xy, pushed = start, pushed + 1
+                person.keys({key}, seq=2 * pushed)
+                closest = np.inf
+                for _ in range(100):  # 2 s of walking into the robot
+                    env._tick(False)
+                    closest = min(closest, float(np.hypot(*(world.human.xy - robot))))
+                    assert world.ground_truth().ball_states[0] == "container"
+                    assert _upright(env) > 0.99
+                person.keys(set(), seq=2 * pushed + 1)
+                env._tick(False)
+                assert closest >= ROBOT_CLEARANCE - 0.05
+        assert pushed >= 3
+        assert float(np.hypot(*(np.array(world.true_robot_pose()[:2]) - robot))) < 0.02
+        assert world.ground_truth().ball_states[1] == "held"
+    finally:
+        env.close()
+
+
+def test_a_question_waits_for_the_interval_after_an_answer_unless_the_belief_moved():
+    gate = {"open": False}
+    env = _env(ScriptedHuman(), question_interval=8.0, question_gate=lambda: gate["open"])
+    try:
+        env.step(env.library.locate_action)
+        answered = env.last_answer_time
+        env.step(env.library.locate_action)
+        assert env.world.data.time - answered >= 8.0 - 1e-6  # the robot stayed until the interval had passed
+        gate["open"] = True
+        answered = env.last_answer_time
+        env.step(env.library.locate_action)
+        assert env.world.data.time - answered < 2.0  # the belief moved: asked at once
     finally:
         env.close()
