@@ -39,7 +39,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    toxic.add_argument("--agent", choices=AGENTS, default="hotspot", help="decision agent (default hotspot)")
+    toxic.add_argument(
+        "--agent",
+        default="hotspot",
+        metavar="NAME|MODULE:CALLABLE|FILE.py:CALLABLE",
+        help=f"decision agent: {', '.join(AGENTS)} (default hotspot), or a plug-in (docs/plugins.md)",
+    )
     toxic.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
     toxic.add_argument("--task", type=int, default=None, metavar="K", help="true task index (default: drawn)")
     toxic.add_argument(
@@ -128,6 +133,10 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
 
     if args.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {args.max_steps}")
+    from embodied_adhoc.experiments.registry import agent_plugin
+    from embodied_adhoc.experiments.toxic_waste import DOMAIN
+
+    agent_plugin(DOMAIN, args.agent, "--agent")  # an unknown name or a broken plug-in stops here, before any model
     config = EpisodeConfig(
         agent=args.agent,
         seed=args.seed,

@@ -41,7 +41,9 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    pursuit.add_argument("--agent", choices=PURSUIT_AGENTS, default="hotspot", help="decision agent (hotspot)")
+    pursuit.add_argument("--agent", default="hotspot", metavar="NAME|MODULE:CALLABLE",
+                         help=f"decision agent: {', '.join(PURSUIT_AGENTS)} (default hotspot), or a plug-in "
+                              "(docs/plugins.md)")
     pursuit.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
     pursuit.add_argument("--task", type=int, default=None, metavar="K",
                          help="true task 1..4 (N+S, W+E, SW+NE, NW+SE; default: drawn)")
@@ -61,7 +63,9 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
         epilog=FORAGING_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    foraging.add_argument("--agent", choices=FORAGING_AGENTS, default="atlpo-mf", help="ad hoc agent (atlpo-mf)")
+    foraging.add_argument("--agent", default="atlpo-mf", metavar="NAME|MODULE:CALLABLE",
+                          help=f"ad hoc agent: {', '.join(FORAGING_AGENTS)} (default atlpo-mf), or a plug-in "
+                               "(docs/plugins.md)")
     foraging.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
     foraging.add_argument("--task", type=int, default=None, metavar="K", help="true task 1..4 (default: drawn)")
     foraging.add_argument("--team", default="tau0,tau1,tau2", metavar="NAME[,NAME]",

@@ -61,7 +61,8 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
         default=",".join(domain.default_agents),
         metavar="A,B,...",
         help=f"comma-separated agents from {{{', '.join(domain.agent_names)}}} "
-        f"(default {','.join(domain.default_agents)})",
+        f"(default {','.join(domain.default_agents)}), or plug-ins: MODULE:CALLABLE, path/to/file.py:CALLABLE or "
+        "an installed entry point (docs/plugins.md)",
     )
     parser.add_argument("--episodes", type=int, default=32, help="episodes per agent (default 32)")
     parser.add_argument("--seed", type=seed, default=0, help="seed of the whole sweep, >= 0 (default 0)")

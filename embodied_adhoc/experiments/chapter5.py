@@ -34,6 +34,7 @@ import time
 
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "LibraryEnv", "RandomPickerAgent", "return_table", "timing_line"]
@@ -87,7 +88,7 @@ class LibraryEnv:
         return None
 
 
-class RandomPickerAgent:
+class RandomPickerAgent(AgentBase):
     """ATPO's policies, but the model is picked uniformly at random at each episode start (section 5.2.4)."""
 
     observes_state = False

@@ -6,7 +6,7 @@ episode the same way::
 
     obs, info = env.reset(seed=env_seed, options=reset_options)
     agent.reset(agent_rng, state=info["state"] if agent.observes_state else None)
-    agent.start(obs)                          # only agents that declare observes_raw (ATLPO)
+    agent.start(obs)                          # a no-op unless the agent reads raw observations (ATLPO)
     repeat up to max_steps:  a = agent.act(); obs, r, terminated, truncated, info = env.step(a)
                              agent.observe(a, z, state=info["state"] if agent.observes_state else None)
 
@@ -95,7 +95,7 @@ class EpisodeObserver:
 
 
 def _posterior(agent) -> np.ndarray | None:
-    posterior = getattr(agent, "task_posterior", None)
+    posterior = agent.task_posterior
     return None if posterior is None else np.array(posterior, dtype=np.float64, copy=True)
 
 
@@ -116,12 +116,11 @@ def run_episode_loop(
     trace = EpisodeTrace()
     observation, info = env.reset(seed=env_seed, options=reset_options)
     trace.reset_info = info
-    privileged = bool(getattr(agent, "observes_state", False))
-    raw = bool(getattr(agent, "observes_raw", False))
-    rewarded = bool(getattr(agent, "observes_reward", False))
+    # The capability flags of the Agent protocol (decision/agents/base.py), checked when the agent was built.
+    privileged, raw = bool(agent.observes_state), bool(agent.observes_raw)
+    rewarded = bool(agent.observes_reward)
     agent.reset(agent_rng, state=info["state"] if privileged else None)
-    if raw:
-        agent.start(observation)
+    agent.start(observation)
     trace.posteriors.append(_posterior(agent))
     for observer in observers:
         observer.episode_started(info, trace.posteriors[0])

@@ -18,9 +18,11 @@ from __future__ import annotations
 import argparse
 import json
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.errors import ConfigError
 
 ENV_IDS = {
@@ -30,7 +32,7 @@ ENV_IDS = {
 }
 
 
-class RandomAgent:
+class RandomAgent(AgentBase):
     """Uniform over the five actions."""
 
     name, observes_state, task_posterior = "random", False, None
@@ -45,7 +47,7 @@ class RandomAgent:
         pass
 
 
-class OriginalTeammateAgent:
+class OriginalTeammateAgent(AgentBase):
     """The team's own policy in the ad hoc robot's seat (thesis section 6.2.4): knows task and team and sees
     the full state (``info['state']``), hence ``observes_state``."""
 
@@ -68,6 +70,17 @@ class OriginalTeammateAgent:
         self.state = state
 
 
+@dataclass(frozen=True)
+class GridLibrary:
+    """The grid arenas' library for plug-in agents: ``rules`` (``GridRules``: ``rules.config`` has rows, cols,
+    agents), ``tasks`` (the four forage/capture tasks), ``teams`` (team name -> team spec)."""
+
+    rules: object
+    tasks: tuple
+    teams: dict
+    n_actions: int = 5
+
+
 class GridTrialSession:
     def __init__(self, domain: str, backend: str, options: dict) -> None:
         import gymnasium
@@ -81,6 +94,9 @@ class GridTrialSession:
         self.rules, self.tasks, self.teams = probe.core.rules, probe.core.tasks, probe.core.teams
         probe.close()
         self.task_names = tuple(task.name for task in self.tasks)
+        # what a plug-in agent's factory receives (experiments.registry.build_agent): the arena's rules, tasks
+        # and named teams; the actions are the indices of domains.grid_rules.ACTION_NAMES
+        self.agent_library = GridLibrary(self.rules, self.tasks, self.teams)
 
     def make_env(self, max_steps: int):
         import gymnasium

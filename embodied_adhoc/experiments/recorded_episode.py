@@ -453,7 +453,10 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
     env = gymnasium.make(
         ENV_ID, max_episode_steps=int(config.max_steps), disable_env_checker=True, **setup.env_kwargs
     )
-    agent = session.make_agent(config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
+    from embodied_adhoc.experiments.registry import build_agent
+    from embodied_adhoc.experiments.toxic_waste import DOMAIN
+
+    agent = build_agent(DOMAIN, session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
     metrics = episode_metrics(config, setup, "run toxic-waste")
     recording = config.record_dir is not None
     return play_recorded_episode(

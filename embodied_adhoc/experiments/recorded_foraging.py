@@ -143,10 +143,11 @@ def run_foraging_episode(config: ForagingEpisodeConfig,
 
     from embodied_adhoc.experiments import seeding
     from embodied_adhoc.experiments.foraging import DOMAIN
+    from embodied_adhoc.experiments.registry import agent_plugin, build_agent
     from embodied_adhoc.experiments.stats import identify_step
     from embodied_adhoc.record.metrics import EpisodeMetrics
 
-    if config.agent not in FORAGING_AGENTS:
+    if config.agent not in FORAGING_AGENTS and agent_plugin(DOMAIN, config.agent, "--agent").builtin:
         raise ConfigError(f"--agent {config.agent}: choose from {', '.join(FORAGING_AGENTS)}")
     if config.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
@@ -159,7 +160,7 @@ def run_foraging_episode(config: ForagingEpisodeConfig,
     options = config.options()
     spec = DOMAIN.episode_spec(options, seeding.episode_rng(config.seed, 0))
     session = DOMAIN.open_session("mujoco", options)
-    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
+    agent = build_agent(DOMAIN, session, config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
     recording = config.record_dir is not None
     env = gymnasium.make(session.env_id, max_episode_steps=int(config.max_steps), disable_env_checker=True,
                          render_mode="rgb_array" if recording else None, **session.env_kwargs)

@@ -123,11 +123,12 @@ def run_pursuit_episode(config: PursuitEpisodeConfig,
         PursuitPairsSession,
         pomdp_options,
     )
-    from embodied_adhoc.experiments.registry import get_trial_domain
+    from embodied_adhoc.experiments.registry import agent_plugin, build_agent, get_trial_domain
     from embodied_adhoc.experiments.stats import identify_step
     from embodied_adhoc.record.metrics import EpisodeMetrics
 
-    if config.agent not in POMDP_AGENTS + ("random",):
+    domain = get_trial_domain("pursuit")
+    if config.agent not in POMDP_AGENTS + ("random",) and agent_plugin(domain, config.agent, "--agent").builtin:
         raise ConfigError(f"--agent {config.agent}: choose from {', '.join(POMDP_AGENTS + ('random',))}")
     if config.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
@@ -138,7 +139,7 @@ def run_pursuit_episode(config: PursuitEpisodeConfig,
     recording = config.record_dir is not None
     env = gymnasium.make(ENV_IDS["mujoco"], max_episode_steps=int(config.max_steps), disable_env_checker=True,
                          render_mode="rgb_array" if recording else None)
-    agent = session.make_agent(config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
+    agent = build_agent(domain, session, config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
     metrics = EpisodeMetrics(
         config={"command": "run pursuit", "agent": config.agent, "seed": config.seed, "spec": spec,
                 "options": options, "max_steps": config.max_steps, "env": ENV_IDS["mujoco"]},

@@ -35,6 +35,15 @@ which the runner calls once per worker process and caches.
     ``make_agent(name, spec, seed) -> Agent``: a fresh agent (``spec["task"]`` only for agents defined to know it);
     ``observation_index(observation, info) -> int``: the flat observation index the agents consume.
 
+Agents by name or as plug-ins
+----------------------------
+``--agents`` takes the domain's ``agent_names`` and any plug-in spec of :mod:`embodied_adhoc.plugins`
+(``module:callable``, ``path/to/file.py:callable`` or an installed ``embodied_adhoc.agents`` entry point). Every
+caller builds agents through :func:`build_agent`: a built-in name goes to ``session.make_agent``; a plug-in's
+factory is called as ``factory(library, rng_seed=seed)``, where ``library`` is the session's ``agent_library`` if
+it has one, else its ``library`` (the domain's model library), else the session itself. Either way the agent is
+checked against the Agent protocol (:func:`~embodied_adhoc.decision.agents.base.protocol_gaps`) once, when built.
+
 Everything a trial needs is derived from ``(seed, episode, agent)`` (see :mod:`embodied_adhoc.experiments.seeding`),
 so results are identical whatever the number of workers or the executor.
 """
@@ -79,6 +88,51 @@ class TrialDomain(Protocol):
     def episode_spec(self, options: dict, rng: np.random.Generator) -> dict: ...
 
     def open_session(self, backend: str, options: dict) -> TrialSession: ...
+
+
+def agent_plugin(domain: TrialDomain, spec: str, flag: str = "--agents"):
+    """The :class:`~embodied_adhoc.plugins.Plugin` that ``spec`` names for ``domain`` (built-in names first);
+    ConfigError listing the domain's agents, the installed ones and the plug-in forms otherwise."""
+    from embodied_adhoc.plugins import resolve
+
+    return resolve("agent", spec, builtin=domain.agent_names, flag=flag)
+
+
+def agent_library(session: Any) -> Any:
+    """What a plug-in agent's factory receives: the session's ``agent_library``, else its ``library``, else the
+    session itself."""
+    for attribute in ("agent_library", "library"):
+        if getattr(session, attribute, None) is not None:
+            return getattr(session, attribute)
+    return session
+
+
+def build_agent(domain: TrialDomain, session: TrialSession, spec: str, episode_spec: dict, seed: int) -> Any:
+    """A fresh agent for one episode: a built-in name from ``session.make_agent``, a plug-in from its factory;
+    refused with one ConfigError line when it does not meet the Agent protocol."""
+    from embodied_adhoc.decision.agents.base import protocol_gaps
+
+    plugin = agent_plugin(domain, spec)
+    if plugin.builtin:
+        agent = session.make_agent(spec, episode_spec, seed)
+    else:
+        try:
+            agent = plugin.factory(agent_library(session), rng_seed=seed)
+        except ConfigError:
+            raise
+        except Exception as error:
+            where = f" ({plugin.source})" if plugin.source else ""
+            raise ConfigError(
+                f"agent {spec!r}{where}: its factory failed, called as factory(library, rng_seed={seed}): "
+                f"{type(error).__name__}: {error}"
+            ) from error
+    gaps = protocol_gaps(agent)
+    if gaps:
+        raise ConfigError(
+            f"agent {spec!r}: {type(agent).__name__} does not meet the Agent protocol: it lacks {'; '.join(gaps)} "
+            "(subclass embodied_adhoc.decision.agents.base.AgentBase; see docs/plugins.md)"
+        )
+    return agent
 
 
 _DOMAINS: dict[str, str | Callable[[], TrialDomain] | TrialDomain] = {}

@@ -25,7 +25,7 @@ from pathlib import Path
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments import seeding
 from embodied_adhoc.experiments.executors import execute, open_session
-from embodied_adhoc.experiments.registry import get_trial_domain
+from embodied_adhoc.experiments.registry import agent_plugin, build_agent, get_trial_domain
 from embodied_adhoc.experiments.storage import ResultStore, TrialRecord, record_from_row, trial_row
 from embodied_adhoc.experiments.summary import RunSummary, summarise_records
 from embodied_adhoc.experiments.trial import TrialJob
@@ -86,11 +86,10 @@ def _validate(config: SweepConfig, domain) -> None:
         raise ConfigError(
             f"domain '{config.domain}' has no backend '{config.backend}'; choose one of {', '.join(domain.backends)}"
         )
-    unknown = [name for name in config.agents if name not in domain.agent_names]
-    if unknown or not config.agents:
-        raise ConfigError(
-            f"unknown agent(s) {unknown or '(none given)'} for '{config.domain}'; choose from {', '.join(domain.agent_names)}"
-        )
+    if not config.agents:
+        raise ConfigError(f"no agent given for '{config.domain}'; choose from {', '.join(domain.agent_names)}")
+    for name in config.agents:  # a built-in name or a plug-in spec (embodied_adhoc.plugins); refused here if neither
+        agent_plugin(domain, name)
     if len(set(config.agents)) != len(config.agents):
         raise ConfigError(f"agents listed twice in {list(config.agents)}")
     if config.episodes < 1:
@@ -125,6 +124,9 @@ def run_sweep(
         )
     session = open_session(config.domain, config.backend, options)
     task_names = tuple(session.task_names)
+    for name in config.agents:  # a plug-in agent is built once here, so a broken one stops the sweep before any trial
+        if not agent_plugin(domain, name).builtin:
+            build_agent(domain, session, name, specs[0], seeding.agent_seed(config.seed, 0, name))
 
     store = None
     rows: dict[tuple[str, int], dict[str, str]] = {}

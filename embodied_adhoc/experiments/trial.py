@@ -16,6 +16,7 @@ import numpy as np
 
 from embodied_adhoc.experiments import seeding
 from embodied_adhoc.experiments.episode import run_episode_loop
+from embodied_adhoc.experiments.registry import build_agent, get_trial_domain
 from embodied_adhoc.experiments.stats import identify_step, normalised_entropies
 
 
@@ -70,7 +71,8 @@ class TrialResult:
 
 def run_trial(session, env, job: TrialJob) -> TrialResult:
     """Run one episode of ``job.agent`` in ``env`` (an env made by ``session``) and return its record."""
-    agent = session.make_agent(job.agent, job.spec, seeding.agent_seed(job.seed, job.episode, job.agent))
+    domain = get_trial_domain(job.domain)
+    agent = build_agent(domain, session, job.agent, job.spec, seeding.agent_seed(job.seed, job.episode, job.agent))
     trace = run_episode_loop(
         env,
         agent,

@@ -24,6 +24,7 @@ import numpy as np
 import torch
 
 from embodied_adhoc.atomic import atomic_write_text
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.classifier import ClassifierConfig, RecurrentBayesianClassifier, Trajectories
@@ -262,7 +263,7 @@ def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, 
                         np.concatenate(lengths))
 
 
-class AtlpoAgent:
+class AtlpoAgent(AgentBase):
     """The ATLPO ad hoc agent: posterior ``p_t`` over the library from the classifier (Eq. 6.2) and the action
     distribution ``pi_t(a | h_t) = sum_k p_t(m_k) pi_k(a | z_t)`` drawn (or its argmax with ``greedy``) by the
     decision layer's :func:`draw_action`, as ATPO does with its library (whose Perseus policies are

@@ -63,9 +63,10 @@ def open_realtime_episode(
         stop=stop,
         **setup.env_kwargs,
     )
-    agent = setup.session.make_agent(
-        config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)
-    )
+    from embodied_adhoc.experiments.registry import build_agent
+    from embodied_adhoc.experiments.toxic_waste import DOMAIN
+
+    agent = build_agent(DOMAIN, setup.session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
     metrics = episode_metrics(
         config,
         setup,

@@ -12,6 +12,8 @@ import argparse
 import gymnasium as gym
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
+
 ACCURACY = 0.8
 
 
@@ -36,7 +38,7 @@ class GuessEnv(gym.Env):
         return reading, -1.0, done, False, {"state": self.progress, "observation_index": int(reading)}
 
 
-class BayesAgent:
+class BayesAgent(AgentBase):
     observes_state = False
 
     def __init__(self, name, known_task=None):
@@ -65,7 +67,7 @@ class BayesAgent:
         return self.posterior
 
 
-class RandomAgent:
+class RandomAgent(AgentBase):
     observes_state = False
     task_posterior = None
 

@@ -25,6 +25,10 @@ class CountdownEnv:
 
 class AlternatingAgent:
     observes_state = True
+    observes_raw = observes_reward = False
+
+    def start(self, observation):
+        pass
 
     def reset(self, rng, state=None):
         self.turn, self.states, self.observed = 0, [state], []

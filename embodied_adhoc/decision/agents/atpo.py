@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.decision.agents.task_beliefs import LibraryBeliefs, LibraryKernels
 from embodied_adhoc.errors import ModelError
@@ -23,7 +24,7 @@ from embodied_adhoc.errors import ModelError
 __all__ = ["AtpoAgent"]
 
 
-class AtpoAgent:
+class AtpoAgent(AgentBase):
     """ATPO over ``kernels`` (the library POMDPs) with one alpha-vector policy per model."""
 
     observes_state = False

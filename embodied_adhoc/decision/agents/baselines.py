@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["OracleAgent", "RandomAgent"]
 
 
-class OracleAgent:
+class OracleAgent(AgentBase):
     """Greedy on ``Q*`` (value iteration) of the true task's teammate-averaged MDP; observes the state."""
 
     observes_state = True
@@ -43,7 +44,7 @@ class OracleAgent:
         return None
 
 
-class RandomAgent:
+class RandomAgent(AgentBase):
     """Uniformly random actions."""
 
     observes_state = False

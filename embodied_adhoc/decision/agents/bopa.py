@@ -17,6 +17,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.decision.agents.task_beliefs import check_library
 from embodied_adhoc.decision.models import MDP
@@ -32,7 +33,7 @@ def optimal_policies(q_values: np.ndarray, tolerance: float = 1e-9) -> np.ndarra
     return optimal / optimal.sum(axis=-1, keepdims=True)
 
 
-class BopaAgent:
+class BopaAgent(AgentBase):
     """BOPA over a library of MDPs with Q* tables ``q_values`` (M, S, A); observes the state."""
 
     observes_state = True

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.decision.agents.task_beliefs import LibraryBeliefs, LibraryKernels, normalised_entropy
 from embodied_adhoc.decision.models import POMDP
@@ -127,7 +128,7 @@ def plan_hotspot(pomdps: Sequence[POMDP], config: HotspotConfig = HotspotConfig(
     return HotspotPlan(kernels, np.stack(q_task), np.stack(q_info), np.stack(info_rewards), config)
 
 
-class HotspotAgent:
+class HotspotAgent(AgentBase):
     """TEBOPA. ``prior`` over the library (default uniform); a one-hot prior gives the known-task baseline."""
 
     observes_state = False

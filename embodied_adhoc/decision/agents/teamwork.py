@@ -23,6 +23,7 @@ from typing import Protocol
 
 import numpy as np
 
+from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.uct import BatchedUct, UctConfig, update_team_belief
 
 MODEL_BASED = ("teamster", "plastic-model", "learns-team", "learns-environment")
@@ -188,7 +189,7 @@ class OriginalTeammate(RandomAgent):
         return int(sample_rows(self.policy(np.asarray(state)[None]), self.rng)[0])
 
 
-class EpisodeSeat:
+class EpisodeSeat(AgentBase):
     """A chapter-4 agent (:class:`TeamworkAgent`) in the project's one episode loop
     (:func:`embodied_adhoc.experiments.episode.run_episode_loop`), over :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv`
     observations ``[state cells..., teammates' last actions...]``.
