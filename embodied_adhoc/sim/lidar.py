@@ -113,6 +113,14 @@ class Lidar:
         period = model.sensor_interval[sensors, 0]
         self.period = float(period.max())
         """Seconds between scans (0: every physics step)."""
+        self.beams_read = 0
+        """Beams of the scans computed since :meth:`reset_counts` (what the localiser read)."""
+        self.dropped_beams = 0
+        """Of those, the beams lost to dropout or to a disabled lidar (not those outside the range window)."""
+
+    def reset_counts(self) -> None:
+        """Start counting read and dropped beams afresh (at an episode's reset)."""
+        self.beams_read = self.dropped_beams = 0
 
     @property
     def n_beams(self) -> int:
@@ -125,14 +133,17 @@ class Lidar:
     def scan(self, data: mujoco.MjData, rng: np.random.Generator) -> LidarScan:
         """A scan with the range window, noise and dropout applied (all NaN when the lidar is disabled)."""
         config = self.config
+        self.beams_read += self.n_beams
         if not config.enabled:
             ranges = np.full(self.n_beams, np.nan)
+            self.dropped_beams += self.n_beams
         else:
             noise, lost = self._draw(rng)
             raw = data.sensordata[self.addresses]
             ranges = raw + config.noise * noise
             outside = (raw < 0) | (ranges < config.min_range) | (ranges > config.max_range)
             ranges[outside | lost] = np.nan
+            self.dropped_beams += int(np.count_nonzero(lost))
         return LidarScan(self.angles, ranges, self.origin, float(data.time))
 
     def skip(self, rng: np.random.Generator) -> None:

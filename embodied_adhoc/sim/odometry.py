@@ -10,6 +10,10 @@ differential-drive kinematics with the midpoint (second-order Runge-Kutta) rule.
 * ``wheel_slip``: systematic error: each wheel's effective radius differs from the nominal one by a relative
   factor drawn once per episode from N(0, wheel_slip^2) (tyre compression, slip under load);
 * the physics itself: MuJoCo's soft wheel contacts roll on a slightly smaller radius and slip under torque.
+
+``WheelOdometry.slip_distance`` and ``noise_distance`` say, since the reset, how many metres of wheel travel the
+two modelled errors added to or removed from the measurement (the mean of the two wheels' absolute errors): the
+size of each fault in an episode, reported by the sweeps beside the pose errors they cause.
 """
 
 from __future__ import annotations
@@ -62,6 +66,8 @@ class WheelOdometry:
         self._scale = (1.0, 1.0)
         self.rng = rng
         self.distance = 0.0  # metres travelled by the wheel-centre midpoint, as measured
+        # metres of wheel travel the radius error / the encoder noise added or removed (mean of the two wheels)
+        self.slip_distance = self.noise_distance = 0.0
 
     @property
     def pose(self) -> np.ndarray:
@@ -86,7 +92,7 @@ class WheelOdometry:
         self._noise, self._noise_index = [], 0  # the slip factors come first in the stream, then the noise
         scale = 1.0 + self.config.wheel_slip * self._rng.standard_normal(2)
         self._scale = (float(scale[0]), float(scale[1]))
-        self.distance = 0.0
+        self.distance = self.slip_distance = self.noise_distance = 0.0
 
     def counts(self, wheel_angles: np.ndarray) -> np.ndarray:
         """Encoder readings (whole ticks) for true wheel angles (rad)."""
@@ -107,11 +113,19 @@ class WheelOdometry:
                 self._noise_index = 0
             i = self._noise_index
             self._noise_index = i + 2
-            step_left += config.encoder_noise * math.sqrt(abs(step_left)) * self._noise[i]
-            step_right += config.encoder_noise * math.sqrt(abs(step_right)) * self._noise[i + 1]
+            noise_left = config.encoder_noise * math.sqrt(abs(step_left)) * self._noise[i]
+            noise_right = config.encoder_noise * math.sqrt(abs(step_right)) * self._noise[i + 1]
+            step_left += noise_left
+            step_right += noise_right
+            self.noise_distance += 0.5 * (abs(noise_left) + abs(noise_right)) * config.wheel_radius
         # metres rolled by each wheel, as measured
         travel_left = step_left * self._scale[0] * config.wheel_radius
         travel_right = step_right * self._scale[1] * config.wheel_radius
+        # the measured travel is counted + noise + (counted + noise) * (scale - 1): the last term is the slip's
+        self.slip_distance += 0.5 * (
+            abs(travel_left - step_left * config.wheel_radius)
+            + abs(travel_right - step_right * config.wheel_radius)
+        )
         ds = 0.5 * (travel_left + travel_right)
         dyaw = (travel_right - travel_left) / config.track_width
         x, y, yaw = self.pose_tuple

@@ -24,6 +24,7 @@ class RfidReader:
         self.half_size = model.site_size[ids.rfid_site].copy()
         self.entered = np.zeros(len(ids.ball_bodies), dtype=bool)
         self._unread = len(self.entered)  # balls that have not entered yet
+        self.misses = 0  # read attempts (balls entered) that missed, since the reset
         self._bodies = [int(body) for body in ids.ball_bodies]
         self._reach2 = float(self.half_size @ self.half_size)  # squared radius of the sphere around the box
 
@@ -31,6 +32,7 @@ class RfidReader:
         self.rng = rng
         self.entered[:] = False
         self._unread = len(self.entered)
+        self.misses = 0
 
     def inside_mask(self, data: mujoco.MjData) -> np.ndarray:
         """Per ball: is its centre inside the reader's box?"""
@@ -63,7 +65,14 @@ class RfidReader:
             self._unread -= 1
             if self.rng.random() >= self.miss_probability:
                 events.append(ball)
+            else:
+                self.misses += 1
         return events
+
+    @property
+    def attempts(self) -> int:
+        """Read attempts since the reset: one per ball that entered the container."""
+        return len(self.entered) - self._unread
 
 
 class WallContact:
