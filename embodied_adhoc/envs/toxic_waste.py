@@ -22,9 +22,27 @@ from embodied_adhoc.envs import contract
 from embodied_adhoc.envs.toxic_waste_speech import SPEECH_KINDS, SpeechTurn, make_speech
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["ToxicWasteEnv"]
+__all__ = ["FAULT_COUNTS", "ToxicWasteEnv"]
 
 BALL_STATUS = {"ground": GROUND, "held": HELD, "container": DISPOSED}
+FAULT_COUNTS = {
+    # info["faults"] key: (a fault event, or an event faults are counted out of; what it counts)
+    "rfid_reads": ("event", "balls that entered the container (one RFID read attempt each)"),
+    "rfid_misses": ("fault", "of those, reads the RFID reader missed"),
+    "replies": ("event", "'locate human' questions asked"),
+    "replies_lost": ("fault", "replies lost by speech_failure"),
+    "replies_no_location": ("fault", "replies heard as no location (lost, or not recognised)"),
+    "lidar_beams": ("event", "lidar beams of the scans the localiser read"),
+    "lidar_dropped_beams": ("fault", "of those, beams lost to dropout or a dead lidar"),
+    "wheel_slip_m": ("fault", "metres of wheel travel the wheel-radius error added to or took from odometry"),
+    "encoder_noise_m": ("fault", "metres of wheel travel the encoder noise added to or took from odometry"),
+    "relocalisations": ("fault", "times the localiser declared itself lost and re-seeded globally"),
+    "moves": ("event", "macro steps that drove to a neighbour"),
+    "blocked_moves": ("fault", "of those, moves that ended blocked"),
+    "robot_node_readings": ("event", "robot-node readings observed (the reset's and one per step)"),
+    "robot_node_unknown": ("fault", "of those, readings observed as unknown"),
+}
+"""The per-episode fault and sensor counts of ``info["faults"]``, in this order."""
 FrameSink = Callable[[dict], None]
 
 
@@ -86,6 +104,7 @@ class ToxicWasteEnv(gymnasium.Env):
     | kwarg | default | meaning |
     |---|---|---|
     | ``task`` | None | fixed task index; None = drawn uniformly at each reset |
+    | ``human`` | "scripted" | the world's human teammate: the library's scripted cleaner, or a plug-in (interface in ``envs.lab_humans``; the agents' models are not told) |
     | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx on every query), "perfect" |
     | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig`` defaults) |
     | ``localisation`` | True | Monte Carlo localisation on the lidar; False: the controller and the robot-node reading use wheel odometry alone |
@@ -111,7 +130,10 @@ class ToxicWasteEnv(gymnasium.Env):
     localisation: ``estimated_pose`` (the pose the controller tracks), ``pose_error`` (m, estimate vs truth),
     ``pose_covariance`` (3 x 3, None without a localiser), ``localisation_mode`` ("lidar", "odometry": no usable
     scans, "off": no localiser), ``kidnaps`` (times the localiser declared itself lost this step), ``blocked``
-    (the robot could not reach its waypoint: stalled or gave up).
+    (the robot could not reach its waypoint: stalled or gave up); ``faults``: the episode's fault events so far,
+    the counts of ``FAULT_COUNTS`` (RFID misses, lost replies, dropped lidar beams, wheel-slip and encoder-noise
+    metres, re-localisations, blocked moves, unknown robot-node readings, each beside what it is counted out of),
+    so that a sweep with faults says what they did.
 
     ## Version history
     v0: first version.
@@ -137,14 +159,17 @@ class ToxicWasteEnv(gymnasium.Env):
         lidar_dropout: float | None = None,
         speech_failure: float = 0.0,
         reader_miss: float | None = None,
+        human=None,
         **lab,
     ) -> None:
+        from embodied_adhoc.envs.lab_humans import lab_humans
         from embodied_adhoc.envs.toxic_waste_world import make_world
 
         self.render_mode = contract.render_mode(render_mode)
         speech = checks.choice("speech", speech, SPEECH_KINDS)
         config = LabConfig.from_kwargs(type(self).__name__, lab)
         self.library = library_from_config(config)
+        self._humans = lab_humans(self.library, human)  # the world's human; the agents' models keep theirs
         self.task = None if task is None else checks.integer("task", task, 0, self.library.n_tasks - 1)
         encoder_noise, wheel_slip = (
             None if value is None else checks.number(name, value, 0.0)
@@ -191,6 +216,9 @@ class ToxicWasteEnv(gymnasium.Env):
         self._episode = contract.EpisodeGate(type(self).__name__)
         self._robot_believed_node = 0
         self._step_index = 0
+        # the env's own counts; LabWorld.fault_counts has the sensors'
+        env_counts = ("replies", "replies_lost", "replies_no_location", "moves", "blocked_moves")
+        self._counts = dict.fromkeys((*env_counts, "robot_node_readings", "robot_node_unknown"), 0)
 
     # ----------------------------------------------------------------------------------------------- API
     def set_frame_sink(self, sink: FrameSink | None) -> None:
@@ -215,6 +243,7 @@ class ToxicWasteEnv(gymnasium.Env):
         self._sensor_rng = np.random.default_rng(int(sensor_seed))
         self._status = (GROUND,) * len(lib.tasks[self._task])
         self._steps = self._step_index = 0
+        self._counts = dict.fromkeys(self._counts, 0)
         self._robot_believed_node = robot
         self._episode.open()
         truth = self.world.reset(int(world_seed), robot, human, lib.tasks[self._task])
@@ -235,7 +264,7 @@ class ToxicWasteEnv(gymnasium.Env):
         outcome = (
             HumanOutcome(1.0, before.human_node)
             if HELD in self._status
-            else lib.humans[self._task].step(self._human_rng, before.human_node, self._status)
+            else self._humans[self._task].step(self._human_rng, before.human_node, self._status)
         )
         _, next_human, planned, handed_over = apply_step(
             lib.graph, robot_node, before.human_node, self._status, action, outcome
@@ -255,11 +284,18 @@ class ToxicWasteEnv(gymnasium.Env):
         utterances: list[str] = []
         heard: int | None = None
         speech_audio = None
+        counts = self._counts
         if self.speech is not None and action == lib.locate_action:
             heard, utterances, speech_audio = self.speech.ask(truth.human_node, self._speech_rng)
+            counts["replies"] += 1
             if self.speech_failure > 0 and self._failure_rng.random() < self.speech_failure:
                 heard = None  # the reply was lost (noise, the human did not answer): no location heard
                 utterances = [*utterances, "(reply lost)"]
+                counts["replies_lost"] += 1
+            counts["replies_no_location"] += heard is None
+        if target is not None:
+            counts["moves"] += 1
+            counts["blocked_moves"] += bool(result.blocked)
         observation = self._observation(
             result.robot_node_reading, truth.robot_node, truth.human_node, heard, bool(result.rfid_events), action
         )
@@ -296,6 +332,8 @@ class ToxicWasteEnv(gymnasium.Env):
             human = heard if action == self.library.locate_action else None
         else:
             human = true_human if true_robot is not None and true_robot == true_human else None
+        self._counts["robot_node_readings"] += 1
+        self._counts["robot_node_unknown"] += robot_reading is None
         return LabObservation(robot_reading, human, bool(rfid), n)
 
     def _info(self, observation, truth, entered, result, utterances, speech_audio) -> dict:
@@ -337,7 +375,13 @@ class ToxicWasteEnv(gymnasium.Env):
             "human_status": "" if result is None else result.human_status,
             "utterances": tuple(utterances),
             "speech_audio": speech_audio,
+            "faults": self.fault_counts(),
         }
+
+    def fault_counts(self) -> dict[str, int | float]:
+        """The episode's fault events so far (``info["faults"]``; keys and order of ``FAULT_COUNTS``)."""
+        counts = {**self.world.fault_counts(), **self._counts}
+        return {key: counts[key] for key in FAULT_COUNTS}
 
     def render_camera(self, camera: str = "overhead") -> np.ndarray:
         """An RGB image from a named camera of the lab ("overhead", "perspective", "robot") at the env's size."""

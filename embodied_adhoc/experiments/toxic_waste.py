@@ -33,18 +33,30 @@ FAULTS = {
     # option name: (physics env kwarg, upper bound, help)
     "wheel_slip": ("wheel_slip", None, "per-episode wheel-radius error, relative std (default 0.0005)"),
     "encoder_noise": ("encoder_noise", None, "encoder noise, rad^0.5 (default 0.002)"),
-    "rfid_miss": ("reader_miss", 1.0, "probability that the RFID reader misses a ball (the model is not told)"),
+    "rfid_miss": (
+        "reader_miss",
+        1.0,
+        "probability that the RFID reader misses a ball (the agents' model is told, unless --model-rfid-miss)",
+    ),
     "lidar_noise": ("lidar_noise", None, "lidar range noise std in metres (default 0.015)"),
     "lidar_dropout": ("lidar_dropout", 1.0, "probability that a lidar beam returns nothing (1 = dead lidar)"),
     "speech_failure": ("speech_failure", 1.0, "probability that the human's reply is lost (the model is not told)"),
 }
-"""Sensor and actuator faults of the physics lab (``--wheel-slip`` ...): none is told to the agents' model."""
+"""Sensor and actuator faults of the physics lab (``--wheel-slip`` ...). The agents' model is told only the RFID miss
+rate: it is the lab parameter ``rfid_miss`` of their observation model (``--model-rfid-miss`` sets it apart)."""
 
 
 def add_fault_arguments(parser) -> None:
     """The fault options and the localisation switches, shared by ``run toxic-waste`` and ``trials toxic-waste``."""
     for name, (_, _, text) in FAULTS.items():
         parser.add_argument(f"--{name.replace('_', '-')}", type=float, default=None, metavar="X", help=text)
+    parser.add_argument(
+        "--model-rfid-miss",
+        type=float,
+        default=None,
+        metavar="P",
+        help="the RFID miss probability of the agents' observation model (default: --rfid-miss, else 0)",
+    )
     parser.add_argument(
         "--no-localisation",
         action="store_true",
@@ -76,9 +88,78 @@ def fault_options(args: argparse.Namespace) -> dict:
 def fault_env_kwargs(options: dict) -> dict:
     """The physics env's kwargs for the faults and localisation switch in ``options``."""
     kwargs = {FAULTS[name][0]: value for name, value in options.get("faults", {}).items()}
+    if "model_rfid_miss" in options:  # the model's rate is a lab kwarg; the reader keeps its own
+        kwargs.setdefault("reader_miss", 0.0)
     if not options.get("localisation", True):
         kwargs["localisation"] = False
     return kwargs
+
+
+def fault_columns() -> tuple[str, ...]:
+    """The per-trial CSV columns of the physics env's fault counts: ``fault_<name>`` for a fault event,
+    ``event_<name>`` for what it is counted out of (``envs.toxic_waste.FAULT_COUNTS``)."""
+    from embodied_adhoc.envs.toxic_waste import FAULT_COUNTS
+
+    return tuple(f"{kind}_{name}" for name, (kind, _) in FAULT_COUNTS.items())
+
+
+CAP_COLUMNS = ("cap_reason", "cap_detail")
+"""Per-trial columns of an episode that hit the step cap: the uninformative observation's code and the sentence."""
+
+
+def cap_reason(actions, faults: dict, action_names, capped: bool) -> tuple[str, str]:
+    """Why an episode that hit the step cap did not finish: ``(code, sentence)``, ``("", "")`` if not capped.
+
+    The sentence names the action chosen most often and every observation that stayed uninformative, e.g.
+    "cap reached: 'locate human' chosen 96/100 steps; RFID missed 2 of 3 reads". The code names the observation
+    uninformative most often relative to its readings (``rfid_missed``, ``reply_lost``, ``no_location``,
+    ``robot_node_unknown``, ``blocked``; ties in this order), or ``no_fault`` when every one was informative.
+    """
+    if not capped:
+        return "", ""
+    parts = []
+    if len(actions):
+        counts = np.bincount(np.asarray(actions, dtype=int), minlength=len(action_names))
+        top = int(np.argmax(counts))
+        parts.append(f"'{action_names[top]}' chosen {int(counts[top])}/{len(actions)} steps")
+    lost = faults.get("replies_lost", 0)
+    channels = (
+        ("rfid_missed", "rfid_misses", "rfid_reads", "RFID missed {} of {} reads"),
+        (
+            "reply_lost" if lost else "no_location",
+            "replies_no_location",
+            "replies",
+            "no location heard in {} of {} replies" + (f" ({lost} lost)" if lost else ""),
+        ),
+        ("robot_node_unknown", "robot_node_unknown", "robot_node_readings", "robot node unknown in {} of {}"),
+        ("blocked", "blocked_moves", "moves", "blocked in {} of {} moves"),
+    )
+    code, worst = "no_fault", 0.0
+    for name, bad_key, total_key, text in channels:
+        bad, total = faults.get(bad_key, 0), faults.get(total_key, 0)
+        if bad and total:
+            parts.append(text.format(bad, total))
+            if bad / total > worst:
+                code, worst = name, bad / total
+    if faults.get("relocalisations"):
+        parts.append(f"{faults['relocalisations']} re-localisation(s)")
+    if code == "no_fault":
+        parts.append("every observation informative")
+    return code, "cap reached: " + "; ".join(parts)
+
+
+def fault_line(faults: dict) -> str:
+    """One line of an episode's fault counts (``info["faults"]``) for a text summary."""
+    return (
+        f"RFID missed {faults['rfid_misses']}/{faults['rfid_reads']} reads; replies lost {faults['replies_lost']}, "
+        f"no location {faults['replies_no_location']}/{faults['replies']}; lidar dropped "
+        f"{faults['lidar_dropped_beams']}/{faults['lidar_beams']} beams; wheel slip {faults['wheel_slip_m']:.3f} m, "
+        f"encoder noise {faults['encoder_noise_m']:.3f} m; {faults['relocalisations']} re-localisation(s); "
+        f"blocked {faults['blocked_moves']}/{faults['moves']} moves; robot node unknown "
+        f"{faults['robot_node_unknown']}/{faults['robot_node_readings']}"
+    )
+
+
 AGENTS_GIVEN_THE_TASK = ("known-task", "oracle")
 DEFAULT_TASKS = ((0, 1, 2), (1, 2, 3))  # the thesis's two ball placements (as the lab's DEFAULT_TASKS)
 N_NODES = 5  # the lab graph's areas (the CLI does not change the graph)
@@ -119,9 +200,17 @@ class ToxicWasteSession:
             "communication": options["communication"],
             "confusion": options["confusion"],
         }
+        if options.get("human"):  # a plug-in human in the world (envs.lab_humans); the models keep theirs
+            self.env_kwargs["human"] = options["human"]
         model = {}
         if options.get("localisation_model") is not None:
             model["localisation_model"] = options["localisation_model"]
+        if "model_rfid_miss" in options:
+            if backend != "mujoco":
+                raise ConfigError(
+                    "--model-rfid-miss and --rfid-miss act on the physics lab's RFID reader: use --backend mujoco"
+                )
+            model["rfid_miss"] = options["model_rfid_miss"]
         self.env_kwargs.update(model)
         physical = fault_env_kwargs(options)
         if physical and backend != "mujoco":
@@ -142,6 +231,8 @@ class ToxicWasteSession:
         )
         self._make_agent = make_agent
         self._observation = LabObservation
+        # the physics env counts its fault events per episode (info["faults"]): one CSV column each
+        self.trial_columns = (*fault_columns(), *CAP_COLUMNS) if backend == "mujoco" else ()
 
     def make_env(self, max_steps: int):
         import gymnasium
@@ -163,6 +254,23 @@ class ToxicWasteSession:
             return int(info["observation_index"])
         return self._observation.from_vector(observation, self.library.graph.n_nodes).encode()
 
+    def trial_extras(self, trace, info: dict) -> dict:
+        """The values of ``trial_columns`` for a finished episode: its fault counts (the last ``info["faults"]``) and,
+        if it hit the step cap, why (:func:`cap_reason`)."""
+        if not self.trial_columns:
+            return {}
+        from embodied_adhoc.envs.toxic_waste import FAULT_COUNTS
+
+        faults = info["faults"]
+        extras = {}
+        for name, (kind, _) in FAULT_COUNTS.items():
+            value = faults[name]
+            extras[f"{kind}_{name}"] = round(float(value), 4) if isinstance(value, float) else int(value)
+        capped = trace.truncated and not trace.success
+        reason = cap_reason(trace.actions, faults, self.library.action_names, capped)
+        extras.update(zip(CAP_COLUMNS, reason, strict=True))
+        return extras
+
 
 class ToxicWasteDomain:
     name = "toxic-waste"
@@ -172,6 +280,21 @@ class ToxicWasteDomain:
     backends = ("abstract", "mujoco")
     agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
     default_agents = ("hotspot", "known-task", "oracle", "random")
+    blas_dependent = True  # ATPO's Perseus policies and BOPA's value iteration come from BLAS sums
+
+    def input_files(self, options: dict) -> dict:
+        """The files a run reads, by flag (their content is part of its identity: experiments/identity.py)."""
+        from embodied_adhoc import paths
+        from embodied_adhoc.domains.confusion import MEASURED_MATRIX, THESIS_MATRIX
+        from embodied_adhoc.domains.lab_observations import MEASURED_LOCALISATION
+
+        named = {"thesis": THESIS_MATRIX, "measured": MEASURED_MATRIX}
+        confusion = options["confusion"]
+        files = {"--confusion": paths.asset(named[confusion]) if confusion in named else confusion}
+        model = options.get("localisation_model")
+        if model is not None:
+            files["--localisation-model"] = paths.asset(MEASURED_LOCALISATION) if model == "measured" else model
+        return files
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group("toxic-waste options")
@@ -207,11 +330,20 @@ class ToxicWasteDomain:
             metavar="thesis|measured|PATH",
             help="speech confusion matrix of 'locate human' (default: measured, our offline pipeline's; 'thesis' = the original's)",
         )
+        group.add_argument(
+            "--human",
+            default=None,
+            metavar="scripted|MODULE:CALLABLE",
+            help="the world's human teammate (default: the scripted cleaner the agents' models assume); a plug-in "
+            "factory(library, task) -> object with step(rng, human_node, ball_status) (docs/plugins.md)",
+        )
         faults = parser.add_argument_group("physics-lab faults and localisation (--backend mujoco)")
         add_fault_arguments(faults)
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
-        return self.options(
+        from embodied_adhoc.envs.lab_humans import human_option
+
+        return human_option(args.human) | self.options(
             human_epsilon=args.human_epsilon,
             communication=not args.no_communication,
             task=args.task,
@@ -220,6 +352,7 @@ class ToxicWasteDomain:
             faults=fault_options(args),
             localisation=not args.no_localisation,
             localisation_model=args.localisation_model,
+            model_rfid_miss=args.model_rfid_miss,
         )
 
     def options(
@@ -232,8 +365,12 @@ class ToxicWasteDomain:
         faults: dict | None = None,
         localisation: bool = True,
         localisation_model: str | None = None,
+        model_rfid_miss: float | None = None,
     ) -> dict:
-        """Validated, JSON-ready options (what identifies a run in its ``config.json``)."""
+        """Validated, JSON-ready options (what identifies a run in its ``config.json``).
+
+        ``model_rfid_miss`` is the agents' model of RFID misses; None: the ``rfid_miss`` fault's value, so that the
+        model knows how often its reader fails (stored whenever either is given)."""
         tasks = [list(map(int, t)) for t in (tasks if tasks is not None else DEFAULT_TASKS)]
         if not 0.0 <= float(human_epsilon) <= 1.0:
             raise ConfigError(f"--human-epsilon must lie in [0, 1], got {human_epsilon}")
@@ -256,6 +393,12 @@ class ToxicWasteDomain:
             options["localisation"] = False
         if localisation_model is not None:
             options["localisation_model"] = str(localisation_model)
+        if model_rfid_miss is None and faults and "rfid_miss" in faults:
+            model_rfid_miss = faults["rfid_miss"]
+        if model_rfid_miss is not None:
+            if not 0.0 <= float(model_rfid_miss) <= 1.0:
+                raise ConfigError(f"--model-rfid-miss {model_rfid_miss}: must be in [0, 1]")
+            options["model_rfid_miss"] = float(model_rfid_miss)
         return options
 
     def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
