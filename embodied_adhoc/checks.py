@@ -10,13 +10,24 @@ from __future__ import annotations
 import argparse
 import difflib
 import math
+import os
 from collections.abc import Iterable, Mapping
 
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["bounded", "choice", "flag", "integer", "number", "positive_int", "refuse_unknown"]
+__all__ = [
+    "bounded",
+    "choice",
+    "flag",
+    "integer",
+    "number",
+    "positive_int",
+    "probability_rows",
+    "read_text",
+    "refuse_unknown",
+]
 
 
 def _is_integer(value) -> bool:
@@ -105,6 +116,59 @@ def refuse_unknown(where: str, given: Mapping | Iterable[str], accepted: Iterabl
     raise ConfigError(
         f"{where}: unknown {what}{'s' if len(unknown) > 1 else ''} {', '.join(hints)}; accepted: {', '.join(accepted)}"
     )
+
+
+def read_text(
+    path: str | os.PathLike,
+    limit: int,
+    what: str,
+    error: type[Exception] = ConfigError,
+    replace: bool = False,
+) -> str:
+    """The UTF-8 text of the file ``path``, read up to ``limit`` characters (a path such as ``/dev/zero`` or a
+    huge file is refused after ``limit + 1``, never read whole); ``error`` names the path and ``what`` it holds.
+    ``replace``: undecodable bytes become U+FFFD instead of an error. Newlines are universal, as in
+    ``Path.read_text``."""
+    try:
+        with open(path, encoding="utf-8", errors="replace" if replace else "strict") as stream:
+            text = stream.read(limit + 1)
+    except FileNotFoundError:
+        raise error(f"{path}: no such file ({what})") from None
+    except OSError as failure:
+        raise error(f"{path}: cannot read the {what} ({failure.strerror or failure})") from None
+    except UnicodeDecodeError as failure:
+        raise error(f"{path}: the {what} is not UTF-8 text (byte {failure.start})") from None
+    if len(text) > limit:
+        raise error(f"{path}: larger than the {limit:,}-character limit of a {what}")
+    return text
+
+
+def probability_rows(name: str, values, shape: tuple[int, int], tolerance: float) -> np.ndarray:
+    """``values`` as a float (rows, columns) array of finite, non-negative entries whose rows each sum to 1
+    within ``tolerance``; ``name`` says where the matrix comes from (e.g. ``"FILE: field 'matrix'"``)."""
+    try:
+        matrix = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{name}: must be {shape[0]} rows of {shape[1]} numbers") from None
+    if matrix.shape != tuple(shape):
+        raise ConfigError(f"{name}: has shape {matrix.shape}, expected {tuple(shape)}")
+    bad = np.argwhere(~np.isfinite(matrix))
+    if bad.size:
+        row, column = (int(v) for v in bad[0])
+        raise ConfigError(
+            f"{name}: entry [{row}][{column}] is {float(matrix[row, column])}; every entry must be a finite number"
+        )
+    bad = np.argwhere(matrix < 0)
+    if bad.size:
+        row, column = (int(v) for v in bad[0])
+        raise ConfigError(
+            f"{name}: entry [{row}][{column}] is negative ({matrix[row, column]:g}); probabilities are >= 0"
+        )
+    sums = matrix.sum(axis=1)
+    bad = np.flatnonzero(np.abs(sums - 1.0) > tolerance)
+    if bad.size:
+        raise ConfigError(f"{name}: row {int(bad[0])} sums to {sums[bad[0]]:.6g}, expected 1")
+    return matrix
 
 
 # Command-line types (argparse ``type=``), used by commands/ and by the trial plug-ins in experiments/.

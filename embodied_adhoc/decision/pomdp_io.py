@@ -16,7 +16,9 @@ value, statement number) entries plus "clear this row/column" marks (``identity`
 wildcard), and the model is resolved at the end, the last statement writing an entry winning. A statement that
 would write more than :data:`MAX_ENTRIES` entries (a dense ``|S| x |S|`` block such as ``T: * uniform`` with
 100,000 states) is refused with a size error naming its line; ``identity`` and per-entry files of any size stay
-sparse.
+sparse. Every row of T and of O holds at least one entry, so a header whose ``2 |A| |S|`` exceeds
+:data:`MAX_ENTRIES` (or whose ``|A| |Z|`` does) describes a model this reader cannot hold: it is refused at the
+header line, before anything of that size is allocated. Files are read up to :data:`MAX_FILE_CHARS`.
 
 Errors are :class:`PomdpFormatError` with ``file:line``, what was found and what was expected. Probability rows
 that do not sum to 1 (beyond :data:`~embodied_adhoc.decision.models.PROBABILITY_ATOL`) are errors naming the row
@@ -34,6 +36,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from embodied_adhoc import checks
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.models import POMDP, PROBABILITY_ATOL
 from embodied_adhoc.errors import ModelError, PomdpFormatError
@@ -49,6 +52,9 @@ _ASCII_SPACE = np.array([chr(code).isspace() for code in range(128)])  # str.spl
 _WILD = -1  # a '*' selector in index arrays
 MAX_ENTRIES = 10_000_000
 """Most (action, row, column) entries the reader holds for T and O together (40 bytes each while parsing)."""
+MAX_FILE_CHARS = 1 << 28
+"""Longest ``.pomdp`` file read, in characters (256 Mi: about ten million per-entry lines, what
+:data:`MAX_ENTRIES` admits)."""
 MISSING_ROWS = ("error", "absorbing", "reset")
 """What to do with a transition row ``T(. | s, a)`` that the file never writes (e.g. mini-hall2's goal state):
 an error (default), a self-loop, or the start belief. Rows written but not summing to 1 are always errors."""
@@ -472,6 +478,7 @@ class _Parser:
             if count < 1:
                 raise tokens.error(first_index, f"a positive number of {kind}")
             self.counts[kind], self.names[kind] = count, None
+            self._check_counts(first_index)
             return
         if first in _KEYWORDS or first == ":" or _NUMBER.match(first):
             raise tokens.error(first_index, f"a count or a list of {kind} names")
@@ -489,6 +496,23 @@ class _Parser:
                 f"{self.filename}:{tokens.line(first_index)}: {kind} name '{duplicate}' is declared twice"
             )
         self.counts[kind], self.names[kind] = len(names), names
+        self._check_counts(first_index)
+
+    def _check_counts(self, index: int) -> None:
+        """Refuse counts whose model cannot fit (checked as each count is declared, before its arrays exist)."""
+        n_states, n_actions = self.counts.get("states", 1), self.counts.get("actions", 1)
+        n_obs = self.counts.get("observations", 1)
+        needed = {
+            "2 x actions x states: one entry per row of T and of O": 2 * n_actions * n_states,
+            "actions x observations": n_actions * n_obs,
+        }
+        declared = ", ".join(f"{count:,} {kind}" for kind, count in self.counts.items())
+        for what, count in needed.items():
+            if count > MAX_ENTRIES:
+                raise PomdpFormatError(
+                    f"{self.filename}:{self.tokens.line(index)}: {declared} need at least {count:,} entries "
+                    f"({what}), more than this reader holds ({MAX_ENTRIES:,}); use a smaller model"
+                )
 
     def _starts_statement(self) -> bool:
         token, after = self.tokens.peek(), self.tokens.peek(1)
@@ -927,10 +951,7 @@ def read_pomdp_sizes(path: str | Path) -> tuple[int, int, int]:
 
 
 def _read_text(path: str | Path) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8", errors="replace")
-    except OSError as error:
-        raise PomdpFormatError(f"{path}: cannot read the file ({error.strerror})") from error
+    return checks.read_text(path, MAX_FILE_CHARS, ".pomdp file", PomdpFormatError, replace=True)
 
 
 # ------------------------------------------------------------------------------------------ writer

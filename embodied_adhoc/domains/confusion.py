@@ -12,7 +12,9 @@ communication module (which measures and writes it)::
     }
 
 Smoothing (thesis section 7.1, "we smooth the probabilities ... to ensure that no entry has an absolute zero")
-is done once, by :func:`smooth_confusion`, when a matrix is *measured*; loading never changes a matrix.
+is done once, by :func:`smooth_confusion`, when a matrix is *measured*; loading never changes a matrix. Loading
+refuses a file over :data:`MAX_FILE_CHARS`, a NaN, infinite or negative entry, and a row not summing to 1, naming
+the file, the field and the entry.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc import paths
+from embodied_adhoc import checks, paths
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.errors import ConfigError
 
@@ -32,6 +34,8 @@ THESIS_MATRIX = "data/speech_confusion_thesis.json"
 """The matrix of the original implementation (docs/hotspot-original.md), smoothed with floor 0.03."""
 MEASURED_MATRIX = "data/speech_confusion_measured.json"
 """The matrix measured by ``embodied-adhoc speech eval`` (offline espeak-ng + pocketsphinx)."""
+MAX_FILE_CHARS = 1 << 20
+"""Longest confusion file read, in characters (a 5-node matrix takes about 1 kB)."""
 DEFAULT_CONFUSION = "measured"
 """The lab model's default observation matrix for "locate human" (issue 7: our measured offline pipeline).
 The thesis reproduction pins ``"thesis"`` explicitly (``scripts/reproduce_hotspot.py``)."""
@@ -73,29 +77,31 @@ def load_confusion(source: str | os.PathLike | None = None) -> ConfusionMatrix:
         path = paths.asset(MEASURED_MATRIX)
     else:
         path = Path(source)
+    if not Path(path).exists():
+        raise ConfigError(
+            f"confusion matrix file {path} does not exist; pass 'thesis', 'measured' or a JSON path"
+        )
+    text = checks.read_text(path, MAX_FILE_CHARS, "confusion matrix file")
     try:
-        document = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise ConfigError(f"confusion matrix file {path} does not exist; pass 'thesis', 'measured' or a JSON path") from None
+        document = json.loads(text)
     except json.JSONDecodeError as error:
         raise ConfigError(f"{path}:{error.lineno}: not valid JSON ({error.msg})") from None
+    if not isinstance(document, dict):
+        raise ConfigError(
+            f"{path}: expected a JSON object (see embodied_adhoc.domains.confusion for the schema)"
+        )
     for key in ("nodes", "matrix"):
         if key not in document:
             raise ConfigError(f"{path}: missing field '{key}' (see embodied_adhoc.domains.confusion for the schema)")
+    if not isinstance(document["nodes"], list) or not all(isinstance(n, str) for n in document["nodes"]):
+        raise ConfigError(f"{path}: field 'nodes' must be a list of node names")
     nodes = tuple(document["nodes"])
-    matrix = np.asarray(document["matrix"], dtype=np.float64)
-    if matrix.shape != (len(nodes), len(nodes) + 1):
-        raise ConfigError(
-            f"{path}: field 'matrix' has shape {matrix.shape}, expected ({len(nodes)}, {len(nodes) + 1}) "
-            "(one row per node; one column per node plus 'failed')"
-        )
-    if matrix.min() < 0:
-        raise ConfigError(f"{path}: field 'matrix' has a negative entry")
-    sums = matrix.sum(axis=1)
     # Entries printed to 3 decimals carry up to 0.0005 rounding each: allow exactly that much per row.
-    bad = np.flatnonzero(np.abs(sums - 1.0) > 0.0005 * matrix.shape[1] + 1e-9)
-    if bad.size:
-        raise ConfigError(f"{path}: row {bad[0]} ('{nodes[bad[0]]}') of 'matrix' sums to {sums[bad[0]]:.4f}, expected 1")
+    shape = (len(nodes), len(nodes) + 1)
+    matrix = checks.probability_rows(
+        f"{path}: field 'matrix'", document["matrix"], shape, 0.0005 * shape[1] + 1e-9
+    )
+    sums = matrix.sum(axis=1)
     # Rows given to 3 decimals (as in the thesis) are exact up to rounding: normalise that rounding only.
     matrix = matrix / sums[:, None]
     return ConfusionMatrix(nodes, matrix, float(document.get("smoothing_floor", 0.0)), dict(document.get("provenance", {})))

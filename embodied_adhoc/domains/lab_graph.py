@@ -22,6 +22,8 @@ __all__ = [
     "DISPOSED",
     "GROUND",
     "HELD",
+    "MAX_STATE_CODES",
+    "MAX_TASKS",
     "LabGraph",
     "validate_tasks",
 ]
@@ -88,6 +90,12 @@ DEFAULT_GRAPH = LabGraph()
 DEFAULT_TASKS: tuple[tuple[int, ...], ...] = ((0, 1, 2), (1, 2, 3))
 """The two evaluated ball placements (thesis Fig. 7.6): balls at nodes [0, 1, 2] and [1, 2, 3]."""
 
+MAX_TASKS = 64
+"""At most this many ball placements: each task adds a POMDP over the shared states."""
+MAX_STATE_CODES = 200_000
+"""The shared state space enumerates ``n_nodes^2 * 3^balls * 2`` candidate states before keeping the valid ones;
+above this count (e.g. more than 7 balls on the 5-node lab) the enumeration alone would take gigabytes."""
+
 
 def validate_tasks(graph: LabGraph, tasks: Sequence[Sequence[int]]) -> tuple[tuple[int, ...], ...]:
     """Check a task library (ball nodes per task): non-empty, same number of balls, nodes inside the graph."""
@@ -98,6 +106,7 @@ def validate_tasks(graph: LabGraph, tasks: Sequence[Sequence[int]]) -> tuple[tup
         isinstance(t, placements) and not isinstance(t, str) for t in tasks
     ):
         raise ConfigError(f"tasks={tasks!r}: give a list of ball placements (node lists), e.g. [[0, 1, 2], [1, 2, 3]]")
+    _check_sizes(graph, tasks)
     result = tuple(
         tuple(checks.integer(f"tasks[{i}][{j}]", node) for j, node in enumerate(task)) for i, task in enumerate(tasks)
     )
@@ -111,3 +120,16 @@ def validate_tasks(graph: LabGraph, tasks: Sequence[Sequence[int]]) -> tuple[tup
             if not 0 <= node < graph.n_nodes:
                 raise ConfigError(f"tasks[{index}] places a ball at node {node}, outside 0..{graph.n_nodes - 1}")
     return result
+
+
+def _check_sizes(graph: LabGraph, tasks: Sequence) -> None:
+    """Refuse a library whose states would not fit, from the lengths alone (before any element is read)."""
+    if len(tasks) > MAX_TASKS:
+        raise ConfigError(f"tasks: {len(tasks)} ball placements given; at most {MAX_TASKS} are accepted")
+    for index, task in enumerate(tasks):
+        codes = graph.n_nodes**2 * 2 * 3 ** min(len(task), 64)  # 3^64 already exceeds any limit
+        if codes > MAX_STATE_CODES:
+            raise ConfigError(
+                f"tasks[{index}]: {len(task)} balls on {graph.n_nodes} nodes give {graph.n_nodes}^2 x 3^{len(task)} x 2 "
+                f"candidate states, more than the limit of {MAX_STATE_CODES:,}; place fewer balls"
+            )

@@ -4,7 +4,9 @@ Format: one text line per grid row, one character per cell: ``#`` blocked, ``.``
 ``G`` open goal cell. Lines must all have the same length. The five maps of the thesis ship in ``assets/maps/``
 (resolved through :mod:`embodied_adhoc.paths`); :func:`load_map` accepts any file in that format and refuses a bad
 one with :class:`~embodied_adhoc.errors.ConfigError` naming ``file:line:column`` (bad character), the goal that
-no start reaches, or what is missing for two agents.
+no start reaches, or what is missing for two agents. A file is read up to :data:`MAX_MAP_CHARS` and a grid holds at
+most :data:`MAX_MAP_CELLS` cells (rows x columns); domains whose state count grows faster than the cell count set
+their own, lower limit on open cells.
 
 Cells are numbered column-major (column, then row), as the original implementation enumerated them, so that
 task indices (pairs of goal cells in ``itertools.combinations`` order) match the thesis's.
@@ -19,11 +21,14 @@ from pathlib import Path
 
 import numpy as np
 
+from embodied_adhoc import checks
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["BUILTIN_MAPS", "GridMap", "load_map", "parse_map"]
+__all__ = ["BUILTIN_MAPS", "MAX_MAP_CHARS", "MAX_MAP_CELLS", "GridMap", "load_map", "parse_map"]
 
 BUILTIN_MAPS = ("ntu", "isr", "mit", "pentagon", "cit")
+MAX_MAP_CHARS = 1 << 20
+MAX_MAP_CELLS = 10_000
 BLOCKED, OPEN, START, GOAL = "#", ".", "S", "G"
 UP, DOWN, LEFT, RIGHT, STAY = range(5)
 ACTION_NAMES = ("up", "down", "left", "right", "stay")
@@ -82,6 +87,11 @@ def parse_map(text: str, source: str = "<map>") -> GridMap:
     if not lines:
         raise ConfigError(f"{source}: the map is empty; write one row per line with '#', '.', 'S', 'G'")
     width = max(len(line) for line in lines)
+    if len(lines) * width > MAX_MAP_CELLS:
+        raise ConfigError(
+            f"{source}: {len(lines)} rows x {width} columns = {len(lines) * width:,} cells, more than the limit of "
+            f"{MAX_MAP_CELLS:,}; draw a smaller map"
+        )
     is_open = np.zeros((len(lines), width), dtype=bool)
     starts, goals = set(), set()
     for row, line in enumerate(lines):
@@ -139,12 +149,9 @@ def load_map(name_or_path: str | Path) -> GridMap:
     else:
         path = Path(name_or_path)
         if not path.is_file():
-            raise ConfigError(f"--map {text_name}: no such file (built-in maps: {', '.join(BUILTIN_MAPS)})")
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise ConfigError(f"{path}: cannot read the map ({error})") from None
-    grid = parse_map(text, str(path))
+            what = "not a regular file" if path.exists() else "no such file"
+            raise ConfigError(f"--map {text_name}: {what} (built-in maps: {', '.join(BUILTIN_MAPS)})")
+    grid = parse_map(checks.read_text(path, MAX_MAP_CHARS, "map file"), str(path))
     return grid if text_name not in BUILTIN_MAPS else _renamed(grid, text_name)
 
 

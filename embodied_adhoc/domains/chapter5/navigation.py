@@ -45,7 +45,14 @@ from embodied_adhoc.domains.chapter5.library import (
 )
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["MAP_SETTINGS", "build_gridworld", "build_map_library", "four_sensor_observations"]
+__all__ = [
+    "MAP_SETTINGS",
+    "MAX_MODELS",
+    "MAX_OPEN_CELLS",
+    "build_gridworld",
+    "build_map_library",
+    "four_sensor_observations",
+]
 
 NOTHING, WALL, TEAMMATE = range(3)
 N_OBSERVATIONS = 81
@@ -58,6 +65,11 @@ MAP_SETTINGS = {  # Table 5.2: (eps, horizon h, Perseus beliefs, library size |M
     "cit": (0.10, 85, 8000, 3),
 }
 DEFAULT_MAP_SETTINGS = (0.20, 75, 5000, None)  # a user's map: every goal pair is a task
+MAX_OPEN_CELLS = 150
+"""A map domain has n(n-1)+1 states for n open cells, each task a POMDP over them: 150 cells give 22,351 states
+(cit, the largest built-in map, has 70 cells and 4,831 states)."""
+MAX_MODELS = 45
+"""At most this many tasks (goal pairs) per library: 10 goal cells' pairs."""
 
 
 def _observation_names() -> tuple[str, ...]:
@@ -312,6 +324,12 @@ def build_map_library(
     """A map domain (``ntu``, ``isr``, ``mit``, ``pentagon``, ``cit`` or any map file); Table 5.2's settings by
     default (a user's map: eps 0.2, h 75, 5000 beliefs, every goal pair a task)."""
     grid = load_map(map_name_or_path)
+    if grid.n_cells > MAX_OPEN_CELLS:
+        raise ConfigError(
+            f"map {map_name_or_path}: {grid.n_cells:,} open cells give {grid.n_cells * (grid.n_cells - 1) + 1:,} "
+            f"states; the map domains accept at most {MAX_OPEN_CELLS} open cells "
+            f"({MAX_OPEN_CELLS * (MAX_OPEN_CELLS - 1) + 1:,} states): block cells with '#' or draw a smaller map"
+        )
     default = MAP_SETTINGS.get(str(map_name_or_path), DEFAULT_MAP_SETTINGS)
     noise = default[0] if noise is None else float(noise)
     horizon = default[1] if horizon is None else int(horizon)
@@ -321,6 +339,11 @@ def build_map_library(
     if not 1 <= n_models <= len(pairs):
         raise ConfigError(
             f"map {grid.name}: {n_models} models asked; its {len(grid.goals)} goals give 1..{len(pairs)} pairs"
+        )
+    if n_models > MAX_MODELS:
+        raise ConfigError(
+            f"map {grid.name}: {n_models} models (goal pairs of its {len(grid.goals)} goals); at most {MAX_MODELS} "
+            "are accepted: give --models K or fewer goal cells 'G'"
         )
     if not 0.0 <= noise <= 1.0:
         raise ConfigError(f"noise must lie in [0, 1], got {noise}")
