@@ -150,6 +150,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         faults=fault_options(args),
         localisation=not args.no_localisation,
         localisation_model=args.localisation_model,
+        model_rfid_miss=args.model_rfid_miss,
         max_steps=args.max_steps,
         record_dir=args.record,
         video_fps=args.video_fps,
@@ -216,6 +217,12 @@ def format_summary(summary: dict) -> str:
             f"{localisation['kidnaps']} re-localisation(s); readings unknown {localisation['unknown_readings']}, "
             f"wrong {localisation['wrong_readings']}"
         )
+    if summary.get("faults") is not None:
+        from embodied_adhoc.experiments.toxic_waste import fault_line
+
+        lines.append(f"faults:         {fault_line(summary['faults'])}")
+    if summary.get("cap_reason"):
+        lines.append(f"cap:            {summary['cap_reason']['detail']} [{summary['cap_reason']['code']}]")
     for name, path in summary.get("files", {}).items():
         lines.append(f"{name + ':':<16}{path}")
     return "\n".join(lines)

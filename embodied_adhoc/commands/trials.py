@@ -192,6 +192,12 @@ def _run_one(args: argparse.Namespace, config, out):
     )
     print()
     print(summary_table(summary))
+    from embodied_adhoc.experiments.summary import extras_table
+
+    extras = extras_table(summary)
+    if extras:  # e.g. the physics lab's fault events per episode
+        print()
+        print(extras)
     if timing:  # chapter-5 domains: Table 5.5's accumulated reward beside the steps, and where the time went
         from embodied_adhoc.experiments.chapter5 import return_table, timing_line
 

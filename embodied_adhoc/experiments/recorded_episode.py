@@ -60,6 +60,7 @@ class EpisodeConfig:
     faults: dict = field(default_factory=dict)  # experiments.toxic_waste.FAULTS name -> value
     localisation: bool = True  # False: wheel odometry alone
     localisation_model: str | None = None  # the agent's robot-node model: None (thesis), "measured" or a path
+    model_rfid_miss: float | None = None  # the agent's RFID miss model: None = the rfid_miss fault's value
 
 
 @dataclass
@@ -160,6 +161,17 @@ class _Metrics(MetricsObserver):
         )
         if "pose_error" in record.info:
             self.metrics.per_step[-1].update(localisation_fields(record.info))
+        if "faults" in record.info:
+            self.metrics.faults = dict(record.info["faults"])
+
+    def episode_finished(self, trace: EpisodeTrace) -> None:
+        super().episode_finished(trace)
+        if self.metrics.faults is not None:
+            from embodied_adhoc.experiments.toxic_waste import cap_reason
+
+            capped = trace.truncated and not trace.success
+            code, detail = cap_reason(trace.actions, self.metrics.faults, self.library.action_names, capped)
+            self.metrics.cap_reason = {"code": code, "detail": detail} if code else None
 
 
 class LabFrames:
@@ -398,6 +410,7 @@ def prepare_episode(config: EpisodeConfig) -> EpisodeSetup:
         faults=config.faults,
         localisation=config.localisation,
         localisation_model=config.localisation_model,
+        model_rfid_miss=config.model_rfid_miss,
     )
     spec = domain.episode_spec(options, seeding.episode_rng(config.seed, 0))
     for key in ("robot_node", "human_node"):

@@ -131,7 +131,8 @@ def run_sweep(
     store = None
     rows: dict[tuple[str, int], dict[str, str]] = {}
     if out is not None:
-        store = ResultStore(Path(out), config.identity(), task_names, spec_fields)
+        extra_fields = tuple(getattr(session, "trial_columns", ()))  # e.g. fault counts
+        store = ResultStore(Path(out), config.identity(), task_names, spec_fields, extra_fields)
         for row in store.open({"agents": list(config.agents), "episodes": config.episodes}):
             rows[(row["agent"], int(row["episode"]))] = row
         _check_stored_specs(rows, specs, spec_fields, store)

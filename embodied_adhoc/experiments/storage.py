@@ -6,6 +6,7 @@
   trials already in ``trials.csv`` are skipped, so asking for more agents or episodes extends the run.
 * ``trials.csv``: one row per finished trial, appended and flushed (and fsynced) as the trial finishes, in
   completion order. A trial's row is its commit mark: its per-step rows are written to ``steps.csv`` first.
+  A session may add columns after the results (its ``trial_columns``, e.g. the physics lab's fault counts).
 * ``steps.csv``: one row per step of every trial (step 0 = before acting): action, observation index, reward,
   normalised task entropy and the task posterior (``posterior_<k>`` columns), for Fig. 7.9-style plots.
 
@@ -21,7 +22,7 @@ import json
 import math
 import os
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from embodied_adhoc.atomic import atomic_write_text
@@ -45,6 +46,7 @@ class TrialRecord:
     final_entropy: float
     true_task_probability: float
     total_reward: float
+    extras: dict = field(default_factory=dict)  # the session's extra columns (numbers or short codes)
 
 
 def _format_float(value: float) -> str:
@@ -76,7 +78,15 @@ def trial_row(result: TrialResult, spec_fields: tuple[str, ...]) -> dict[str, st
         true_task_probability=_format_float(result.true_task_probability),
     )
     row["return"] = _format_float(result.total_reward)
+    row.update({key: _format_extra(value) for key, value in result.extras.items()})
     return row
+
+
+def _format_extra(value) -> str:
+    """An extra column's cell: an int as is, a float as ``repr`` (NaN: empty), a code as its text."""
+    if isinstance(value, float):
+        return _format_float(value)
+    return str(value)
 
 
 def record_from_row(row: dict[str, str], spec_fields: tuple[str, ...]) -> TrialRecord:
@@ -90,6 +100,11 @@ def record_from_row(row: dict[str, str], spec_fields: tuple[str, ...]) -> TrialR
         final_entropy=_parse_float(row["final_entropy"]),
         true_task_probability=_parse_float(row["true_task_probability"]),
         total_reward=_parse_float(row["return"]),
+        extras={
+            key: _parse_scalar(value)
+            for key, value in row.items()
+            if key not in spec_fields and key not in ("agent", "episode", *RESULT_FIELDS)
+        },
     )
 
 
@@ -158,18 +173,24 @@ class ResultStore:
     """The files of one sweep in ``folder`` (see the module docstring)."""
 
     def __init__(
-        self, folder: Path, identity: dict, task_names: tuple[str, ...], spec_fields: tuple[str, ...]
+        self,
+        folder: Path,
+        identity: dict,
+        task_names: tuple[str, ...],
+        spec_fields: tuple[str, ...],
+        extra_fields: tuple[str, ...] = (),
     ):
         self.folder = Path(folder)
         self.identity = json.loads(json.dumps(identity))
         self.task_names = tuple(task_names)
         self.spec_fields = tuple(spec_fields)
-        clash = set(self.spec_fields) & {"agent", "episode", *RESULT_FIELDS}
+        self.extra_fields = tuple(extra_fields)  # the session's per-trial columns after the results
+        clash = set(self.spec_fields) & {"agent", "episode", *RESULT_FIELDS, *self.extra_fields}
         if clash:
             raise ConfigError(
                 f"episode spec keys {sorted(clash)} clash with result columns; rename them in the domain"
             )
-        self.trial_fields = ("agent", "episode", *self.spec_fields, *RESULT_FIELDS)
+        self.trial_fields = ("agent", "episode", *self.spec_fields, *RESULT_FIELDS, *self.extra_fields)
         self.step_fields = (
             "agent",
             "episode",

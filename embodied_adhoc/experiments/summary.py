@@ -4,8 +4,9 @@ tests and probability of improvement) between agents; the ``--json`` document.""
 from __future__ import annotations
 
 import math
+from collections import Counter
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -34,6 +35,9 @@ class AgentSummary:
     identified_rate: float  # NaN for agents that keep no task posterior
     final_entropy: SampleSummary  # Metric 3 at the end of the trial
     total_reward: SampleSummary
+    # the sessions' extra per-trial columns: numeric ones as their mean per episode, codes as counts per value
+    extras_mean: dict[str, float] = field(default_factory=dict)
+    extras_counts: dict[str, dict[str, int]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -62,9 +66,59 @@ def summarise_records(records: Sequence[TrialRecord], agents: Sequence[str]) -> 
                 [r.final_entropy for r in rows if not math.isnan(r.final_entropy)]
             ),
             total_reward=summarise_sample([r.total_reward for r in rows]),
+            **_extras(rows),
         )
     comparisons = compare_pairs({name: [r.steps for r in rows] for name, rows in by_agent.items()}, "steps")
     return RunSummary(summaries, comparisons)
+
+
+def _extras(rows: Sequence[TrialRecord]) -> dict:
+    """Per extra column of ``rows``: the mean per episode of a numeric one, the count per value of a code (empty
+    cells are not counted)."""
+    means, counts = {}, {}
+    for key in dict.fromkeys(key for r in rows for key in r.extras):
+        values = [r.extras.get(key, "") for r in rows]
+        if all(isinstance(v, (int, float)) for v in values):
+            means[key] = float(np.mean(values))
+        else:
+            counts[key] = dict(Counter(str(v) for v in values if v != ""))
+    return {"extras_mean": means, "extras_counts": counts}
+
+
+def extras_table(summary: RunSummary) -> str:
+    """The extra per-trial columns (e.g. fault counts) per agent: means per episode, then the codes counted; empty
+    when the sweep has none."""
+    from embodied_adhoc.experiments.tables import format_table
+
+    agents = list(summary.agents.values())
+    keys = list(dict.fromkeys(key for s in agents for key in s.extras_mean))
+    codes = list(dict.fromkeys(key for s in agents for key in s.extras_counts))
+    if not keys and not codes:
+        return ""
+    rows = [[key, *(_cell(s.extras_mean.get(key)) for s in agents)] for key in keys]
+    notes = []
+    for key in codes:
+        if all(len(v) <= CODE_WIDTH for s in agents for v in s.extras_counts.get(key, {})):
+            rows.append([key, *(_codes(s.extras_counts.get(key, {})) for s in agents)])
+        else:  # sentences: one line each, under the table
+            notes += [
+                f"{s.agent} {key}: {v} (x{n})"
+                for s in agents
+                for v, n in s.extras_counts.get(key, {}).items()
+            ]
+    return "\n".join([format_table(["per episode (mean)", *(s.agent for s in agents)], rows), *notes])
+
+
+CODE_WIDTH = 24
+"""Longer values of a code column are sentences: listed under the extras table, not in a cell."""
+
+
+def _cell(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.3f}".rstrip("0").rstrip(".")
+
+
+def _codes(counts: dict[str, int]) -> str:
+    return ", ".join(f"{code} x{n}" for code, n in sorted(counts.items())) or "-"
 
 
 def comparisons_between_runs(
@@ -149,6 +203,9 @@ def summary_json(summary: RunSummary, config: dict) -> dict:
             "final_entropy_ci95": [_number(s.final_entropy.ci_low), _number(s.final_entropy.ci_high)],
             **_sample_json("return", s.total_reward),  # accumulated reward (Table 5.5)
         }
+        if s.extras_mean or s.extras_counts:  # the session's extra columns, e.g. fault counts per episode
+            agents[name]["per_episode_mean"] = {key: _number(v) for key, v in s.extras_mean.items()}
+            agents[name]["counts"] = s.extras_counts
     return {
         "agents": agents,
         "comparisons": comparisons_json(summary.comparisons),

@@ -200,8 +200,6 @@ class ToxicWasteSession:
             "communication": options["communication"],
             "confusion": options["confusion"],
         }
-        if options.get("human"):  # a plug-in human in the world (envs.lab_humans); the models keep theirs
-            self.env_kwargs["human"] = options["human"]
         model = {}
         if options.get("localisation_model") is not None:
             model["localisation_model"] = options["localisation_model"]
@@ -280,21 +278,6 @@ class ToxicWasteDomain:
     backends = ("abstract", "mujoco")
     agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
     default_agents = ("hotspot", "known-task", "oracle", "random")
-    blas_dependent = True  # ATPO's Perseus policies and BOPA's value iteration come from BLAS sums
-
-    def input_files(self, options: dict) -> dict:
-        """The files a run reads, by flag (their content is part of its identity: experiments/identity.py)."""
-        from embodied_adhoc import paths
-        from embodied_adhoc.domains.confusion import MEASURED_MATRIX, THESIS_MATRIX
-        from embodied_adhoc.domains.lab_observations import MEASURED_LOCALISATION
-
-        named = {"thesis": THESIS_MATRIX, "measured": MEASURED_MATRIX}
-        confusion = options["confusion"]
-        files = {"--confusion": paths.asset(named[confusion]) if confusion in named else confusion}
-        model = options.get("localisation_model")
-        if model is not None:
-            files["--localisation-model"] = paths.asset(MEASURED_LOCALISATION) if model == "measured" else model
-        return files
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group("toxic-waste options")
@@ -330,20 +313,11 @@ class ToxicWasteDomain:
             metavar="thesis|measured|PATH",
             help="speech confusion matrix of 'locate human' (default: measured, our offline pipeline's; 'thesis' = the original's)",
         )
-        group.add_argument(
-            "--human",
-            default=None,
-            metavar="scripted|MODULE:CALLABLE",
-            help="the world's human teammate (default: the scripted cleaner the agents' models assume); a plug-in "
-            "factory(library, task) -> object with step(rng, human_node, ball_status) (docs/plugins.md)",
-        )
         faults = parser.add_argument_group("physics-lab faults and localisation (--backend mujoco)")
         add_fault_arguments(faults)
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
-        from embodied_adhoc.envs.lab_humans import human_option
-
-        return human_option(args.human) | self.options(
+        return self.options(
             human_epsilon=args.human_epsilon,
             communication=not args.no_communication,
             task=args.task,

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from embodied_adhoc.experiments import seeding
-from embodied_adhoc.experiments.episode import run_episode_loop
+from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
 from embodied_adhoc.experiments.registry import build_agent, get_trial_domain
 from embodied_adhoc.experiments.stats import identify_step, normalised_entropies
 
@@ -47,6 +47,8 @@ class TrialResult:
     rewards: tuple[float, ...]
     # Task posterior after each step, shape (steps + 1, n_tasks), row 0 = the prior; None if the agent keeps none.
     posteriors: np.ndarray | None = field(default=None)
+    # The session's per-trial columns (its ``trial_columns``, e.g. fault counts); empty for sessions without them.
+    extras: dict = field(default_factory=dict)
 
     @property
     def true_task(self) -> int:
@@ -69,10 +71,24 @@ class TrialResult:
         return math.nan if self.posteriors is None else float(self.posteriors[-1, self.true_task])
 
 
+class _LastInfo(EpisodeObserver):
+    """Keeps the env's last ``info``: a session's ``trial_extras(trace, info)`` reads the episode's outcome there."""
+
+    info: dict = {}
+
+    def episode_started(self, info: dict, task_posterior) -> None:
+        self.info = info
+
+    def step_finished(self, record) -> None:
+        self.info = record.info
+
+
 def run_trial(session, env, job: TrialJob) -> TrialResult:
     """Run one episode of ``job.agent`` in ``env`` (an env made by ``session``) and return its record."""
     domain = get_trial_domain(job.domain)
     agent = build_agent(domain, session, job.agent, job.spec, seeding.agent_seed(job.seed, job.episode, job.agent))
+    extras = getattr(session, "trial_extras", None)
+    last = _LastInfo()
     trace = run_episode_loop(
         env,
         agent,
@@ -81,6 +97,7 @@ def run_trial(session, env, job: TrialJob) -> TrialResult:
         reset_options=session.reset_options(job.spec),
         max_steps=job.max_steps,
         observation_index=session.observation_index,
+        observers=(last,) if extras else (),
     )
     return TrialResult(
         agent=job.agent,
@@ -93,4 +110,5 @@ def run_trial(session, env, job: TrialJob) -> TrialResult:
         observations=tuple(trace.observations),
         rewards=tuple(trace.rewards),
         posteriors=trace.posterior_history(),
+        extras=extras(trace, last.info) if extras else {},
     )

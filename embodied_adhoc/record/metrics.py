@@ -23,6 +23,12 @@ field                  meaning
                        ``wrong_readings`` (robot-node readings unknown / not the true area); per step
                        ``pose_error_m``, ``odometry_error_m``, ``localisation_mode``, ``robot_node_reading``,
                        ``true_robot_node``, ``blocked``, ``kidnaps``. Null for envs without them.
+``faults``             physics runs: the episode's fault events (the env's ``info["faults"]``: RFID misses of
+                       reads, lost replies, dropped lidar beams, wheel-slip and encoder-noise metres,
+                       re-localisations, blocked moves, unknown robot-node readings). Null for envs without them.
+``cap_reason``         physics runs that hit the step cap: ``code`` (the observation that stayed uninformative,
+                       e.g. ``rfid_missed``) and ``detail`` (e.g. "cap reached: 'locate human' chosen 96/100
+                       steps; RFID missed 2 of 3 reads"); null otherwise.
 ``config``             the run's configuration (agent, seed, task, env kwargs, ...)
 =====================  ===============================================================================
 """
@@ -59,6 +65,8 @@ class EpisodeMetrics:
     task_posteriors: list[np.ndarray] = field(default_factory=list)
     success: bool = False
     outcome: str = "interrupted"
+    faults: dict[str, Any] | None = None  # the env's fault counts of the episode, where it keeps them
+    cap_reason: dict[str, str] | None = None  # why a capped episode did not finish: code and sentence
     sim_time_s: float = 0.0
     _started: float = field(default_factory=time.perf_counter)
     _step_started: float = field(default_factory=time.perf_counter)
@@ -132,6 +140,8 @@ class EpisodeMetrics:
                 "max": round(float(step_times.max()), 4) if len(step_times) else None,
             },
             "localisation": _localisation_summary(self.per_step),
+            "faults": self.faults,
+            "cap_reason": self.cap_reason,
             "config": self.config,
             "per_step": self.per_step,
         }

@@ -39,7 +39,9 @@ def test_wheel_slip_distance_is_the_radius_error_times_the_travel():
     config = OdometryConfig(encoder_noise=0.0, wheel_slip=0.02)
     odometry = _drive(config)
     left, right = odometry._scale
-    counted = math.floor(0.02 * 400 / odometry._tick) * odometry._tick * config.wheel_radius  # metres per wheel
+    counted = (
+        math.floor(0.02 * 400 / odometry._tick) * odometry._tick * config.wheel_radius
+    )  # metres per wheel
     expected = 0.5 * (abs(left - 1.0) + abs(right - 1.0)) * counted
     assert odometry.noise_distance == 0.0
     assert odometry.slip_distance == pytest.approx(expected, rel=1e-6)
@@ -142,7 +144,14 @@ def test_cap_reason_names_the_action_and_the_uninformative_observation():
 
 
 def test_cap_reason_picks_the_worst_channel_and_says_when_none_failed():
-    lost = {**FAULTS, "rfid_reads": 2, "rfid_misses": 0, "replies": 10, "replies_no_location": 6, "replies_lost": 5}
+    lost = {
+        **FAULTS,
+        "rfid_reads": 2,
+        "rfid_misses": 0,
+        "replies": 10,
+        "replies_no_location": 6,
+        "replies_lost": 5,
+    }
     assert cap_reason([4] * 10, lost, NAMES, capped=True)[0] == "reply_lost"
     unknown = {**FAULTS, "robot_node_readings": 11, "robot_node_unknown": 9, "moves": 10, "blocked_moves": 2}
     code, detail = cap_reason([0] * 10, unknown, NAMES, capped=True)
