@@ -1,0 +1,156 @@
+"""scripts/render_results.py: the published tables match the committed result files; the check catches edits.
+
+Nothing here solves or simulates: the check renders the committed ``results/*.json`` and compares pages.
+"""
+
+import copy
+import importlib.util
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SCRIPT = ROOT / "scripts" / "render_results.py"
+
+
+def load_script():
+    spec = importlib.util.spec_from_file_location("render_results", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses resolve annotations through sys.modules
+    spec.loader.exec_module(module)
+    return module
+
+
+def run_check(root: Path) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, str(root / "scripts" / "render_results.py"), "--check"],
+        cwd=root,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+
+
+def copy_tree(tmp_path: Path) -> Path:
+    """The pages, the result files and the renderer, as the check sees them in a checkout."""
+    (tmp_path / "scripts").mkdir()
+    shutil.copy(SCRIPT, tmp_path / "scripts")
+    shutil.copy(ROOT / "README.md", tmp_path)
+    shutil.copytree(
+        ROOT / "docs", tmp_path / "docs", ignore=shutil.ignore_patterns("*.mp4", "*.rrd", "*.png")
+    )
+    shutil.copytree(ROOT / "results", tmp_path / "results")
+    return tmp_path
+
+
+def test_committed_pages_match_the_committed_result_files():
+    done = run_check(ROOT)
+    assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_every_result_file_has_its_page_and_a_known_figure():
+    module = load_script()
+    names = sorted(path.stem for path in (ROOT / "results").glob("*.json"))
+    assert names, "no committed result files"
+    for name in names:
+        assert name in module.FIGURES
+        assert (ROOT / "docs" / "results" / f"{name}.md").exists()
+        document = json.loads((ROOT / "results" / f"{name}.json").read_text())
+        run = document["published"]
+        assert run["commit"] and run["kernel"] and run["commands"] and run["versions"]["numpy"]
+
+
+def test_a_hand_edited_number_fails_the_check_and_names_page_table_and_script(tmp_path):
+    root = copy_tree(tmp_path)
+    module = load_script()
+    marked = []
+    for page in [root / "README.md", *sorted((root / "docs").rglob("*.md"))]:
+        for line in page.read_text().splitlines():
+            match = module.MARKER.match(line)
+            if match and match["edge"] == "start" and match["name"].partition(".")[0] in module.FIGURES:
+                marked.append((page, match["name"]))
+    assert marked, "no page embeds a generated table"
+    page, name = marked[0]
+    text = page.read_text()
+    start = text.index(f"<!-- results:{name} start -->")
+    row_start = text.index("\n| ", text.index("|---", start)) + 1
+    row = text[row_start : text.index("\n", row_start)]
+    # The first digit of the first numeric cell after the row's label: a number a reader would copy.
+    offset = row.index(" | ") + 3
+    digit = row_start + next(i for i in range(offset, len(row)) if row[i].isdigit())
+    page.write_text(text[:digit] + str((int(text[digit]) + 1) % 10) + text[digit + 1 :])
+    done = run_check(root)
+    assert done.returncode == 1
+    first = done.stdout.splitlines()[0]
+    figure = module.FIGURES[name.partition(".")[0]]
+    assert str(page.relative_to(root)) in first
+    assert f"table {name}" in first
+    assert module.script_of(figure) in first
+    assert f"render_results.py run {figure.name}" in first
+
+
+def test_a_changed_result_file_fails_the_check(tmp_path):
+    root = copy_tree(tmp_path)
+    path = sorted((root / "results").glob("*.json"))[0]
+    document = json.loads(path.read_text())
+    document["published"]["commit"] = "0" * 40
+    path.write_text(json.dumps(document))
+    done = run_check(root)
+    assert done.returncode == 1
+    assert f"docs/results/{path.stem}.md" in done.stdout
+
+
+def trial_document(means: list[float]) -> dict:
+    """A published run and one check run per kernel, of one agent with the given mean steps."""
+
+    def run(kernel: str, mean: float) -> dict:
+        agents = {"a": {"steps_mean": mean, "steps_sd": 1.0, "steps_ci95": [mean - 0.5, mean + 0.5]}}
+        return {"kernel": kernel, "data": {"agents": agents}}
+
+    published, *checks = [
+        run(kernel, mean) for kernel, mean in zip(("SkylakeX", "Haswell"), means, strict=False)
+    ]
+    return {"published": published, "checks": checks}
+
+
+@pytest.mark.parametrize(
+    ("means", "expected"),
+    [
+        ([10.0], "not re-checked"),
+        ([10.0, 10.0], "exact on any host"),
+        ([10.0, 10.3], "statistical"),
+        ([10.0, 11.0], "statistical, CHECK FAILED"),
+    ],
+)
+def test_the_class_comes_from_the_runs_in_the_file(means, expected):
+    module = load_script()
+    figure = module.FIGURES["lab-agents"]
+    klass, how = module.reproducibility(figure, trial_document(means))
+    assert klass == expected
+    if len(means) > 1:
+        assert "Haswell" in how
+
+
+def test_a_verdict_that_changes_between_kernels_fails_the_markdown_check():
+    module = load_script()
+    table = {"caption": "claims", "headers": ["claim", "t", "holds"], "rows": [["a < b", "-3.0", "yes"]]}
+    published = {"tables": [table]}
+    check = copy.deepcopy(published)
+    assert module.compare_markdown_tables(published, check) == []
+    check["tables"][0]["rows"][0][2] = "no"
+    assert module.compare_markdown_tables(published, check)
+
+
+def test_the_markdown_tables_of_a_script_are_read_back_cell_for_cell():
+    module = load_script()
+    text = "Table 5.6: normalised\n| domain | ours |\n|---|---|\n| grid \\| x | 93.3 % |\n\nafter\n"
+    (table,) = module.markdown_tables(text)
+    assert table == {
+        "caption": "Table 5.6: normalised",
+        "headers": ["domain", "ours"],
+        "rows": [["grid \\| x", "93.3 %"]],
+    }
