@@ -101,8 +101,9 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
     Contact: a ball the human carries touches nothing (its geoms' collision bits are cleared while its grasp weld
     is active, restored on release), so the kinematic walker cannot push the robot or knock balls out of its
     container; the walker itself has no contacts (``assets/props/human.xml``). A hand-over under way (the walker's
-    drop motion) holds the robot still (``LabWorld.tick(drive=False)``: its route waits) and the robot's action
-    does not complete before the drop has succeeded or failed.
+    drop motion) holds the robot still (``LabWorld.tick(drive=False)``: its route waits until the drop has
+    succeeded or failed). The robot's action still completes on its own schedule: its agent may decide while the
+    ball is on its way (making the action wait for the hand-over deadlocked some scripted episodes).
 
     Extra ``info`` keys: ``realtime_slip_s`` (wall seconds the clock skipped, 0 when it kept up),
     ``reply_wait_s`` (simulated seconds the robot waited for an answer), ``decision_wait_s`` (simulated seconds
@@ -222,15 +223,11 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
             while True:
                 elapsed = data.time - start
                 answered = not asking or reply is not None or elapsed >= self.reply_timeout
-                handing_over = self.handover_under_way
                 if elapsed >= world.config.macro_timeout or (
-                    answered
-                    and controller.finished
-                    and elapsed >= world.config.min_macro_seconds
-                    and not handing_over
+                    answered and controller.finished and elapsed >= world.config.min_macro_seconds
                 ):
                     break
-                self._tick(drive=not handing_over)
+                self._tick(drive=not self.handover_under_way)
                 if asking and reply is None:
                     reply = self.human_driver.reply(self)
                 self.clock.wait_for(data.time)

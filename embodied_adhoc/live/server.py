@@ -24,13 +24,14 @@ import asyncio
 import contextlib
 import ipaddress
 import json
+import math
 import secrets
 import socket
 import time
 from collections.abc import Callable
-from urllib.parse import urlsplit
 
 from embodied_adhoc import paths
+from embodied_adhoc.comms.vocabulary import NODE_NAMES
 from embodied_adhoc.errors import ConfigError, EmbodiedAdhocError
 from embodied_adhoc.live.humans import DIRECTIONS
 from embodied_adhoc.live.session import FRAME_READY, LiveSession, LiveSettings
@@ -44,6 +45,9 @@ CONTROL_RATE, CONTROL_BURST = (
     60,
 )  # key changes are a few per second; auto-repeat is filtered by the page
 AUDIO_INTERVAL = 2.0
+IDLE_TIMEOUT = 30.0  # s without a message from the page (it pings every 5 s) before its slot is freed
+SEND_TIMEOUT = 10.0  # s a message may wait for a page that stopped reading before the page is dropped
+MAX_JSON_DEPTH = 4  # nesting of a message's arrays and objects ({"held": [...]} is 2)
 STATIC_FILES = {"live.js": "text/javascript", "live.css": "text/css"}
 SECURITY_HEADERS = {
     "Content-Security-Policy": "default-src 'self'; img-src 'self' blob:; media-src 'self' blob:; "
@@ -61,6 +65,70 @@ def is_loopback(host: str) -> bool:
         return ipaddress.ip_address(host).is_loopback
     except ValueError:
         return False
+
+
+def browser_hosts(host: str) -> list[str]:
+    """Names a browser can use for a server bound to ``host``: a wildcard address (0.0.0.0, ::) is no
+    address a browser opens, so this machine's loopback address and its host names stand in for it."""
+    if host in ("0.0.0.0", "::", ""):
+        names = ["127.0.0.1", "localhost", socket.gethostname(), socket.getfqdn()]
+        with contextlib.suppress(OSError):
+            names += sorted({info[4][0] for info in socket.getaddrinfo(socket.gethostname(), None)})
+        return list(dict.fromkeys(n for n in names if n))
+    if is_loopback(host):
+        return list(dict.fromkeys([host, "127.0.0.1", "localhost", "::1"]))
+    return [host]
+
+
+def origins(host: str, port: int) -> frozenset[str]:
+    """The Origin values accepted on the WebSocket: the page as served from the bound address (never from
+    whatever the request's Host header claims, which a DNS-rebinding page controls)."""
+    return frozenset(f"http://{_bracketed(name)}:{port}" for name in browser_hosts(host))
+
+
+def _bracketed(name: str) -> str:
+    return f"[{name}]" if ":" in name else name
+
+
+def check_depth(text: str, limit: int = MAX_JSON_DEPTH) -> None:
+    """Refuse a JSON text nested deeper than ``limit`` before it is parsed (a scan outside strings)."""
+    depth, in_string, escaped = 0, False, False
+    for char in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif char == "\\":
+                escaped = True
+            elif char == '"':
+                in_string = False
+        elif char == '"':
+            in_string = True
+        elif char in "[{":
+            depth += 1
+            if depth > limit:
+                raise ConfigError(f"message nested deeper than {limit} levels")
+        elif char in "]}":
+            depth -= 1
+
+
+def _refuse_constant(name: str):
+    raise ConfigError(f"message contains {name}: only finite numbers are accepted")
+
+
+def _finite_float(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise ConfigError(f"message contains the number {text}, too large to be finite")
+    return value
+
+
+def parse_message(text: str):
+    """A page message as JSON: size checked by the caller, depth here, non-finite numbers refused."""
+    check_depth(text)
+    try:
+        return json.loads(text, parse_constant=_refuse_constant, parse_float=_finite_float)
+    except json.JSONDecodeError as error:
+        raise ConfigError(f"message is not JSON ({error.msg} at column {error.colno})") from None
 
 
 class RateLimit:
@@ -83,13 +151,28 @@ class RateLimit:
 class LiveServer:
     """The app around one :class:`LiveSession` (module docstring)."""
 
-    def __init__(self, settings: LiveSettings, host: str = "127.0.0.1"):
+    def __init__(self, settings: LiveSettings, host: str = "127.0.0.1", port: int = 0):
         self.host = host
         self.token = None if is_loopback(host) else secrets.token_urlsafe(18)  # a credential, not simulation
+        self.bind(port)
         self.session = LiveSession(settings, publish=self._publish)
         self.loop: asyncio.AbstractEventLoop | None = None
         self.outbox: asyncio.Queue | None = None  # the connected participant's queue of events
         self._last_error_notice = 0.0
+        self._connections = 0
+
+    def bind(self, port: int) -> None:
+        """The port actually listened on: the Origin allowlist and the accepted Host names follow from it."""
+        self.port = int(port)
+        self.allowed_origins = origins(self.host, self.port)
+        self.allowed_hosts = frozenset(o.removeprefix("http://") for o in self.allowed_origins)
+
+    def urls(self) -> list[str]:
+        """The addresses to print: ones a browser can open (a wildcard bind names this machine instead)."""
+        query = f"?token={self.token}" if self.token else ""
+        names = browser_hosts(self.host)
+        shown = names[:1] if is_loopback(self.host) else names[: 3 if self.host in ("0.0.0.0", "::") else 1]
+        return [f"http://{_bracketed(name)}:{self.port}/{query}" for name in shown]
 
     # ------------------------------------------------------------------ app
     def app(self):
@@ -112,19 +195,41 @@ class LiveServer:
         return Starlette(routes=routes, lifespan=lifespan)
 
     def _token_ok(self, query) -> bool:
+        """Exactly one ``token`` parameter, equal to the server's (no parameter at all without a token)."""
+        given = query.getlist("token")
         if self.token is None:
-            return True
-        given = query.get("token", "")
-        return secrets.compare_digest(given.encode(), self.token.encode())
+            return not given
+        return len(given) == 1 and secrets.compare_digest(given[0].encode(), self.token.encode())
 
-    async def _page(self, request):
-        from starlette.responses import FileResponse, PlainTextResponse
+    def _host_ok(self, headers) -> bool:
+        """Without a token the server trusts the loopback alone: a request naming any other Host is a page
+        of another site reached through DNS rebinding."""
+        return self.token is not None or headers.get("host") in self.allowed_hosts
 
+    def _refused(self, request):
+        from starlette.responses import PlainTextResponse
+
+        if not self._host_ok(request.headers):
+            return PlainTextResponse("unknown host name", status_code=403)
         if not self._token_ok(request.query_params):
             return PlainTextResponse(
-                "token required: open the URL printed by `embodied-adhoc live` at start-up", status_code=403
+                "token required (once): open the URL printed by `embodied-adhoc live` at start-up",
+                status_code=403,
             )
-        return FileResponse(paths.live_static("index.html"), media_type="text/html", headers=SECURITY_HEADERS)
+        return None
+
+    async def _page(self, request):
+        from starlette.responses import HTMLResponse
+
+        refused = self._refused(request)
+        if refused is not None:
+            return refused
+        page = paths.live_static("index.html").read_text(encoding="utf-8")
+        if self.token:  # the page's own script and style need the token too
+            query = f"?token={self.token}"
+            for name in STATIC_FILES:
+                page = page.replace(f'"/static/{name}"', f'"/static/{name}{query}"')
+        return HTMLResponse(page, headers=SECURITY_HEADERS)
 
     async def _static(self, request):
         from starlette.responses import FileResponse, PlainTextResponse
@@ -132,6 +237,9 @@ class LiveServer:
         name = request.path_params["name"]
         if name not in STATIC_FILES:
             return PlainTextResponse("not found", status_code=404)
+        refused = self._refused(request)
+        if refused is not None:
+            return refused
         return FileResponse(paths.live_static(name), media_type=STATIC_FILES[name], headers=SECURITY_HEADERS)
 
     # ------------------------------------------------------------------ events from the simulation thread
@@ -146,8 +254,10 @@ class LiveServer:
         from starlette.websockets import WebSocketDisconnect
 
         origin = websocket.headers.get("origin")
-        if not self._token_ok(websocket.query_params) or (
-            origin is not None and urlsplit(origin).netloc != websocket.headers.get("host")
+        if (
+            not self._token_ok(websocket.query_params)
+            or not self._host_ok(websocket.headers)
+            or (origin is not None and origin not in self.allowed_origins)
         ):
             await websocket.close(code=1008)
             return
@@ -159,54 +269,80 @@ class LiveServer:
         outbox: asyncio.Queue = asyncio.Queue(maxsize=512)
         self.outbox = outbox
         session = self.session
-        await websocket.send_json(
-            {
-                "type": "hello",
-                "participant": session.participant_id,
-                "tasks": session.tasks,
-                "started": session.running,
-                "stream_fps": session.settings.stream_fps,
-                "keys": sorted(DIRECTIONS),
-                "limits": {
-                    "text_bytes": MAX_TEXT_BYTES,
-                    "audio_bytes": MAX_AUDIO_BYTES,
-                    "control_rate": CONTROL_RATE,
-                },
-            }
-        )
-        sender = asyncio.create_task(self._send_loop(websocket, outbox))
-        control = RateLimit(CONTROL_RATE, CONTROL_BURST)
-        audio = RateLimit(1.0 / AUDIO_INTERVAL, 1)
+        self._connections += 1
+        session.note("connected" if self._connections == 1 else "reconnected", connection=self._connections)
+        sender = None
         try:
-            while True:
-                message = await websocket.receive()
-                if message["type"] == "websocket.disconnect":
-                    break
-                session.counters["messages"] += 1
-                try:
-                    reply = await self._handle(message, control, audio)
-                except EmbodiedAdhocError as error:
-                    session.counters["refused"] += 1
-                    reply = {"type": "error", "message": str(error)}
-                except (ValueError, TypeError, KeyError) as error:  # malformed fields of a message
-                    session.counters["refused"] += 1
-                    reply = {
-                        "type": "error",
-                        "message": f"malformed message ({type(error).__name__}: {error})",
-                    }
-                if reply is not None:
-                    await websocket.send_json(reply)
-        except WebSocketDisconnect:
+            await asyncio.wait_for(websocket.send_json(self._hello()), SEND_TIMEOUT)
+            sender = asyncio.create_task(self._send_loop(websocket, outbox))
+            await self._receive_loop(websocket, sender)
+        except (TimeoutError, WebSocketDisconnect):
             pass
         finally:
             session.person.keys(
                 set(), session.person.last_seq
             )  # a dropped page must not leave the human walking
-            sender.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await sender
+            if sender is not None:
+                sender.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await sender
             if self.outbox is outbox:
                 self.outbox = None
+            session.note("disconnected", connection=self._connections)
+
+    def _hello(self) -> dict:
+        session = self.session
+        return {
+            "type": "hello",
+            "participant": session.participant_id,
+            "tasks": session.tasks,
+            "places": list(NODE_NAMES),
+            "started": session.running or session.done is not None,
+            "stream_fps": session.settings.stream_fps,
+            "keys": sorted(DIRECTIONS),
+            "restore": session.restore(),
+            "limits": {
+                "text_bytes": MAX_TEXT_BYTES,
+                "audio_bytes": MAX_AUDIO_BYTES,
+                "control_rate": CONTROL_RATE,
+                "idle_timeout_s": IDLE_TIMEOUT,
+            },
+        }
+
+    async def _receive_loop(self, websocket, sender: asyncio.Task) -> None:
+        """Messages until the page leaves, stops reading (the sender gave up) or says nothing for
+        ``IDLE_TIMEOUT`` seconds."""
+        session = self.session
+        control = RateLimit(CONTROL_RATE, CONTROL_BURST)
+        audio = RateLimit(1.0 / AUDIO_INTERVAL, 1)
+        while True:
+            receiving = asyncio.ensure_future(websocket.receive())
+            done, _ = await asyncio.wait(
+                {receiving, sender}, timeout=IDLE_TIMEOUT, return_when="FIRST_COMPLETED"
+            )
+            if receiving not in done:
+                receiving.cancel()
+                with contextlib.suppress(asyncio.CancelledError, Exception):
+                    await receiving
+                session.note("dropped", why="idle" if not done else "not reading")
+                return
+            message = receiving.result()
+            if message["type"] == "websocket.disconnect":
+                return
+            session.counters["messages"] += 1
+            try:
+                reply = await self._handle(message, control, audio)
+            except EmbodiedAdhocError as error:
+                session.counters["refused"] += 1
+                reply = {"type": "error", "message": str(error)}
+            except (ValueError, TypeError, KeyError) as error:  # malformed fields of a message
+                session.counters["refused"] += 1
+                reply = {
+                    "type": "error",
+                    "message": f"malformed message ({type(error).__name__}: {error})",
+                }
+            if reply is not None:
+                await asyncio.wait_for(websocket.send_json(reply), SEND_TIMEOUT)
 
     async def _handle(self, message: dict, control: RateLimit, audio: RateLimit) -> dict | None:
         session = self.session
@@ -223,15 +359,15 @@ class LiveServer:
             raise ConfigError(f"message of {len(text.encode())} bytes exceeds {MAX_TEXT_BYTES}")
         if not control.allow():
             return self._limited(f"at most {CONTROL_RATE:g} messages per second")
-        try:
-            request = json.loads(text)
-        except json.JSONDecodeError as error:
-            raise ConfigError(f"message is not JSON ({error.msg} at column {error.colno})") from None
+        request = parse_message(text)
         if not isinstance(request, dict) or not isinstance(request.get("type"), str):
             raise ConfigError('message must be a JSON object with a "type" string')
         kind = request["type"]
         if kind == "ping":
-            return {"type": "pong", "t": float(request.get("t", 0.0))}
+            t = request.get("t", 0.0)
+            if isinstance(t, bool) or not isinstance(t, (int, float)):
+                raise ConfigError('"t" of a ping must be a number')
+            return {"type": "pong", "t": t}
         if kind == "start":
             started = session.start()
             return {
@@ -281,16 +417,16 @@ class LiveServer:
                 if frame is None or frame[0] == last_seq:
                     continue
                 last_seq, jpeg, state = frame
-                await websocket.send_json({"type": "state", **state})
-                await websocket.send_bytes(b"F" + jpeg)
+                await asyncio.wait_for(websocket.send_json({"type": "state", **state}), SEND_TIMEOUT)
+                await asyncio.wait_for(websocket.send_bytes(b"F" + jpeg), SEND_TIMEOUT)
                 now = time.perf_counter()
                 if last_sent is not None:
                     session.frame_intervals.append(now - last_sent)
                 last_sent = now
                 continue
-            await websocket.send_json(event)
+            await asyncio.wait_for(websocket.send_json(event), SEND_TIMEOUT)
             if binary is not None:
-                await websocket.send_bytes(b"A" + binary)
+                await asyncio.wait_for(websocket.send_bytes(b"A" + binary), SEND_TIMEOUT)
 
 
 def _offer(outbox: asyncio.Queue, item) -> None:
@@ -314,15 +450,15 @@ def serve(
         listener.close()
         raise ConfigError(f"--host {host} --port {port}: cannot listen there ({error.strerror})") from None
     try:
-        server = LiveServer(settings, host)
+        server = LiveServer(settings, host, listener.getsockname()[1])
     except BaseException:
         listener.close()
         raise
-    bound = listener.getsockname()[1]
-    shown = f"[{host}]" if family == socket.AF_INET6 else host
-    url = f"http://{shown}:{bound}/" + (f"?token={server.token}" if server.token else "")
     announce(f"live: participant {server.session.participant_id}, run folder {server.session.folder}")
-    announce(f"live: open {url}")
+    first, *others = server.urls()
+    announce(f"live: open {first}")
+    for url in others:
+        announce(f"live: or {url}")
     if server.token:
         announce(
             "live: the server is open beyond this machine; only the URL above (with its token) is accepted"

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from embodied_adhoc import checks
 from embodied_adhoc.atomic import atomic_write_bytes, atomic_write_text
 from embodied_adhoc.errors import ConfigError, SpeechError
 from embodied_adhoc.experiments.episode import EpisodeObserver, StepRecord
@@ -42,6 +43,11 @@ PARTICIPANT_PATTERN = re.compile(r"^P(\d{3,})_")
 SAMPLE_RATE = 16_000  # the recogniser's rate (comms.recognition)
 MAX_REPLY_SECONDS = 15.0
 MAX_TEXT = 200
+QUESTION_INTERVAL = 8.0  # s after an answer before the robot asks again, unless its belief moved
+BELIEF_SHIFT = (
+    0.25  # change of a task's probability since the last answer that lets a question through at once
+)
+HISTORY = 200  # page events kept for a page that reconnects
 FRAME_READY = {"type": "frame"}
 """Published (not sent) when a new frame is ready: the server then sends the latest state and frame."""
 
@@ -58,6 +64,7 @@ class LiveSettings:
     reply_timeout: float = 30.0
     max_steps: int = 100
     stream_fps: float = 10.0
+    question_interval: float = QUESTION_INTERVAL
     width: int = 640
     height: int = 480
 
@@ -95,15 +102,13 @@ class _PageObserver(EpisodeObserver):
         env = session.episode.env
         session.action = action_label(env.library, action, env.move_target(action))
         session.step = step
-        if action == env.library.locate_action:
-            session.publish(
-                {"type": "question", "step": step, "text": session.question_text}, session.question_wav
-            )
 
     def step_finished(self, record: StepRecord) -> None:
         session = self.session
         if record.task_posterior is not None:
             session.posterior = record.task_posterior.tolist()
+        if record.action == session.episode.env.library.locate_action:
+            session.posterior_at_answer = session.posterior
         session.publish(
             {
                 "type": "step",
@@ -118,7 +123,9 @@ class _PageObserver(EpisodeObserver):
 
     def episode_finished(self, trace) -> None:
         outcome = "success" if trace.success else "truncated"
-        self.session.publish({"type": "done", "outcome": outcome, "steps": trace.steps})
+        session = self.session
+        sim_time = round(float(session.episode.env.world.data.time), 1)
+        session.publish({"type": "done", "outcome": outcome, "steps": trace.steps, "sim_time": sim_time})
 
 
 class LiveSession:
@@ -159,6 +166,12 @@ class LiveSession:
         self._last_xy = None
         self.outcome = None
         self.error: str | None = None
+        self.done: dict | None = None
+        self.posterior_at_answer: list[float] | None = None
+        self.history: list[dict] = []  # the page's events so far (a reconnecting page replays them)
+        self.notes: list[dict] = []  # connections, from the server's threads
+        self._history_lock = threading.Lock()
+        self._balls: tuple[str, ...] | None = None
         config = EpisodeConfig(
             agent=settings.agent,
             seed=settings.seed,
@@ -181,6 +194,11 @@ class LiveSession:
             stop=self.stop,
         )
         self.tasks = [list(task) for task in self.episode.session.library.tasks]
+        env = self.episode.env
+        env.question_interval = checks.number("question_interval", settings.question_interval, 0.0)
+        env.question_gate = self._belief_moved
+        self.person.on_event = self._person_event
+        self.labels = map_labels(env.layout, settings.width, settings.height)
         self._thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------ lifecycle
@@ -217,7 +235,54 @@ class LiveSession:
             self._write_logs()
 
     def publish(self, event: dict, binary: bytes | None = None) -> None:
+        if event is not FRAME_READY:
+            with self._history_lock:
+                self.history.append(event)
+                del self.history[:-HISTORY]
+            if event.get("type") == "done":
+                self.done = event
         self.publish_to_page(event, binary)
+
+    def restore(self) -> dict:
+        """What a (re)connecting page needs to show the session as it is: the events so far, the latest state."""
+        with self._history_lock:
+            history = list(self.history)
+        with self.frame_lock:
+            state = None if self.frame is None else self.frame[2]
+        return {"history": history, "state": state, "posterior": self.posterior, "done": self.done}
+
+    def note(self, kind: str, **detail) -> None:
+        """A session event from a server thread (a page connected, left, came back) for the events log."""
+        with self.frame_lock:
+            sim_time = None if self.frame is None else self.frame[2]["sim_time"]
+        with self._history_lock:
+            self.notes.append(
+                {"kind": kind, "sim_time": sim_time, "wall_time": round(time.time(), 3), **detail}
+            )
+
+    # ------------------------------------------------------------------ the robot's questions (simulation thread)
+    def _belief_moved(self) -> bool:
+        """Whether the task posterior moved by ``BELIEF_SHIFT`` since the last answer (a new question is due)."""
+        now, then = self.posterior, self.posterior_at_answer
+        if now is None or then is None:
+            return False
+        return max(abs(a - b) for a, b in zip(now, then, strict=True)) >= BELIEF_SHIFT
+
+    def _person_event(self, entry: dict) -> None:
+        if entry["kind"] == "question":
+            self.publish(
+                {
+                    "type": "question",
+                    "step": self.step,
+                    "text": self.question_text,
+                    "sim_time": entry["sim_time"],
+                },
+                self.question_wav,
+            )
+        else:  # a pick or a drop finished: say how it went
+            self.publish(
+                {"type": "outcome", **{k: entry[k] for k in ("kind", "ball", "result", "succeeded")}}
+            )
 
     # ------------------------------------------------------------------ frames (simulation thread)
     def _on_tick(self, env) -> None:
@@ -230,14 +295,21 @@ class LiveSession:
         self._next_frame_wall = (
             max(now, self._next_frame_wall + period) if self._next_frame_wall else now + period
         )
-        image = env.render_camera("overhead")
+        image = Image.fromarray(env.render_camera("overhead"))
+        draw_labels(image, self.labels)
         buffer = io.BytesIO()
-        Image.fromarray(image).save(buffer, format="JPEG", quality=70)
+        image.save(buffer, format="JPEG", quality=70)
         truth = env.world.ground_truth()
         walker = env.world.human
+        if truth.ball_states != self._balls:  # the ball-state timeline of the events log
+            self._balls = truth.ball_states
+            self.person.note(env, "balls", states=list(truth.ball_states))
         state = {
             "sim_time": round(truth.time, 2),
             "human": [round(truth.human_pose[0], 3), round(truth.human_pose[1], 3)],
+            "robot": [round(truth.robot_pose[0], 3), round(truth.robot_pose[1], 3)],
+            "robot_node": env.true_robot_node(truth),
+            "ball_xy": [[round(p[0], 3), round(p[1], 3)] for p in truth.ball_positions],
             "human_node": truth.human_node,
             "holding": walker.holding,
             "busy": not walker.finished,
@@ -282,14 +354,26 @@ class LiveSession:
 
         if len(data) > max_bytes:
             raise ConfigError(f"audio reply of {len(data)} bytes exceeds the {max_bytes}-byte limit")
-        try:
-            audio, rate = soundfile.read(io.BytesIO(data), dtype="float32", always_2d=True)
+        try:  # the header first: format, channels, rate and length are checked before anything is decoded
+            header = soundfile.info(io.BytesIO(data))
         except (RuntimeError, soundfile.LibsndfileError, ValueError) as error:
             raise ConfigError(f"audio reply is not a readable WAV file ({error})") from None
+        if header.format != "WAV":
+            raise ConfigError(f"audio reply is {header.format}, not WAV: send 16-bit PCM WAV")
+        if header.channels not in (1, 2):
+            raise ConfigError(f"audio reply has {header.channels} channels; send mono or stereo")
+        rate = int(header.samplerate)
         if not 8_000 <= rate <= 48_000:
             raise ConfigError(f"audio reply sample rate {rate} Hz outside 8000..48000")
-        if audio.shape[0] > MAX_REPLY_SECONDS * rate:
-            raise ConfigError(f"audio reply of {audio.shape[0] / rate:.1f} s exceeds {MAX_REPLY_SECONDS:g} s")
+        cap = int(MAX_REPLY_SECONDS * rate)
+        if header.frames > cap:
+            raise ConfigError(f"audio reply of {header.frames / rate:.1f} s exceeds {MAX_REPLY_SECONDS:g} s")
+        try:  # at most one sample more than allowed is decoded, whatever the header claimed
+            audio, _ = soundfile.read(io.BytesIO(data), frames=cap + 1, dtype="float32", always_2d=True)
+        except (RuntimeError, soundfile.LibsndfileError, ValueError) as error:
+            raise ConfigError(f"audio reply is not a readable WAV file ({error})") from None
+        if audio.shape[0] > cap:
+            raise ConfigError(f"audio reply exceeds {MAX_REPLY_SECONDS:g} s")
         mono = audio.mean(axis=1)
         if rate != SAMPLE_RATE:
             divisor = np.gcd(int(rate), SAMPLE_RATE)
@@ -327,9 +411,18 @@ class LiveSession:
         return detail
 
     # ------------------------------------------------------------------ study log
+    def events(self) -> list[dict]:
+        """The events log: inputs, picks and drops with outcomes, questions, answers, ball states and
+        connections, in wall-clock order."""
+        with self._history_lock:
+            notes = list(self.notes)
+        return sorted([*self.person.log.entries, *notes], key=lambda entry: entry["wall_time"])
+
     def _write_logs(self) -> None:
         entries = "".join(json.dumps(entry) + "\n" for entry in self.person.log.entries)
         atomic_write_text(self.folder / "inputs.jsonl", entries)
+        events = "".join(json.dumps(entry) + "\n" for entry in self.events())
+        atomic_write_text(self.folder / "events.jsonl", events)
         motion = self.person.log.motion_latency_s
         intervals = np.array(self.frame_intervals) if self.frame_intervals else None
         summary = {
@@ -356,3 +449,33 @@ def _stats(values: np.ndarray) -> dict:
         "p95": round(float(np.percentile(values, 95)), 2),
         "max": round(float(values.max()), 2),
     }
+
+
+def map_labels(layout, width: int, height: int) -> list[tuple[str, tuple[int, int]]]:
+    """Each area's name as the recogniser understands it (``comms.vocabulary.NODE_NAMES``) at the pixel of its
+    polygon's centroid in the overhead camera (``scenes/lab.xml``: orthographic, 8.2 m tall, centred at 0, 0)."""
+    from embodied_adhoc.comms.vocabulary import NODE_NAMES
+
+    view_height = OVERHEAD_VIEW_HEIGHT
+    view_width = view_height * width / height
+    labels = []
+    for node, polygon in enumerate(layout.area_polygons):
+        x, y = np.asarray(polygon, dtype=float).mean(axis=0)
+        pixel = (int(round((x / view_width + 0.5) * width)), int(round((0.5 - y / view_height) * height)))
+        labels.append((NODE_NAMES[node], pixel))
+    return labels
+
+
+OVERHEAD_VIEW_HEIGHT = 8.2  # m: the overhead camera's orthographic fovy
+
+
+def draw_labels(image, labels) -> None:
+    """The area names on the streamed frame, white on a dark box so they read on every floor colour."""
+    from PIL import ImageDraw, ImageFont
+
+    draw = ImageDraw.Draw(image)
+    font = ImageFont.load_default(size=max(12, image.height // 32))
+    for text, (x, y) in labels:
+        left, top, right, bottom = draw.textbbox((x, y), text, font=font, anchor="mm")
+        draw.rectangle((left - 4, top - 3, right + 4, bottom + 3), fill=(20, 20, 20))
+        draw.text((x, y), text, font=font, anchor="mm", fill=(255, 255, 255))

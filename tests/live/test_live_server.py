@@ -27,10 +27,10 @@ class _Served:
     def __init__(self, tmp: Path, host_label: str = "127.0.0.1"):
         import uvicorn
 
-        self.live = LiveServer(LiveSettings(seed=9, out=tmp, stream_fps=10.0), host_label)
         self.socket = socket.socket()
         self.socket.bind(("127.0.0.1", 0))
         self.port = self.socket.getsockname()[1]
+        self.live = LiveServer(LiveSettings(seed=9, out=tmp, stream_fps=10.0), host_label, self.port)
         config = uvicorn.Config(
             self.live.app(), log_level="warning", ws="websockets-sansio", ws_max_size=MAX_AUDIO_BYTES + 1024
         )
@@ -240,3 +240,165 @@ def test_a_busy_port_is_one_line_and_status_2(tmp_path):
         result = _live_cli("--port", str(busy.getsockname()[1]), tmp=tmp_path)
     assert result.returncode == 2 and "cannot listen there" in result.stderr, result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+def _get(url: str, host: str | None = None) -> int:
+    request = urllib.request.Request(url, headers={"Host": host} if host else {})
+    try:
+        return urllib.request.urlopen(request).status
+    except urllib.error.HTTPError as error:
+        return error.code
+
+
+def test_dns_rebinding_host_and_origin_are_refused(served):
+    """The Origin allowlist comes from the bound address, not from the request's Host header."""
+    evil = f"evil.example:{served.port}"
+    assert _get(served.url("/"), host=evil) == 403
+    assert _get(served.url("/static/live.js"), host=evil) == 403
+    assert _get(served.url("/")) == 200
+
+    async def scenario():
+        uri = f"ws://127.0.0.1:{served.port}/ws"
+        for headers in ({"Host": evil}, {}):
+            with pytest.raises(websockets.InvalidStatus):
+                async with websockets.connect(uri, origin=f"http://{evil}", additional_headers=headers):
+                    pass
+        async with websockets.connect(uri, origin=f"http://localhost:{served.port}") as ws:
+            assert json.loads(await ws.recv())["type"] == "hello"
+
+    asyncio.run(scenario())
+    assert served.live.session.running is False  # nothing reached the simulation
+
+
+def test_duplicate_tokens_and_static_files_without_the_token_are_refused(tmp_path):
+    served = _Served(tmp_path, host_label="192.0.2.10")
+    try:
+        token = served.live.token
+        assert _get(served.url(f"/?token=wrong&token={token}")) == 403
+        assert _get(served.url(f"/?token={token}&token={token}")) == 403
+        assert _get(served.url("/static/live.js")) == 403
+        assert _get(served.url(f"/static/live.js?token={token}")) == 200
+        page = urllib.request.urlopen(served.url(f"/?token={token}")).read().decode()
+        assert f"/static/live.js?token={token}" in page and f"/static/live.css?token={token}" in page
+
+        async def scenario():
+            with pytest.raises(websockets.InvalidStatus):
+                async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws?token=wrong&token={token}"):
+                    pass
+
+        asyncio.run(scenario())
+    finally:
+        served.close()
+
+
+def test_the_printed_url_names_an_address_a_browser_opens(tmp_path):
+    live = LiveServer(LiveSettings(out=tmp_path), "0.0.0.0", 8123)
+    try:
+        urls = live.urls()
+        assert urls[0] == f"http://127.0.0.1:8123/?token={live.token}"
+        assert all("0.0.0.0" not in url for url in urls)
+        assert "http://127.0.0.1:8123" in live.allowed_origins
+        assert all("0.0.0.0" not in origin for origin in live.allowed_origins)
+    finally:
+        live.session.close()
+
+
+def _no_constant(name: str):
+    raise AssertionError(f"the server sent {name}, which is not JSON")
+
+
+def test_deep_huge_and_non_finite_json_is_refused_before_parsing(served):
+    async def scenario():
+        async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws", max_size=None) as ws:
+            await ws.recv()
+            await ws.send("[" * 2000 + "]" * 2000)
+            await ws.send(json.dumps({"type": "ping", "t": [[[[[[1]]]]]]}))
+            await ws.send('{"type": "ping", "t": NaN}')
+            await ws.send('{"type": "ping", "t": -Infinity}')
+            await ws.send('{"type": "ping", "t": 1e999}')
+            await ws.send('{"type": "ping", "t": 12.5}')
+            replies = []
+            while len(replies) < 6:
+                text = await asyncio.wait_for(ws.recv(), 10)
+                if isinstance(text, str) and '"state"' not in text[:20]:
+                    replies.append(json.loads(text, parse_constant=_no_constant))  # strict JSON only
+            errors = [r["message"] for r in replies if r["type"] == "error"]
+            assert sum("nested deeper" in m for m in errors) == 2
+            assert sum("finite" in m for m in errors) == 3
+            assert {"type": "pong", "t": 12.5} in replies
+
+    asyncio.run(scenario())
+    assert served.live.session.counters["refused"] == 5
+
+
+def _flac_of_silence(seconds: float) -> bytes:
+    import io
+
+    import numpy as np
+    import soundfile
+
+    buffer = io.BytesIO()
+    with soundfile.SoundFile(buffer, "w", 16_000, 1, format="FLAC") as sound:
+        block = np.zeros(16_000 * 60, dtype=np.float32)
+        for _ in range(int(seconds // 60)):
+            sound.write(block)
+    return buffer.getvalue()
+
+
+def test_long_or_odd_audio_is_refused_from_its_header_without_decoding(tmp_path):
+    """A FLAC of 90 minutes of silence (under 1 MB) and WAVs of too many channels or seconds are refused from
+    their headers: no reply file is written and the Python heap grows by less than 2 MB."""
+    import io
+    import tracemalloc
+
+    import numpy as np
+    import soundfile
+
+    from embodied_adhoc.errors import ConfigError
+
+    flac = _flac_of_silence(5400)
+    assert len(flac) < MAX_AUDIO_BYTES
+    long_wav, six_channels = io.BytesIO(), io.BytesIO()
+    soundfile.write(long_wav, np.zeros((16_000 * 16, 1), dtype=np.int16), 16_000, format="WAV")
+    soundfile.write(six_channels, np.zeros((16_000, 6), dtype=np.int16), 16_000, format="WAV")
+    session = LiveSession(LiveSettings(seed=9, out=tmp_path))
+    try:
+        session.person.question_open = True
+        for data, why in (
+            (flac, "not WAV"),
+            (long_wav.getvalue(), "exceeds 15"),
+            (six_channels.getvalue(), "6 channels"),
+        ):
+            tracemalloc.start()
+            with pytest.raises(ConfigError, match=why):
+                session.reply_from_audio(data, 0, 10 * MAX_AUDIO_BYTES)
+            peak = tracemalloc.get_traced_memory()[1]
+            tracemalloc.stop()
+            assert peak < 2_000_000, (why, peak)
+        assert not (session.folder / "replies").exists() and session.replies == []
+    finally:
+        session.close()
+
+
+def test_an_idle_or_non_reading_page_loses_its_slot(served, monkeypatch):
+    from embodied_adhoc.live import server as server_module
+
+    monkeypatch.setattr(server_module, "IDLE_TIMEOUT", 2.0)
+    monkeypatch.setattr(server_module, "SEND_TIMEOUT", 2.0)
+
+    async def scenario():
+        uri = f"ws://127.0.0.1:{served.port}/ws"
+        async with websockets.connect(uri) as silent:  # says nothing after connecting
+            await silent.recv()
+            async with websockets.connect(uri) as second:
+                assert "another participant" in json.loads(await second.recv())["message"]
+            with pytest.raises(websockets.ConnectionClosed):
+                await asyncio.wait_for(_drain(silent, 4.0), 6)
+                await silent.recv()
+        async with websockets.connect(uri) as page:
+            assert json.loads(await page.recv())["type"] == "hello"
+
+    asyncio.run(scenario())
+    kinds = [note["kind"] for note in served.live.session.notes]
+    assert kinds[:3] == ["connected", "dropped", "disconnected"] and "reconnected" in kinds
+    assert served.live.session.notes[1]["why"] == "idle"

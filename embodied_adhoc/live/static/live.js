@@ -8,7 +8,7 @@ const KEYS = {
 };
 const ACT_KEYS = new Set(["KeyE", "Space"]);
 const stats = { frameIntervals: [], keyToMotion: [], frames: 0, states: 0, heard: [], errors: [], steps: [],
-                posterior: null, lastState: null, questions: 0, done: null };
+                posterior: null, lastState: null, questions: 0, done: null, outcomes: [] };
 window.liveStats = stats;
 
 const $ = (id) => document.getElementById(id);
@@ -17,6 +17,9 @@ let socket = null, seq = 0, tasks = [], lastFrameAt = null, frameUrl = null;
 let pendingMotion = null, motionSeen = false, recorder = null, questionStep = null;
 
 function token() { return new URLSearchParams(location.search).get("token") || ""; }
+
+function ping() { send({ type: "ping", t: performance.now() }); }
+setInterval(ping, 5000);  // the server frees the slot of a page silent for its idle timeout
 
 function connect() {
   const scheme = location.protocol === "https:" ? "wss" : "ws";
@@ -86,6 +89,13 @@ function onEvent(event) {
       tasks = event.tasks;
       $("participant").textContent = `participant ${event.participant}`;
       if (event.started) $("start").disabled = true;
+      offerPlaces(event.places || []);
+      restore(event.restore);
+      break;
+    case "outcome":
+      stats.outcomes.push(event);
+      $("notice").textContent = event.result;
+      log(`${event.kind} ball ${event.ball}: ${event.succeeded ? "done" : "failed"} (${event.result})`);
       break;
     case "state": onState(event); break;
     case "starting": $("start").disabled = true; log("episode started"); break;
@@ -94,9 +104,7 @@ function onEvent(event) {
       stats.questions += 1;
       questionStep = event.step;
       $("heard").textContent = "";
-      $("question").textContent = event.text;
-      $("question-panel").className = "asking";
-      for (const id of ["reply-text", "reply-send", "mic"]) $(id).disabled = false;
+      openQuestion(event.text);
       log(`step ${event.step}: robot asks "${event.text}"`);
       break;
     case "heard":
@@ -115,6 +123,11 @@ function onEvent(event) {
     case "done":
       stats.done = event;
       $("notice").textContent = `episode over: ${event.outcome} after ${event.steps} steps. Thank you!`;
+      $("end").hidden = false;
+      $("end-text").textContent = event.outcome === "success"
+        ? `All three balls are in the robot's container: done in ${event.sim_time} s and ${event.steps} robot decisions.`
+        : `The episode ended (${event.outcome}) after ${event.steps} robot decisions.`;
+      closeQuestion();
       log(`done: ${event.outcome}`);
       break;
     case "error":
@@ -139,8 +152,40 @@ function onState(state) {
   const names = ["on the floor", "held", "in the container"];
   $("balls").textContent = state.balls.map((s, i) => `${i}: ${names[s]}`).join(", ");
   $("robot").textContent = state.action ? `step ${state.step}: ${state.action}` : "—";
-  if (state.notice) $("notice").textContent = state.notice;
+  if (state.notice && !stats.done) $("notice").textContent = state.notice;
   if (state.posterior) showBelief(state.posterior);
+  if (state.question_open && $("question-panel").className !== "asking") openQuestion("Where are you?");
+  if (!state.question_open && $("question-panel").className === "asking") closeQuestion();
+}
+
+function offerPlaces(places) {  // the names the recogniser understands, as on the map
+  const list = $("places"), buttons = $("place-buttons");
+  list.replaceChildren(...places.map((p) => { const o = document.createElement("option"); o.value = `I'm at the ${p}`; return o; }));
+  buttons.replaceChildren(...places.map((p) => {
+    const b = document.createElement("button");
+    b.type = "button"; b.textContent = p; b.className = "place";
+    b.addEventListener("click", () => { $("reply-text").value = `I'm at the ${p}`; $("reply-text").focus(); });
+    return b;
+  }));
+}
+
+function restore(snapshot) {  // a page that (re)connects shows the session as it is
+  if (!snapshot) return;
+  $("log").replaceChildren();
+  for (const event of snapshot.history) {
+    if (event.type === "question") { log(`step ${event.step}: robot asks "${event.text}"`); stats.questions += 1; }
+    else if (event.type === "step") log(`step ${event.step}: ${event.action}; ${event.observation}`);
+    else if (event.type === "outcome") log(`${event.kind} ball ${event.ball}: ${event.succeeded ? "done" : "failed"} (${event.result})`);
+    else if (event.type === "done") onEvent(event);
+  }
+  if (snapshot.posterior) showBelief(snapshot.posterior);
+  if (snapshot.state) onState(snapshot.state);
+}
+
+function openQuestion(text) {
+  $("question").textContent = text;
+  $("question-panel").className = "asking";
+  for (const id of ["reply-text", "reply-send", "mic"]) $(id).disabled = false;
 }
 
 function closeQuestion() {
