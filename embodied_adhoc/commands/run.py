@@ -57,6 +57,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--human-epsilon", type=float, default=0.05, metavar="E", help="human failure rate (0.05)"
     )
     toxic.add_argument(
+        "--human",
+        default=None,
+        metavar="scripted|MODULE:CALLABLE",
+        help="the world's human teammate (default: the scripted cleaner the agents' models assume), or a plug-in "
+        "(docs/plugins.md)",
+    )
+    toxic.add_argument(
         "--no-communication",
         action="store_true",
         help="no 'locate human'; the human is seen only when co-located",
@@ -133,11 +140,20 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
 
     if args.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {args.max_steps}")
+    from embodied_adhoc.sim.lab_render import check_render_size
+
+    try:  # the frames are drawn on another thread, so the renderer's own refusal would come after the episode
+        check_render_size(args.width, args.height)
+    except ConfigError as error:
+        raise ConfigError(f"--width {args.width} --height {args.height}: {error}") from None
     from embodied_adhoc.experiments.registry import agent_plugin
     from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     agent_plugin(DOMAIN, args.agent, "--agent")  # an unknown name or a broken plug-in stops here, before any model
+    from embodied_adhoc.envs.lab_humans import human_option
+
     config = EpisodeConfig(
+        env_kwargs=human_option(args.human),
         agent=args.agent,
         seed=args.seed,
         task=args.task,

@@ -15,7 +15,12 @@ import json
 import shlex
 import sys
 
-from embodied_adhoc.commands.arguments import seed
+from embodied_adhoc.commands.arguments import output_file, seed
+
+
+def _saved_file(text: str):
+    """``speech eval --out``: 'none', or a file that can be written (checked before anything is measured)."""
+    return "none" if text.lower() == "none" else output_file(text)
 
 
 def register(subparsers) -> None:
@@ -57,6 +62,7 @@ def register(subparsers) -> None:
     evaluate.add_argument("--workers", type=int, default=1, help="decoding processes (default 1)")
     evaluate.add_argument(
         "--out",
+        type=_saved_file,
         default=None,
         metavar="PATH",
         help="where to save the confusion matrix JSON "
@@ -87,7 +93,11 @@ def register(subparsers) -> None:
     )
     attempt.add_argument("--seed", type=seed, default=0, help="seed of the noise, >= 0 (default 0)")
     attempt.add_argument(
-        "--wav", default=None, metavar="PATH", help="also write the heard audio as a WAV file"
+        "--wav",
+        type=output_file,
+        default=None,
+        metavar="PATH",
+        help="also write the heard audio as a WAV file",
     )
     attempt.add_argument("--json", action="store_true", help="print JSON")
     attempt.set_defaults(func=handle_try)
@@ -97,7 +107,13 @@ def register(subparsers) -> None:
     say.add_argument(
         "--node", type=int, default=None, help="node for arrived/ready (0 door .. 4 double workbench)"
     )
-    say.add_argument("--wav", default=None, metavar="PATH", help="write the spoken utterance as a 16 kHz WAV")
+    say.add_argument(
+        "--wav",
+        type=output_file,
+        default=None,
+        metavar="PATH",
+        help="write the spoken utterance as a 16 kHz WAV",
+    )
     say.set_defaults(func=handle_say)
 
     grammar = commands.add_parser("grammar", help="regenerate assets/speech/reply.gram and reply.dict")
@@ -132,6 +148,7 @@ def register(subparsers) -> None:
     )
     adapt.add_argument(
         "--out",
+        type=output_file,
         default=None,
         metavar="PATH",
         help="where to write the transform (default assets/speech/synthetic.mllr, the recogniser's default)",
@@ -155,6 +172,13 @@ def _parse_list(text: str | None, kind: str) -> tuple:
     return items
 
 
+def _voices(text: str | None, flag: str) -> tuple[str, ...]:
+    """The voices of ``--voices V,V,...`` (each one installed, checked before any synthesis); () when not given."""
+    from embodied_adhoc.comms.synthesis import check_voice
+
+    return tuple(check_voice(voice, flag) for voice in _parse_list(text, "voices"))
+
+
 def _decoder_settings(adaptation: str | None):
     from pathlib import Path
 
@@ -175,7 +199,7 @@ def handle_eval(args: argparse.Namespace) -> int:
 
     levels = (None, *(level for level in _parse_list(args.snr, "snr") if level is not None))
     config = speech_eval.EvalConfig(
-        voices=_parse_list(args.voices, "voices") or synthesis.DEFAULT_VOICES,
+        voices=_voices(args.voices, "--voices") or synthesis.DEFAULT_VOICES,
         snr_levels=levels,
         phrases=args.phrases,
         seed=args.seed,
@@ -192,7 +216,7 @@ def handle_eval(args: argparse.Namespace) -> int:
     conditions = [speech_eval.condition_metrics(results, level) for level in config.snr_levels]
     confusion = speech_eval.measured_confusion(results, config, command)
     saved = None
-    if (args.out or "").lower() != "none":
+    if args.out != "none":
         saved = save_confusion(confusion, args.out or paths.assets_dir() / MEASURED_MATRIX)
     if args.json:
         json.dump(
@@ -226,7 +250,8 @@ def handle_try(args: argparse.Namespace) -> int:
     from embodied_adhoc.comms.recognition import shared_recognizer
     from embodied_adhoc.comms.vocabulary import node_name
 
-    audio = synthesis.synthesize(args.text, synthesis.Voice(args.voice, args.speed, args.pitch))
+    voice = synthesis.Voice(synthesis.check_voice(args.voice, "--voice"), args.speed, args.pitch)
+    audio = synthesis.synthesize(args.text, voice)
     if args.snr is not None:
         audio = synthesis.add_noise(audio, args.snr, np.random.default_rng(args.seed), args.noise)
     transcript = shared_recognizer().transcribe(audio)
@@ -323,7 +348,7 @@ def handle_adapt(args: argparse.Namespace) -> int:
         utterances = _recordings(args.recordings)
         source = f"recordings listed in {args.recordings}"
     else:
-        voices = _parse_list(args.voices, "voices") or synthesis.DEFAULT_VOICES
+        voices = _voices(args.voices, "--voices") or synthesis.DEFAULT_VOICES
         levels = _parse_list(args.snr, "snr") or (None,)
         config = speech_eval.EvalConfig(voices=voices, snr_levels=levels, phrases=args.phrases, seed=args.seed)
         phrases = speech_eval.phrase_list(config)

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 
+from embodied_adhoc.commands.arguments import output_folder
 from embodied_adhoc.errors import ConfigError
 
 
@@ -21,8 +22,11 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     if not 0.0 <= args.mixing <= 1.0:
         raise ConfigError(f"--mixing {args.mixing}: a probability in [0, 1]")
     from embodied_adhoc.learning.atlpo_train import AtlpoTraining, train_atlpo
+    from embodied_adhoc.learning.ppo import pick_device
 
-    settings = AtlpoTraining(**{name: getattr(args, name) for name in AtlpoTraining.__dataclass_fields__})
+    pick_device(args.device)  # no CUDA for --device cuda: refused here, before the first policy starts
+    values = {name: getattr(args, name) for name in AtlpoTraining.__dataclass_fields__}
+    settings = AtlpoTraining(**{**values, "out": str(args.out)})
     report = train_atlpo(settings)
     print(f"library of {len(report['members'])} in {args.out} ({report['total_seconds']} s, "
           f"policies {report['policy_seconds']} s)")
@@ -59,5 +63,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                        help="mf: ATLPO-MF (PPO end to end, Fig. 6.2); mb: ATLPO-MB (encoder, transition and reward "
                             "predictors and decoder on replayed experience, then PPO on the latents, Fig. 6.3)")
     atlpo.add_argument("--quiet", action="store_true", help="no progress bar")
-    atlpo.add_argument("--out", required=True, help="folder for the weights, library.json and training.json")
+    atlpo.add_argument("--out", type=output_folder, required=True,
+                       help="folder for the weights, library.json and training.json (not an existing file)")
     atlpo.set_defaults(func=handle_atlpo)

@@ -123,6 +123,7 @@ def handle(args: argparse.Namespace) -> int:
         from embodied_adhoc.gl import choose_gl_platform
 
         choose_gl_platform()  # before the MuJoCo backend imports mujoco (here or in forked workers)
+    _note_single_task(domain.name, backends[0], options)
     results = {}
     for backend in backends:
         config = SweepConfig(
@@ -139,6 +140,22 @@ def handle(args: argparse.Namespace) -> int:
     if len(backends) > 1:
         _compare_backends(args, results)
     return 0
+
+
+def _note_single_task(domain_name: str, backend: str, options: dict) -> None:
+    """One note when the task library holds a single task: there is nothing to identify, so the entropy plot is
+    not drawn (and the identification columns are trivial)."""
+    from embodied_adhoc.experiments.executors import open_session
+
+    names = tuple(open_session(domain_name, backend, options).task_names)
+    if len(names) == 1:
+        hint = " (a map's tasks are the pairs of its 'G' cells: draw a third 'G' for three tasks)"
+        maps = dict(options.get("library") or {}).get("map") or domain_name in ("ntu", "isr", "mit", "pentagon", "cit")
+        print(
+            f"embodied-adhoc: note: {domain_name} has a single task ({names[0]}): nothing to identify, entropy.png "
+            f"is not drawn{hint if maps else ''}",
+            file=sys.stderr,
+        )
 
 
 def _default_cap(domain_name: str, backend: str, options: dict) -> int:
@@ -175,7 +192,7 @@ def _run_one(args: argparse.Namespace, config, out):
         title = f"{config.domain} ({config.backend}), {config.episodes} episodes"
         written.append(plot_steps(summary, out / "steps.png", title=f"Steps to finish / identify: {title}"))
         curves = result.curves_by_agent()
-        if curves:
+        if curves and len(result.task_names) > 1:  # one task: no belief to plot (handle's note says so)
             written.append(plot_entropy(curves, out / "entropy.png", title=f"Task-belief entropy: {title}"))
     if args.json:
         if "," not in args.backend:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import io
 import os
+import re
 import shutil
 import subprocess
 from collections.abc import Sequence
@@ -72,6 +73,58 @@ def require_espeak() -> str:
             "or `apt-get install espeak-ng`"
         )
     return path
+
+
+@functools.cache
+def installed_voices() -> tuple[frozenset[str], frozenset[str], tuple[str, ...]]:
+    """What espeak-ng's ``-v`` accepts here: (voice spellings in lower case, variant files, the language codes).
+    A voice is a language code, a voice name (``Klingon``, ``English (America)``) or a voice file (``gmw/en-US``
+    or ``en-US``), in any case; a variant (after ``+``) is a variant file's name, case-sensitive (``f3``,
+    ``Alex``): espeak-ng silently ignores anything else there, its display names (``female3``) included."""
+
+    def listing(kind: str) -> list[tuple[str, str, str, list[str]]]:
+        """(language, name, file, other languages) per row. Voice files have no spaces and are followed by the
+        "(code priority)" groups of the other languages; variant files may contain spaces and end the line."""
+        lines = subprocess.run(
+            [require_espeak(), f"--voices{kind}"], capture_output=True, text=True, check=False
+        ).stdout.splitlines()
+        rows = []
+        for line in lines[1:]:
+            fields = line.split(maxsplit=4)
+            if len(fields) == 5:
+                rest = fields[4].strip()
+                file = re.sub(r"(\s*\([^()]*\))+$", "", rest) if kind else rest.split()[0]
+                others = re.findall(r"\(([^\s()]+) \d+\)", rest[len(file) :])
+                rows.append((fields[1], fields[3], file, others))
+        return rows
+
+    voices, languages = set(), []
+    for language, name, file, others in listing(""):
+        languages.append(language)
+        voices.update((language, name.replace("_", " "), file, file.rsplit("/", 1)[-1], *others))
+    variants = {file.rsplit("/", 1)[-1] for _, _, file, _ in listing("=variant")}
+    return (
+        frozenset(v.lower() for v in voices),
+        frozenset(variants),
+        tuple(sorted(set(languages))),
+    )
+
+
+def check_voice(name: str, flag: str = "--voice") -> str:
+    """``name`` if espeak-ng has that voice (and variant) installed; else a ConfigError listing what it has
+    (espeak-ng itself speaks an unknown ``+variant`` with its default one, silently)."""
+    voices, variants, languages = installed_voices()
+    base, _, variant = name.partition("+")
+    if base.lower() not in voices:
+        raise ConfigError(
+            f"{flag} {name!r}: espeak-ng has no voice {base!r}; installed languages: {', '.join(languages)}"
+        )
+    if variant and variant not in variants:
+        raise ConfigError(
+            f"{flag} {name!r}: espeak-ng has no variant {variant!r}; installed variants: "
+            f"{', '.join(sorted(variants))}"
+        )
+    return name
 
 
 def check_noise_kind(kind: str) -> str:

@@ -414,13 +414,10 @@ def world_with_teammate(library, reference: str) -> tuple:
     MMDP) for model ``m``. Fig. 5.2's reduction turns it into the world's transitions (same rewards, observations
     and start). The power plant's tasks have their own state spaces (105 and 97 states): the reduction runs on the
     task's own model, which is then padded as the library's is."""
-    import importlib
-
     from embodied_adhoc.decision.models import POMDP
     from embodied_adhoc.domains.chapter5.library import reduce_joint
     from embodied_adhoc.domains.chapter5.power_plant import pad_pomdp
 
-    module_name, _, attribute = reference.partition(":")
     if reference in library.teammates:
         own = library.teammates[reference]
 
@@ -428,17 +425,16 @@ def world_with_teammate(library, reference: str) -> tuple:
             return own(m)
     elif reference in NAMED_TEAMMATES:
         factory = _named_teammate(reference)
-    elif not module_name or not attribute:
+    else:  # a plug-in: module:callable, path/to/file.py:callable or an embodied_adhoc.teammates entry point
+        from embodied_adhoc.plugins import installed, is_plugin_spec, resolve
+
         names = (*library.teammates, *(n for n in NAMED_TEAMMATES if n not in library.teammates))
-        raise ConfigError(
-            f"--teammate {reference!r}: unknown teammate of {library.domain}; give one of {', '.join(names)}, "
-            "or MODULE:CALLABLE (e.g. my_teammates:cautious)"
-        )
-    else:
-        try:
-            factory = getattr(importlib.import_module(module_name), attribute)
-        except (ImportError, AttributeError) as error:
-            raise ConfigError(f"--teammate {reference!r}: cannot import it ({error})") from None
+        if not is_plugin_spec(reference) and reference not in installed("teammate"):
+            raise ConfigError(
+                f"--teammate {reference!r}: unknown teammate of {library.domain}; give one of {', '.join(names)}, "
+                "or MODULE:CALLABLE (e.g. my_teammates:cautious)"
+            )
+        factory = resolve("teammate", reference, builtin=names, flag="--teammate").factory
     world = []
     for m, pomdp in enumerate(library.native_pomdps or library.pomdps):
         mmdp = library.mmdps[m]

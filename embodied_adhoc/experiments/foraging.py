@@ -60,10 +60,12 @@ class OriginalTeammateAgent(AgentBase):
         self.rng, self.state = rng, state
 
     def act(self) -> int:
-        from embodied_adhoc.domains.grid_rules_team import team_actions
+        from embodied_adhoc.domains.grid_rules_team import TeamSpec, team_actions
         from embodied_adhoc.envs.grid_world_env import state_from_dict
 
         state = state_from_dict(self.state, self.rules)
+        if not isinstance(self.team_spec, TeamSpec):  # a user's team policy (teammates.grid_plugins)
+            return int(self.team_spec.actions(state, self.task, self.rng, [0])[0])
         return int(team_actions(self.rules, state, self.task, self.team_spec, self.rng, [0])[0])
 
     def observe(self, action: int, observation: int, state=None) -> None:
@@ -154,7 +156,7 @@ class GridTrialDomain:
         group = parser.add_argument_group(f"{self.name} options")
         group.add_argument("--team", default=None, metavar="NAME[,NAME]",
                            help=f"team type(s) drawn per episode, from {', '.join(self.team_names)} "
-                                "(default: tau0,tau1,tau2)")
+                                "(default: tau0,tau1,tau2), or a user team MODULE:CALLABLE (docs/plugins.md)")
         group.add_argument("--task", type=int, default=None, metavar="K",
                            help="fix the task to K in 1..4 (N/S/W/E assignment rotated K-1 times; default: uniform)")
         group.add_argument("--rows", type=int, default=5, help="grid rows (default 5)")
@@ -174,8 +176,13 @@ class GridTrialDomain:
         default = ("greedy", "aware") if pairs else ("tau0", "tau1", "tau2")
         teams = tuple(args.team.split(",")) if args.team else default
         allowed = ("greedy", "aware") if pairs else ("tau0", "tau1", "tau2")
-        if any(t not in allowed for t in teams):
-            raise ConfigError(f"--team {args.team}: choose from {', '.join(allowed)}")
+        from embodied_adhoc.plugins import names_plugin, resolve
+
+        if any(t not in allowed and not names_plugin("teammate", t) for t in teams):
+            raise ConfigError(f"--team {args.team}: choose from {', '.join(allowed)}, or MODULE:CALLABLE (a user "
+                              "team: embodied_adhoc.teammates.grid_plugins)")
+        for team in teams:  # a user team that cannot be imported stops here, before any work
+            resolve("teammate", team, builtin=allowed, flag="--team")
         if args.task is not None and not 1 <= args.task <= 4:
             raise ConfigError(f"--task {args.task}: the task library is 1..4")
         library = getattr(args, "library", None)

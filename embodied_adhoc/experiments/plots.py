@@ -117,7 +117,8 @@ def plot_entropy(
     axes.set_ylabel("normalised entropy of the task belief")
     axes.set_ylim(-0.02, 1.05)
     axes.set_title(title)
-    axes.legend()
+    if axes.get_legend_handles_labels()[1]:  # every agent left out: no legend to draw (and no warning)
+        axes.legend()
     axes.grid(alpha=0.3)
     return _save(figure, path)
 

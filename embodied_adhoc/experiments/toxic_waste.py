@@ -200,6 +200,8 @@ class ToxicWasteSession:
             "communication": options["communication"],
             "confusion": options["confusion"],
         }
+        if options.get("human"):  # a plug-in human in the world (envs.lab_humans); the models keep theirs
+            self.env_kwargs["human"] = options["human"]
         model = {}
         if options.get("localisation_model") is not None:
             model["localisation_model"] = options["localisation_model"]
@@ -313,11 +315,20 @@ class ToxicWasteDomain:
             metavar="thesis|measured|PATH",
             help="speech confusion matrix of 'locate human' (default: measured, our offline pipeline's; 'thesis' = the original's)",
         )
+        group.add_argument(
+            "--human",
+            default=None,
+            metavar="scripted|MODULE:CALLABLE",
+            help="the world's human teammate (default: the scripted cleaner the agents' models assume); a plug-in "
+            "factory(library, task) -> object with step(rng, human_node, ball_status) (docs/plugins.md)",
+        )
         faults = parser.add_argument_group("physics-lab faults and localisation (--backend mujoco)")
         add_fault_arguments(faults)
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
-        return self.options(
+        from embodied_adhoc.envs.lab_humans import human_option
+
+        return human_option(args.human) | self.options(
             human_epsilon=args.human_epsilon,
             communication=not args.no_communication,
             task=args.task,

@@ -20,9 +20,9 @@ import mujoco
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.sim.lab_model import CAMERA_ALIASES, LabIds
+from embodied_adhoc.sim.lab_model import CAMERA_ALIASES, LAB_SCENE, LabIds
 
-__all__ = ["BeliefMarkers", "LabRenderer", "LabSnapshot", "SnapshotRenderer"]
+__all__ = ["BeliefMarkers", "LabRenderer", "LabSnapshot", "SnapshotRenderer", "check_render_size"]
 
 FAST_TESSELLATION = (10, 6, 1)
 """Slices and stacks of round shapes and quads per plane side of "fast" renders (``<quality numslices numstacks
@@ -77,12 +77,7 @@ class LabRenderer:
         if mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, name) < 0:
             cameras = [self.model.camera(i).name for i in range(self.model.ncam)]
             raise ConfigError(f"no camera '{camera}' in the lab scene; available: {cameras} (or 'robot')")
-        max_width, max_height = self.model.vis.global_.offwidth, self.model.vis.global_.offheight
-        if not (1 <= width <= max_width and 1 <= height <= max_height):
-            raise ConfigError(
-                f"render size {width}x{height} outside 1x1..{max_width}x{max_height} (the scene's offscreen "
-                "buffer, <visual><global offwidth offheight> in scenes/lab.xml)"
-            )
+        _check_size(width, height, self.model.vis.global_.offwidth, self.model.vis.global_.offheight)
         renderer = self.prepare(width, height, high)
         self.model.geom_matid[self.ids.floor_tiles] = (
             self.ids.floor_textured if high else self.ids.floor_plain
@@ -133,6 +128,23 @@ class LabRenderer:
         finally:
             for owner, name, value in saved:
                 setattr(owner, name, value)
+
+
+def _check_size(width: int, height: int, max_width: int, max_height: int) -> None:
+    if not (1 <= width <= max_width and 1 <= height <= max_height):
+        raise ConfigError(
+            f"render size {width}x{height} outside 1x1..{max_width}x{max_height} (the scene's offscreen "
+            "buffer, <visual><global offwidth offheight> in scenes/lab.xml)"
+        )
+
+
+def check_render_size(width: int, height: int, scene: str = LAB_SCENE) -> None:
+    """Refuse a frame size the renderer would refuse, before any model is compiled: the limit is the scene's
+    ``<visual><global offwidth offheight>``, read from its parsed MJCF (``MjSpec``, milliseconds)."""
+    from embodied_adhoc import paths
+
+    visual = mujoco.MjSpec.from_file(str(paths.scene(scene))).visual.global_
+    _check_size(width, height, visual.offwidth, visual.offheight)
 
 
 class SnapshotRenderer:

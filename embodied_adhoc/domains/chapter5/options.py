@@ -43,7 +43,8 @@ def add_library_arguments(parser: argparse.ArgumentParser, domain: str | None = 
             "--map",
             default=None,
             metavar="PATH",
-            help="map file: '#' blocked, '.' open, 'S' start, 'G' goal (domain map)",
+            help="map file: '#' blocked, '.' open, 'S' start, 'G' goal (domain map); each pair of 'G' cells is "
+            "one task, so n goals give n(n-1)/2 tasks (two give a single task: nothing to identify)",
         )
     if "size" in accepted:
         group.add_argument(
