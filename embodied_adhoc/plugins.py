@@ -32,7 +32,7 @@ from pathlib import Path
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["GROUPS", "Plugin", "installed", "is_plugin_spec", "resolve"]
+__all__ = ["GROUPS", "Plugin", "installed", "is_plugin_spec", "names_plugin", "resolve"]
 
 GROUPS = {
     "agent": "embodied_adhoc.agents",
@@ -66,6 +66,11 @@ _CACHE: dict[tuple[str, str, str], Plugin] = {}
 def is_plugin_spec(spec: str) -> bool:
     """Whether ``spec`` names code (``module:callable`` or ``file.py:callable``) rather than a name."""
     return ":" in spec
+
+
+def names_plugin(kind: str, spec: str) -> bool:
+    """Whether ``spec`` names a plug-in of ``kind`` rather than a built-in: code, or an installed entry point."""
+    return is_plugin_spec(spec) or spec in installed(kind)
 
 
 def installed(kind: str) -> dict[str, importlib.metadata.EntryPoint]:

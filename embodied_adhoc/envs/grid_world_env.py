@@ -89,10 +89,12 @@ class GridWorldCore:
     def __init__(self, config: GridConfig, tasks: tuple[Task, ...], teams: dict[str, TeamSpec],
                  task_set=None, team_set=None, view: int = 5, backend: str = "abstract", image_size: int = 64,
                  physics=None) -> None:
+        from embodied_adhoc.teammates.grid_plugins import with_plugin_teams
+
         self.config, self.rules = config, GridRules(config)
-        self.tasks, self.teams = tasks, teams
+        self.tasks, self.teams = tasks, with_plugin_teams(teams, team_set, self.rules)  # user teams by spec
         self.task_set = pick("tasks", task_set, tasks)
-        self.team_set = pick("teams", team_set, teams)
+        self.team_set = pick("teams", team_set, self.teams)
         if checks.integer("view", view, 1) % 2 == 0:
             raise ConfigError(f"view={view}: the field of view must be a positive odd number of cells")
         self.view = int(view)
@@ -130,7 +132,10 @@ class GridWorldCore:
     def scripted_actions(self, members) -> np.ndarray:
         """The episode team's actions for ``members`` (they plan assuming every agent follows the team)."""
         ep = self.episode
-        return team_actions(self.rules, ep.state, self.task, self.teams[ep.team], self.rng, members)
+        team = self.teams[ep.team]
+        if not isinstance(team, TeamSpec):  # a user's policy (teammates.grid_plugins)
+            return np.asarray(team.actions(ep.state, self.task, self.rng, list(members)), dtype=np.int64)
+        return team_actions(self.rules, ep.state, self.task, team, self.rng, members)
 
     def step(self, actions: np.ndarray) -> np.ndarray:
         """Apply one joint action; returns the targets completed this step."""

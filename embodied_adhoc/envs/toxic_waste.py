@@ -104,6 +104,7 @@ class ToxicWasteEnv(gymnasium.Env):
     | kwarg | default | meaning |
     |---|---|---|
     | ``task`` | None | fixed task index; None = drawn uniformly at each reset |
+    | ``human`` | "scripted" | the world's human teammate: the library's scripted cleaner, or a plug-in (interface in ``envs.lab_humans``; the agents' models are not told) |
     | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx on every query), "perfect" |
     | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig`` defaults) |
     | ``localisation`` | True | Monte Carlo localisation on the lidar; False: the controller and the robot-node reading use wheel odometry alone |
@@ -158,14 +159,17 @@ class ToxicWasteEnv(gymnasium.Env):
         lidar_dropout: float | None = None,
         speech_failure: float = 0.0,
         reader_miss: float | None = None,
+        human=None,
         **lab,
     ) -> None:
+        from embodied_adhoc.envs.lab_humans import lab_humans
         from embodied_adhoc.envs.toxic_waste_world import make_world
 
         self.render_mode = contract.render_mode(render_mode)
         speech = checks.choice("speech", speech, SPEECH_KINDS)
         config = LabConfig.from_kwargs(type(self).__name__, lab)
         self.library = library_from_config(config)
+        self._humans = lab_humans(self.library, human)  # the world's human; the agents' models keep theirs
         self.task = None if task is None else checks.integer("task", task, 0, self.library.n_tasks - 1)
         encoder_noise, wheel_slip = (
             None if value is None else checks.number(name, value, 0.0)
@@ -260,7 +264,7 @@ class ToxicWasteEnv(gymnasium.Env):
         outcome = (
             HumanOutcome(1.0, before.human_node)
             if HELD in self._status
-            else lib.humans[self._task].step(self._human_rng, before.human_node, self._status)
+            else self._humans[self._task].step(self._human_rng, before.human_node, self._status)
         )
         _, next_human, planned, handed_over = apply_step(
             lib.graph, robot_node, before.human_node, self._status, action, outcome

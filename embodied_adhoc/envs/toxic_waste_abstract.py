@@ -55,7 +55,8 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
     a picture of the graph, robot, human and balls; "ansi": one line of text) and the lab parameters of
     ``domains.lab.LabConfig``, which holds their defaults: ``tasks`` (ball placements), ``human_epsilon``,
     ``communication``, ``confusion`` ("measured", "thesis" or a JSON path), ``robot_node_accuracy``,
-    ``rfid_miss``, ``graph`` (``LabGraph``), ``reward``, ``discount``.
+    ``rfid_miss``, ``graph`` (``LabGraph``), ``reward``, ``discount``; ``human`` (the world's human teammate:
+    ``"scripted"``, the default, or a plug-in; interface in ``envs.lab_humans``; the agents' models are not told).
     ``reset(options={"task": k, "robot_node": i, "human_node": j})`` fixes the episode's start (default:
     uniform nodes, all balls on the ground).
 
@@ -70,8 +71,11 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
     metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
 
     @contract.keywords(*LAB_PARAMETERS)
-    def __init__(self, task: int | None = None, render_mode: str | None = None, **lab) -> None:
+    def __init__(self, task: int | None = None, render_mode: str | None = None, human=None, **lab) -> None:
+        from embodied_adhoc.envs.lab_humans import lab_humans
+
         self.library = library_from_config(LabConfig.from_kwargs(type(self).__name__, lab))
+        self._humans = lab_humans(self.library, human)  # the world's human; the agents' models keep theirs
         self.task = None if task is None else checks.integer("task", task, 0, self.library.n_tasks - 1)
         self.render_mode = contract.render_mode(render_mode, ("rgb_array", "ansi"))
         n = self.library.graph.n_nodes
@@ -97,7 +101,7 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
         self._episode.check()
         action = contract.action(action, self.library.n_actions, "see the action table of the env's docstring")
         reward = float(sum(self._reward_table[s] for s in self._status))
-        human = self.library.humans[self._task].step(self.np_random, self._human, self._status)
+        human = self._humans[self._task].step(self.np_random, self._human, self._status)
         self._robot, self._human, self._status, disposed = apply_step(
             self.library.graph, self._robot, self._human, self._status, action, human
         )

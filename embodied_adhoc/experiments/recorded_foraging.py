@@ -153,7 +153,9 @@ def run_foraging_episode(config: ForagingEpisodeConfig,
         raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
     if config.task is not None and not 1 <= config.task <= 4:
         raise ConfigError(f"--task {config.task}: the task library is 1..4")
-    unknown = [team for team in config.teams if team not in DOMAIN.team_names]
+    from embodied_adhoc.plugins import names_plugin
+
+    unknown = [team for team in config.teams if team not in DOMAIN.team_names and not names_plugin("teammate", team)]
     if unknown or not config.teams:
         raise ConfigError(f"--team {','.join(config.teams)}: choose from {', '.join(DOMAIN.team_names)}")
     check_video_options(config)
