@@ -17,7 +17,10 @@ EPILOG = """\
 With --out DIR the run is stored and resumable: config.json, trials.csv (one row per finished trial, appended as
 it finishes), steps.csv (per-step entropy and task posterior), summary.json, steps.png (Fig. 7.8 analogue) and
 entropy.png (Fig. 7.9 analogue). Re-running the same command resumes (finished trials are skipped); more
---agents or --episodes extend the run; other options in the same DIR are refused.
+--agents or --episodes extend the run; other options, changed input files (--map, --confusion, a plug-in's
+source, ...) or another BLAS kernel in the same DIR are refused (--new-run writes a sibling folder instead), as is a
+second process writing DIR at the same time. Damaged lines of the CSVs are moved to *.rejected on resume, with a
+warning naming the line, and their trials run again (docs/trials.md).
 """
 
 
@@ -93,6 +96,12 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
         default=None,
         metavar="DIR",
         help="store (and resume) the run in DIR, with plots",
+    )
+    parser.add_argument(
+        "--new-run",
+        action="store_true",
+        help="where DIR holds a run with other options, input files or BLAS kernel, write this one to a fresh "
+        "sibling DIR-2, DIR-3, ... (the first new one, or the one holding this run) instead of refusing",
     )
     parser.add_argument("--json", action="store_true", help="print only the JSON summary on stdout")
 
@@ -178,7 +187,10 @@ def _run_one(args: argparse.Namespace, config, out):
     from embodied_adhoc.experiments.summary import summary_json
     from embodied_adhoc.experiments.tables import comparison_table, summary_table
 
-    result = run_sweep(config, out=out, workers=args.workers, executor=args.executor, progress=not args.json)
+    result = run_sweep(
+        config, out=out, workers=args.workers, executor=args.executor, progress=not args.json, new_run=args.new_run
+    )
+    out = result.out  # the sibling that --new-run chose, if it chose one
     summary = result.summary()
     document = summary_json(summary, config.describe())
     timing = getattr(open_session(config.domain, config.backend, dict(config.options)), "timing", None)

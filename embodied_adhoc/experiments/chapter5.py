@@ -228,6 +228,7 @@ class Chapter5Domain:
     """The trial plug-in of one chapter-5 domain (see :mod:`embodied_adhoc.experiments.registry`)."""
 
     backends = ("abstract",)
+    blas_dependent = True  # Perseus' policies and the agents' belief products come from BLAS sums
 
     def __init__(self, name: str, description: str) -> None:
         self.name, self.description = name, description
@@ -317,6 +318,19 @@ class Chapter5Domain:
         if key not in _SESSION_CACHE:
             _SESSION_CACHE[key] = Chapter5Session(self.name, options)
         return _SESSION_CACHE[key]
+
+    def input_files(self, options: dict) -> dict:
+        """The files a run reads, by flag (their content is part of its identity: experiments/identity.py)."""
+        from embodied_adhoc.domains.chapter5.grid_maps import BUILTIN_MAPS
+        from embodied_adhoc.experiments.identity import plugin_source
+        from embodied_adhoc.paths import asset
+
+        files = {}
+        name = options["library"].get("map")
+        if name is not None:
+            files["--map"] = asset(f"maps/{name}.txt") if name in BUILTIN_MAPS else name
+        files["--teammate"] = plugin_source("teammate", options.get("teammate"), "--teammate")
+        return files
 
     def episode_spec(self, options: dict, rng: np.random.Generator) -> dict:
         library = self._session(options).library

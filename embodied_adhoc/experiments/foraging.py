@@ -152,6 +152,15 @@ class GridTrialDomain:
     def __init__(self, name: str, description: str, team_names: tuple[str, ...]) -> None:
         self.name, self.description, self.team_names = name, description, team_names
 
+    def input_files(self, options: dict) -> dict:
+        """The files a run reads, by flag (their content is part of its identity: experiments/identity.py)."""
+        from embodied_adhoc.experiments.identity import plugin_source
+
+        files = {f"--team {team}": plugin_source("teammate", team, "--team") for team in options["teams"]}
+        if options.get("library"):
+            files["--library"] = options["library"]
+        return files
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group(f"{self.name} options")
         group.add_argument("--team", default=None, metavar="NAME[,NAME]",

@@ -145,6 +145,10 @@ class PursuitTrialDomain(GridTrialDomain):
     agent_names = GridTrialDomain.agent_names + POMDP_AGENTS
     default_agents = GridTrialDomain.default_agents
 
+    def blas_dependent(self, options: dict) -> bool:
+        """``--pairs`` solves the pair models with Perseus, whose policies come from BLAS sums."""
+        return bool(options.get("pairs"))
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         super().add_arguments(parser)
         group = parser.add_argument_group("Fig. 7.12 (--pairs) with the decision layer")

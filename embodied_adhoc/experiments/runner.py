@@ -11,7 +11,10 @@ Usage from Python (what ``embodied-adhoc trials`` and ``scripts/reproduce_hotspo
 Episode specs (task, start positions) are drawn once from ``(seed, episode)``; each trial's env and agent
 randomness from ``(seed, episode, agent)`` (:mod:`embodied_adhoc.experiments.seeding`), so a result does not
 depend on the executor, the number of workers, or on which other trials a run contains. With ``out`` the run is
-stored and resumable (:mod:`embodied_adhoc.experiments.storage`).
+stored and resumable (:mod:`embodied_adhoc.experiments.storage`): the run's identity holds the content of its
+input files, plug-in agents' sources and, where a domain's results depend on it, the BLAS kernel class
+(:mod:`embodied_adhoc.experiments.identity`); resuming with any of them changed is refused, and ``new_run`` then
+writes a fresh sibling folder instead. One process at a time writes a folder (its lock).
 """
 
 from __future__ import annotations
@@ -25,8 +28,15 @@ from pathlib import Path
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments import seeding
 from embodied_adhoc.experiments.executors import execute, open_session
+from embodied_adhoc.experiments.identity import blas_note, input_digest, run_inputs
 from embodied_adhoc.experiments.registry import agent_plugin, build_agent, get_trial_domain
-from embodied_adhoc.experiments.storage import ResultStore, TrialRecord, record_from_row, trial_row
+from embodied_adhoc.experiments.storage import (
+    ResultStore,
+    TrialRecord,
+    fresh_sibling,
+    record_from_row,
+    trial_row,
+)
 from embodied_adhoc.experiments.summary import RunSummary, summarise_records
 from embodied_adhoc.experiments.trial import TrialJob
 
@@ -68,6 +78,7 @@ class SweepResult:
     entropy_curves: dict[tuple[str, int], list[float]]  # (agent, episode) -> normalised entropy per step
     new_trials: int  # trials run by this call (the others were resumed from ``out``)
     wall_time_s: float
+    out: Path | None = None  # the folder written: ``out``, or its fresh sibling under ``new_run``
 
     def summary(self) -> RunSummary:
         return summarise_records(self.records, self.config.agents)
@@ -104,8 +115,12 @@ def run_sweep(
     workers: int = 1,
     executor: str = "local",
     progress: bool = False,
+    new_run: bool = False,
 ) -> SweepResult:
     """Run (or resume, with ``out``) every (agent, episode) trial of ``config``; see the module docstring.
+
+    ``new_run``: where ``out`` holds a run of another identity, write to the first sibling ``out-2``, ``out-3``, ...
+    that is new or holds this run (a note names it) instead of refusing.
 
     An interrupt (Ctrl-C, or SIGTERM under the CLI) propagates after the trials that finished were written to
     ``out`` and the worker processes were terminated.
@@ -131,12 +146,41 @@ def run_sweep(
     store = None
     rows: dict[tuple[str, int], dict[str, str]] = {}
     if out is not None:
+        identity = {**config.identity(), **run_inputs(domain, options)}
+        out = Path(out)
+        if new_run:
+            chosen = fresh_sibling(out, identity)
+            if chosen != out:
+                note = f"embodied-adhoc: note: {out} holds another run; writing this one to {chosen}"
+                print(note, file=sys.stderr)
+            out = chosen
         extra_fields = tuple(getattr(session, "trial_columns", ()))  # e.g. fault counts
-        store = ResultStore(Path(out), config.identity(), task_names, spec_fields, extra_fields)
+        notes = {"blas": blas_note(), "agent_sources": _agent_sources(domain, config.agents)}
+        store = ResultStore(out, identity, task_names, spec_fields, extra_fields, notes)
         for row in store.open({"agents": list(config.agents), "episodes": config.episodes}):
             rows[(row["agent"], int(row["episode"]))] = row
-        _check_stored_specs(rows, specs, spec_fields, store)
+    try:
+        return _run_trials(config, specs, spec_fields, options, task_names, store, rows, workers, executor,
+                           progress, started, out)  # fmt: skip
+    finally:
+        if store is not None:
+            store.close()
 
+
+def _agent_sources(domain, agents) -> dict[str, str]:
+    """sha256 of each plug-in agent's source file (built-in agents are the package's own code)."""
+    sources = {}
+    for name in agents:
+        source = agent_plugin(domain, name).source
+        if source is not None:
+            sources[name] = input_digest(source, f"--agents {name}")
+    return sources
+
+
+def _run_trials(config, specs, spec_fields, options, task_names, store, rows, workers, executor, progress, started,
+                out) -> SweepResult:  # fmt: skip
+    if store is not None:
+        _check_stored_specs(rows, specs, spec_fields, store)
     jobs = [
         TrialJob(config.domain, config.backend, options, config.seed, config.max_steps, agent, e, specs[e])
         for agent in config.agents
@@ -174,6 +218,7 @@ def run_sweep(
         entropy_curves={key: curve for key, curve in curves.items() if key in requested},
         new_trials=len(jobs),
         wall_time_s=time.perf_counter() - started,
+        out=out,
     )
 
 

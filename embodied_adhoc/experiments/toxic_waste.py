@@ -280,6 +280,23 @@ class ToxicWasteDomain:
     backends = ("abstract", "mujoco")
     agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
     default_agents = ("hotspot", "known-task", "oracle", "random")
+    blas_dependent = True  # ATPO's Perseus policies and BOPA's value iteration come from BLAS sums
+
+    def input_files(self, options: dict) -> dict:
+        """The files a run reads, by flag (their content is part of its identity: experiments/identity.py)."""
+        from embodied_adhoc import paths
+        from embodied_adhoc.domains.confusion import MEASURED_MATRIX, THESIS_MATRIX
+        from embodied_adhoc.domains.lab_observations import MEASURED_LOCALISATION
+        from embodied_adhoc.experiments.identity import plugin_source
+
+        named = {"thesis": THESIS_MATRIX, "measured": MEASURED_MATRIX}
+        confusion = options["confusion"]
+        files = {"--confusion": paths.asset(named[confusion]) if confusion in named else confusion}
+        model = options.get("localisation_model")
+        if model is not None:
+            files["--localisation-model"] = paths.asset(MEASURED_LOCALISATION) if model == "measured" else model
+        files["--human"] = plugin_source("human", options.get("human"), "--human")
+        return files
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group("toxic-waste options")
