@@ -1,10 +1,16 @@
-"""On-disk cache of solved policies, keyed by the model's content and the solver settings.
+"""On-disk cache of solved policies, keyed by the model's content, the solver settings and the BLAS kernel.
 
 A key is the SHA-256 of the POMDP's arrays (every transition and observation matrix, rewards, discount, initial
-belief), of the solver settings (JSON, sorted keys) and of the solver's own source files: every module directly in
+belief), of the solver settings (JSON, sorted keys), of the solver's own source files: every module directly in
 ``embodied_adhoc/decision/`` (Perseus, backups, beliefs, ``plan_graph.py``, the bounds, the policy, the models, value
-iteration and any solver module added there), so that a changed solver never serves an old answer. Policies are ``AlphaVectorPolicy`` ``.npz`` files (no pickle), written atomically, under
+iteration and any solver module added there), so that a changed solver never serves an old answer, and of the BLAS
+kernel class (:func:`embodied_adhoc.experiments.identity.blas_kernel`: a solve's sums, hence its ties and its
+policy, can differ between the kernels OpenBLAS picks per CPU), so that a cache filled on one kernel never serves
+another. Policies are ``AlphaVectorPolicy`` ``.npz`` files (no pickle), written atomically, under
 ``$XDG_CACHE_HOME/embodied-adhoc/policies`` (default ``~/.cache/embodied-adhoc/policies``), never inside the package.
+
+An entry that does not load as a policy of its model (truncated, empty, a foreign file, vectors of another shape or
+actions out of range) is solved again and overwritten, with a one-line note on stderr naming the file.
 """
 
 from __future__ import annotations
@@ -13,12 +19,21 @@ import functools
 import hashlib
 import json
 import os
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["cache_dir", "is_blind", "model_digest", "solve_cached", "solver_sources"]
-
+__all__ = [
+    "cache_dir",
+    "cache_key",
+    "is_blind",
+    "load_entry",
+    "model_digest",
+    "solve_cached",
+    "solver_sources",
+]
 
 
 def cache_dir() -> Path:
@@ -61,6 +76,33 @@ def solver_sources() -> list[Path]:
     return sorted(Path(decision.__file__).parent.glob("*.py"))
 
 
+def cache_key(pomdp, settings: dict) -> str:
+    """The entry name of a solve: model, settings, solver sources and BLAS kernel class (module docstring)."""
+    from embodied_adhoc.experiments.identity import blas_kernel
+
+    parts = [model_digest(pomdp), json.dumps(settings, sort_keys=True), _solver_digest(), blas_kernel()]
+    return hashlib.sha256("|".join(parts).encode()).hexdigest()
+
+
+def load_entry(path: Path, pomdp) -> tuple[object | None, str]:
+    """``(policy, "")`` when ``path`` holds a policy of ``pomdp`` (vectors over its states, its actions), else
+    ``(None, what is wrong)``: a damaged or foreign entry is a reason to solve again, never an error."""
+    from embodied_adhoc.decision.policy import AlphaVectorPolicy
+
+    try:
+        if path.stat().st_size == 0:
+            return None, "is empty"
+        policy = AlphaVectorPolicy.load(path)
+    except (OSError, ValueError, EOFError, KeyError, TypeError, zipfile.BadZipFile) as error:
+        text = (str(error).splitlines() or [""])[0].replace(f"{path}: ", "")[:120]
+        return None, f"does not load ({type(error).__name__}: {text})"
+    if policy.alphas.shape[1] != pomdp.n_states:
+        return None, f"holds vectors over {policy.alphas.shape[1]} states, the model has {pomdp.n_states}"
+    if policy.actions.min() < 0 or policy.actions.max() >= pomdp.n_actions:
+        return None, f"names actions outside the model's 0..{pomdp.n_actions - 1}"
+    return policy, ""
+
+
 def is_blind(policy) -> bool:
     """Whether a Perseus solve stopped (its time limit) before completing one backup stage: the policy is then the
     blind-policy lower bound it starts from (one action for ever), not a solution."""
@@ -74,20 +116,16 @@ def solve_cached(pomdp, settings: dict, use_cache: bool = True) -> tuple[object,
     :func:`is_blind`, is never stored: a later run with more time must solve again). ``use_cache`` False bypasses
     the cache entirely (neither read nor written)."""
     from embodied_adhoc.decision.perseus import PerseusConfig, perseus
-    from embodied_adhoc.decision.policy import AlphaVectorPolicy
 
     _solver_digest()  # fixed now, as the solver modules were just imported
     if not use_cache:  # as stored (float32 rounded down): a cache hit, a miss and no cache act identically
         return perseus(pomdp, PerseusConfig(**settings)).as_stored(), False
-    key = hashlib.sha256(
-        "|".join([model_digest(pomdp), json.dumps(settings, sort_keys=True), _solver_digest()]).encode()
-    ).hexdigest()
-    path = cache_dir() / f"{key}.npz"
-    if path.is_file():
-        try:
-            return AlphaVectorPolicy.load(path), True
-        except (OSError, ValueError):
-            pass  # a damaged entry is solved again and overwritten
+    path = cache_dir() / f"{cache_key(pomdp, settings)}.npz"
+    if path.exists():
+        policy, problem = load_entry(path, pomdp)
+        if policy is not None:
+            return policy, True
+        print(f"embodied-adhoc: note: policy cache entry {path} {problem}; solving again", file=sys.stderr)
     policy = perseus(pomdp, PerseusConfig(**settings)).as_stored()
     if not is_blind(policy):
         path.parent.mkdir(parents=True, exist_ok=True)
