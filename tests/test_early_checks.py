@@ -79,6 +79,14 @@ def test_run_refuses_a_frame_larger_than_the_renderer_before_the_episode(tmp_pat
     assert not out.exists()
 
 
+@pytest.mark.parametrize("size", ["100000", "481"])
+def test_run_pursuit_refuses_a_frame_the_arena_cannot_render(tmp_path, size):
+    out = tmp_path / "episode"
+    result = run_cli("run", "pursuit", "--record", str(out), "--size", size, "--no-progress")
+    assert_refused(result, "--size", "even size 2..640")
+    assert not out.exists()
+
+
 def test_the_scene_limit_is_the_renderers():
     """The early check reads the same offscreen buffer that the renderer enforces on the compiled model."""
     from embodied_adhoc.sim.lab_model import load_lab_model

@@ -131,6 +131,11 @@ def test_pomdp_header_counts_are_refused_at_their_line(tmp_path, states, actions
     assert_refused(result, f"{path}:{line}:", "10,000,000")
 
 
+def test_a_belief_set_too_large_to_hold_is_refused_before_solving():
+    result = run_limited("pomdp", "solve", "tiger.95.POMDP", "--beliefs", str(10**9))
+    assert_refused(result, "--beliefs 1000000000", "100,000,000", "50000000 or fewer")
+
+
 def test_a_pomdp_header_within_the_limit_still_reads(tmp_path):
     from embodied_adhoc.decision.pomdp_io import read_pomdp
 

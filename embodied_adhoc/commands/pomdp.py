@@ -17,6 +17,8 @@ SOLVERS = ("perseus", "qmdp", "vi")
 
 _POSITIVE_INT = bounded(int, 1, "an integer >= 1")
 _COUNT = bounded(int, 0, "an integer >= 0")
+MAX_BELIEF_ENTRIES = 10**8
+"""Perseus keeps its belief set as dense rows: ``--beliefs`` x |S| at most this (800 MB of float64)."""
 _POSITIVE_SECONDS = bounded(float, math.ulp(0.0), "a finite number of seconds > 0")
 _POSITIVE_FLOAT = bounded(float, math.ulp(0.0), "a finite number > 0")
 
@@ -186,6 +188,11 @@ def _solve(args: argparse.Namespace) -> int:
             "--save-policy needs an alpha-vector policy: use --solver perseus or qmdp (vi solves the MDP)"
         )
     pomdp = _load(args)
+    if args.solver == "perseus" and args.beliefs * pomdp.n_states > MAX_BELIEF_ENTRIES:
+        raise ConfigError(
+            f"--beliefs {args.beliefs}: {args.beliefs:,} dense beliefs over {pomdp.n_states:,} states exceed the "
+            f"limit of {MAX_BELIEF_ENTRIES:,} entries; give --beliefs {MAX_BELIEF_ENTRIES // pomdp.n_states} or fewer"
+        )
     start, start_cpu = time.perf_counter(), time.process_time()
     report: dict = {"file": str(resolve_pomdp_path(args.file)), "solver": args.solver}
     policy = None

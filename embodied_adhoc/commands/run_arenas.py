@@ -78,13 +78,29 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
     foraging.set_defaults(func=handle_foraging)
 
 
+def _frame_size(text: str) -> int:
+    """``--size``: even (H.264 yuv420p) and within the arenas' offscreen framebuffer, known before the episode."""
+    from embodied_adhoc.sim.grid_arena import OFFSCREEN_SIZE
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give an even size 2..{OFFSCREEN_SIZE}") from None
+    if not 2 <= value <= OFFSCREEN_SIZE or value % 2:
+        raise argparse.ArgumentTypeError(
+            f"{value}: give an even size 2..{OFFSCREEN_SIZE} (the arenas' offscreen framebuffer)"
+        )
+    return value
+
+
 def _recording_arguments(parser: argparse.ArgumentParser) -> None:
     """The recording and output flags shared by ``run pursuit`` and ``run foraging``."""
     parser.add_argument("--record", type=output_folder, default=None, metavar="DIR",
                         help="write episode.mp4/.rrd, metrics.json")
     parser.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
     parser.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
-    parser.add_argument("--size", type=int, default=480, help="video width and height in pixels, even (480)")
+    parser.add_argument("--size", type=_frame_size, default=480,
+                        help="video width and height in pixels, even, at most the arenas' 640 (480)")
     parser.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -16,6 +16,8 @@ from embodied_adhoc import paths
 from embodied_adhoc.domains.grid_rules import GridConfig
 
 ROBOT_FILE = "robots/grid_robot/grid_robot.xml"
+OFFSCREEN_SIZE = 640
+"""Side of the arenas' offscreen framebuffer (``<visual><global offwidth offheight>``): the largest frame."""
 AGENT_RGBA = ((0.95, 0.55, 0.1, 1.0), (0.2, 0.4, 0.9, 1.0), (0.3, 0.7, 0.9, 1.0), (0.5, 0.3, 0.9, 1.0))
 PREY_RGBA = (0.85, 0.1, 0.1, 1.0)
 
@@ -67,7 +69,7 @@ def build_arena(config: GridConfig, layout: ArenaLayout, timestep: float = 0.005
     arena.option.timestep = timestep
     arena.option.integrator = "implicitfast"
     visual_global = getattr(arena.visual, "global")
-    visual_global.offwidth, visual_global.offheight = 640, 640
+    visual_global.offwidth, visual_global.offheight = OFFSCREEN_SIZE, OFFSCREEN_SIZE
     arena.asset.add(
         "texture",
         name="cells",
