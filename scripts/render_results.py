@@ -4,8 +4,8 @@ Every table of the README and docs/ that this script knows (``FIGURES``) is prod
 
 1. ``run NAME`` executes the figure's commands (a ``trials``/``pomdp`` CLI call or a
    ``scripts/reproduce_*.py`` / ``scripts/bench_*.py`` script), one at a time, and writes
-   ``results/NAME.json``: the numbers plus their provenance (git commit and the files modified in the working
-   tree, the exact commands, the OpenBLAS kernel that threadpoolctl reports in the same environment,
+   ``results/NAME.json``: the numbers plus their provenance (the git commit it ran, from a copy of that
+   commit's code, the exact commands, the OpenBLAS kernel that threadpoolctl reports in the same environment,
    numpy/scipy/mujoco/torch versions, the date). ``run NAME --kernel Haswell`` runs the same commands under
    ``OPENBLAS_CORETYPE=Haswell`` and adds that run to the file as a check of the published one;
 2. ``render`` writes ``docs/results/NAME.md`` (one page per figure, plus ``docs/results/index.md``) and
@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import hashlib
 import json
 import os
 import re
@@ -49,7 +50,8 @@ RESULTS = ROOT / "results"
 PAGES = ROOT / "docs" / "results"
 SCRIPT = "scripts/render_results.py"
 RUN_DIR = "runs/render-results"
-"""Each run's ``--out`` folder (cleared first, so a run never resumes an older one)."""
+"""The frozen copies of the code that figures run from, each with its runs' ``--out`` folders (cleared before a
+run, so that a run never resumes an older one)."""
 CACHE_DIR = "runs/render-results/cache"
 """Policy cache per kernel (``XDG_CACHE_HOME``): one kernel's solved policies never serve another's run."""
 MARKER = re.compile(r"^<!-- results:(?P<name>[A-Za-z0-9_-]+(?:\.[A-Za-z0-9_-]+)?) (?P<edge>start|end) -->$")
@@ -58,7 +60,7 @@ VERDICTS = ("holds", "significant", ">= 80 %")
 """Columns whose cells are a claim's verdict: a second kernel's run must keep them."""
 PROBE = (
     "import json, importlib.metadata as m, threadpoolctl\n"
-    "import numpy\n"
+    "import numpy, embodied_adhoc\n"
     "info = [i for i in threadpoolctl.threadpool_info() if i.get('internal_api') == 'openblas']\n"
     "versions = {}\n"
     "for name in ('numpy', 'scipy', 'mujoco', 'torch'):\n"
@@ -66,7 +68,8 @@ PROBE = (
     "        versions[name] = m.version(name)\n"
     "    except m.PackageNotFoundError:\n"
     "        pass\n"
-    "print(json.dumps({'kernel': info[0].get('architecture') if info else None, 'versions': versions}))\n"
+    "print(json.dumps({'kernel': info[0].get('architecture') if info else None, 'versions': versions,\n"
+    "                  'package': embodied_adhoc.__file__}))\n"
 )
 """What a run records about its numerical environment, probed in a process with the run's own environment."""
 NUMBER = r"-?\d+(?:\.\d+)?(?:e[-+]?\d+)?"
@@ -572,39 +575,84 @@ def expand(argv: Sequence[str], out: str) -> list[str]:
     return [part.replace("{python}", ".venv/bin/python").replace("{out}", out) for part in argv]
 
 
+CODE = ("embodied_adhoc", "scripts", "assets", "scenes", "pyproject.toml", "constraints.txt")
+"""What a run executes, taken from the commit: a check run counts only against a published run of the same code."""
+
+
+def snapshot() -> tuple[str, str, Path]:
+    """HEAD's commit, the SHA-256 of its files under ``CODE`` (names and blobs), and a copy of those files.
+
+    A figure runs from the copy (``PYTHONPATH`` first, ahead of the editable install), so its numbers are those of
+    the commit it records: uncommitted edits in the checkout, and edits made while it runs, never reach it. This
+    renderer is left out of the digest, since it changes the pages, never a number."""
+    commit = git("rev-parse", "HEAD")
+    listing = git("ls-tree", "-r", commit, "--", *CODE).splitlines()
+    code = hashlib.sha256(
+        "\n".join(line for line in listing if not line.endswith(SCRIPT)).encode()
+    ).hexdigest()
+    folder = ROOT / RUN_DIR / f"code-{code[:16]}"
+    if not folder.is_dir():
+        building = folder.with_name(folder.name + ".partial")
+        shutil.rmtree(building, ignore_errors=True)
+        building.mkdir(parents=True)
+        archive = subprocess.run(
+            ["git", "archive", commit, "--", *CODE], cwd=ROOT, capture_output=True, check=True
+        )
+        subprocess.run(["tar", "-x", "-C", str(building)], input=archive.stdout, check=True)
+        building.rename(folder)
+    return commit, code, folder
+
+
+def published_code(figure: Figure) -> tuple[str, str, Path] | None:
+    """The frozen copy the figure's published run ran from, while this machine still has it."""
+    path = RESULTS / f"{figure.name}.json"
+    if not path.exists():
+        return None
+    published = json.loads(path.read_text())["published"]
+    code = published.get("code_sha256", "")
+    folder = ROOT / RUN_DIR / f"code-{code[:16]}"
+    return (published["commit"], code, folder) if code and folder.is_dir() else None
+
+
 def run_figure(figure: Figure, kernel: str | None) -> dict:
-    """Run every command of ``figure`` in turn under ``OPENBLAS_CORETYPE=kernel`` (None: the host's)."""
+    """Run every command of ``figure`` in turn under ``OPENBLAS_CORETYPE=kernel`` (None: the host's).
+
+    A check run (``kernel`` given) runs the published run's frozen code when it is still here, so the two runs
+    differ in the kernel only; otherwise it freezes the checkout as it is, and the class shows any difference."""
     label = kernel or "default"
+    commit, code, folder = (kernel and published_code(figure)) or snapshot()
     env = dict(os.environ)
     env.pop("OPENBLAS_CORETYPE", None)
     if kernel:
         env["OPENBLAS_CORETYPE"] = kernel
     env["XDG_CACHE_HOME"] = str(ROOT / CACHE_DIR / label)
-    probe = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, check=True)
+    env["PYTHONPATH"] = os.pathsep.join([str(folder), *filter(None, [env.get("PYTHONPATH")])])
+    probe = subprocess.run(
+        [sys.executable, "-c", PROBE], cwd=folder, env=env, capture_output=True, text=True, check=True
+    )
     numerics = json.loads(probe.stdout)
+    if Path(numerics["package"]).resolve() != (folder / "embodied_adhoc" / "__init__.py").resolve():
+        sys.exit(
+            f"{figure.name}: the run would import {numerics['package']}, not the frozen copy in {folder}"
+        )
     outputs, commands = {}, {}
     started = dt.datetime.now(dt.UTC)
     for key, argv in figure.commands.items():
-        out = f"{RUN_DIR}/{figure.name}-{label}-{key}"
-        shutil.rmtree(ROOT / out, ignore_errors=True)
+        out = f"runs/{figure.name}-{label}-{key}"
         command = expand(argv, out)
         commands[key] = shlex.join(command)
         print(f"[{figure.name} {label}] {commands[key]}", file=sys.stderr, flush=True)
-        done = subprocess.run(command, cwd=ROOT, env=env, capture_output=True, text=True)
+        shutil.rmtree(folder / out, ignore_errors=True)
+        executable = [str(ROOT / command[0]) if command[0].startswith(".venv/") else command[0], *command[1:]]
+        done = subprocess.run(executable, cwd=folder, env=env, capture_output=True, text=True)
         if done.returncode != 0:
             sys.exit(f"{figure.name}: `{commands[key]}` exited {done.returncode}:\n{done.stderr[-2000:]}")
         outputs[key] = done.stdout
-    # Uncommitted edits of the code, scripts and assets a run executes (documentation cannot change a number).
-    changed = [
-        line[3:]
-        for line in git("status", "--porcelain", "--untracked-files=no").splitlines()
-        if line[3:].startswith(("embodied_adhoc/", "scripts/", "assets/", "scenes/"))
-    ]
     return {
         "kernel": numerics["kernel"],
         "openblas_coretype": kernel,
-        "commit": git("rev-parse", "HEAD"),
-        "modified_files": sorted(changed),
+        "commit": commit,
+        "code_sha256": code,
         "commands": commands,
         "versions": {k: v for k, v in numerics["versions"].items() if k != "torch" or figure.torch},
         "python": sys.version.split()[0],
@@ -664,6 +712,11 @@ def reproducibility(figure: Figure, document: dict, key: str | None = None) -> t
     others = [c for c in document["checks"] if c["kernel"] != published["kernel"]]
     if not others:
         return "not re-checked", f"run under the {published['kernel']} kernel only"
+    stale = [c for c in others if c.get("code_sha256") != published.get("code_sha256")]
+    others = [c for c in others if c not in stale]
+    if not others:
+        kernels = ", ".join(c["kernel"] for c in stale)
+        return "not re-checked", f"the {kernels} run checked other code than the published run's"
     ours = table_data(figure, published["data"], key)
     names = [published["kernel"], *(c["kernel"] for c in others)]
     kernels = ", ".join(names[:-1]) + " and " + names[-1]
@@ -765,17 +818,14 @@ def figure_page(figure: Figure, document: dict) -> str:
         "",
     ]
     lines += [
-        "| run | OpenBLAS kernel | commit | modified files | versions | date (UTC) |",
+        "| run | OpenBLAS kernel | commit | code (SHA-256 of its files) | versions | date (UTC) |",
         "|---|---|---|---|---|---|",
     ]
     for label, each in [("published", run), *(("check", c) for c in document["checks"])]:
         versions = ", ".join(f"{k} {v}" for k, v in each["versions"].items())
-        modified = ", ".join(f"`{m}`" for m in each["modified_files"]) or "none"
-        if len(each["modified_files"]) > 3:
-            modified = f"{len(each['modified_files'])} files (listed in the result file)"
         coretype = f" (OPENBLAS_CORETYPE={each['openblas_coretype']})" if each["openblas_coretype"] else ""
         lines.append(
-            f"| {label} | {each['kernel']}{coretype} | {each['commit'][:10]} | {modified} | "
+            f"| {label} | {each['kernel']}{coretype} | {each['commit'][:10]} | {each.get('code_sha256', 'not recorded')[:16]} | "
             f"python {each['python']}, {versions} | {each['started'].replace('T', ' ')[:16]} |"
         )
     return "\n".join(lines) + "\n"

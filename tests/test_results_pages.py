@@ -109,7 +109,7 @@ def trial_document(means: list[float]) -> dict:
 
     def run(kernel: str, mean: float) -> dict:
         agents = {"a": {"steps_mean": mean, "steps_sd": 1.0, "steps_ci95": [mean - 0.5, mean + 0.5]}}
-        return {"kernel": kernel, "data": {"agents": agents}}
+        return {"kernel": kernel, "code_sha256": "c0de", "data": {"agents": agents}}
 
     published, *checks = [
         run(kernel, mean) for kernel, mean in zip(("SkylakeX", "Haswell"), means, strict=False)
@@ -154,3 +154,25 @@ def test_the_markdown_tables_of_a_script_are_read_back_cell_for_cell():
         "headers": ["domain", "ours"],
         "rows": [["grid \\| x", "93.3 %"]],
     }
+
+
+def test_a_check_of_other_code_does_not_count():
+    module = load_script()
+    document = trial_document([10.0, 10.0])
+    document["checks"][0]["code_sha256"] = "other"
+    klass, how = module.reproducibility(module.FIGURES["lab-agents"], document)
+    assert klass == "not re-checked"
+    assert "other code" in how
+
+
+def test_a_figure_runs_from_a_copy_of_the_committed_code(tmp_path, monkeypatch):
+    module = load_script()
+    monkeypatch.setattr(module, "RUN_DIR", str(tmp_path))
+    commit, code, folder = module.snapshot()
+    assert commit == module.git("rev-parse", "HEAD")
+    assert folder.parent == tmp_path
+    committed = subprocess.run(
+        ["git", "show", f"{commit}:embodied_adhoc/__init__.py"], cwd=ROOT, capture_output=True, check=True
+    ).stdout
+    assert (folder / "embodied_adhoc" / "__init__.py").read_bytes() == committed
+    assert module.snapshot()[1] == code  # the same commit gives the same digest, and reuses the copy
