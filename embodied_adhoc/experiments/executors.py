@@ -6,8 +6,12 @@ reuses it for every trial it runs (:func:`execute_job`).
 
 Signals: pool workers ignore SIGINT (a Ctrl-C reaches the whole terminal process group; only the parent reacts) and
 die on SIGTERM. When the parent stops early (Ctrl-C, SIGTERM raised as an exception by the CLI, an error in a
-trial) it terminates the workers at once: their running trials would be discarded anyway, and no worker outlives
-the command.
+trial) it terminates the workers at once (and kills those still alive :data:`TERMINATE_GRACE_S` later): their
+running trials would be discarded anyway, and no worker outlives the command. A further SIGINT or SIGTERM while
+it stops is one line on stderr and does not interrupt the stopping; the command then ends with the first signal's
+status. A parent that dies without stopping them (SIGKILL, a crash) is noticed by its workers, which exit: on
+Linux the kernel signals them (``prctl(PR_SET_PDEATHSIG)``), and everywhere a watchdog thread in each worker
+checks every :data:`WATCHDOG_PERIOD_S` seconds that its parent is still the one that started it.
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ import json
 import multiprocessing
 import os
 import signal
+import sys
 import threading
+import time
 from collections.abc import Iterator, Sequence
 
 from embodied_adhoc.errors import ConfigError
@@ -29,6 +35,11 @@ EXECUTORS = ("local", "ray")
 RAY_WORKER_ENV = ("XDG_CACHE_HOME", "MUJOCO_GL", "PYTHONPATH")
 """Variables the driver passes to Ray's workers (a node started by ``ray start`` has the environment of that
 command, not the driver's): the policy cache location, the rendering backend and the import path."""
+
+TERMINATE_GRACE_S = 3.0
+"""Seconds a terminated worker has to exit before it is killed (one that ignores SIGTERM must not hang the parent)."""
+WATCHDOG_PERIOD_S = 0.5
+"""How often a pool worker checks that its parent still runs (the fallback where PR_SET_PDEATHSIG is missing)."""
 
 _SESSIONS: dict[str, object] = {}
 _ENVS: dict[tuple[str, int, int], object] = {}
@@ -130,6 +141,8 @@ def _execute_pool(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResul
         max_workers=min(workers, len(jobs)),
         mp_context=multiprocessing.get_context(method),
         initializer=_worker_signals,
+        # the kernel's parent-death signal follows the forking thread: asked for only when that is the main thread
+        initargs=(os.getpid(), threading.current_thread() is threading.main_thread()),
     )
     finished = False
     queued = iter(jobs)
@@ -147,9 +160,10 @@ def _execute_pool(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResul
     finally:
         # Stopped early (interrupt, SIGTERM, a failed trial, the consumer closed us): what was yielded is kept;
         # queued trials are dropped and running ones killed, so no worker outlives the sweep.
-        if not finished:
-            _terminate_workers(pool)
-        pool.shutdown(wait=True, cancel_futures=True)
+        with _second_signals_noted(stopping=not finished):
+            if not finished:
+                _terminate_workers(pool)
+            pool.shutdown(wait=True, cancel_futures=True)
 
 
 @contextlib.contextmanager
@@ -184,28 +198,94 @@ def _signals_at_safe_points():
         signal.signal(number, remember)
     try:
         yield deliver
+    except BaseException:
+        # Stopping already (the first signal's exception, or an error): a signal that came meanwhile is noted,
+        # not raised over the first.
+        for number, _ in received:
+            _note_signal_while_stopping(number, None)
+        received.clear()
+        raise
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)
         deliver()
 
 
-def _worker_signals() -> None:
+@contextlib.contextmanager
+def _second_signals_noted(stopping: bool):
+    """While the pool stops after a first signal (or an error), SIGINT and SIGTERM print one line and are otherwise
+    ignored: the stopping finishes and the first exception carries on (so the command exits with its status)."""
+    if not stopping or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    previous = {
+        number: signal.signal(number, _note_signal_while_stopping)
+        for number in (signal.SIGINT, signal.SIGTERM)
+    }
+    try:
+        yield
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+
+
+def _note_signal_while_stopping(number, frame) -> None:
+    name = signal.Signals(number).name
+    print(f"embodied-adhoc: {name} received while stopping; the workers are being stopped", file=sys.stderr)
+
+
+def _worker_signals(parent: int | None = None, death_signal: bool = True) -> None:
     """Pool initializer: Ctrl-C is the parent's business; SIGTERM kills (a forked worker would otherwise inherit
-    the CLI's SIGTERM-as-exception handler and print a traceback)."""
+    the CLI's SIGTERM-as-exception handler and print a traceback); the death of ``parent`` ends the worker."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    if parent is None:
+        return
+    if death_signal:
+        _die_with_parent()
+    if os.getppid() != parent:  # it died before the request above took effect
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), name="parent-watchdog", daemon=True).start()
+
+
+def _die_with_parent() -> bool:
+    """Ask Linux to SIGKILL this process when its parent dies; False where the call is not available."""
+    if not sys.platform.startswith("linux"):
+        return False
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        return libc.prctl(pr_set_pdeathsig, int(signal.SIGKILL), 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+def _watch_parent(parent: int) -> None:
+    # Reparenting (to init or a subreaper) changes getppid(): the parent is gone, and its trials with it.
+    while os.getppid() == parent:
+        time.sleep(WATCHDOG_PERIOD_S)
+    os._exit(1)
 
 
 def _terminate_workers(pool) -> None:
     # Python 3.14 has ProcessPoolExecutor.terminate_workers(); on 3.11 the processes are in ``_processes``.
+    processes = list((getattr(pool, "_processes", None) or {}).values())
     terminate = getattr(pool, "terminate_workers", None)
     if terminate is not None:
         terminate()
-        return
-    for process in list((getattr(pool, "_processes", None) or {}).values()):
-        if process.is_alive():
-            process.terminate()
+    else:
+        for process in processes:
+            if process.is_alive():
+                process.terminate()
+    deadline = time.monotonic() + TERMINATE_GRACE_S
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():  # it ignores SIGTERM
+            process.kill()
+            process.join()
 
 
 def _execute_ray(jobs: Sequence[TrialJob], workers: int) -> Iterator[TrialResult]:
