@@ -109,6 +109,8 @@ class Figure:
     """what ``compare`` holds a second kernel's run to, in the words the class statement uses"""
     torch: bool = False
     """whether its commands use torch (its version is recorded then)"""
+    partial_checks: bool = False
+    """whether a check may run some commands only (the data holds one entry per command under ``"runs"``)"""
 
 
 # ------------------------------------------------------------------------------------------ extraction
@@ -487,6 +489,7 @@ FIGURES = {
             arenas_tables,
             arenas_compare,
             ("docs/arenas.md",),
+            partial_checks=True,
             notes="Mean steps ± sd to finish and the 95 % bootstrap interval of the mean, cap 200 "
             "(150 for the pair "
             "rows, 32 episodes each); a failure counts as the cap. The thesis does not state its cap.",
@@ -614,11 +617,12 @@ def published_code(figure: Figure) -> tuple[str, str, Path] | None:
     return (published["commit"], code, folder) if code and folder.is_dir() else None
 
 
-def run_figure(figure: Figure, kernel: str | None) -> dict:
-    """Run every command of ``figure`` in turn under ``OPENBLAS_CORETYPE=kernel`` (None: the host's).
+def run_figure(figure: Figure, kernel: str | None, keys: Sequence[str] = ()) -> dict:
+    """Run the commands of ``figure`` (those named in ``keys``, or all) in turn under ``OPENBLAS_CORETYPE=kernel``
+    (None: the host's).
 
     A check run (``kernel`` given) runs the published run's frozen code when it is still here, so the two runs
-    differ in the kernel only; otherwise it freezes the checkout as it is, and the class shows any difference."""
+    differ in the kernel only; otherwise it freezes HEAD, and the class shows any difference."""
     label = kernel or "default"
     commit, code, folder = (kernel and published_code(figure)) or snapshot()
     env = dict(os.environ)
@@ -638,6 +642,8 @@ def run_figure(figure: Figure, kernel: str | None) -> dict:
     outputs, commands = {}, {}
     started = dt.datetime.now(dt.UTC)
     for key, argv in figure.commands.items():
+        if keys and key not in keys:
+            continue
         out = f"runs/{figure.name}-{label}-{key}"
         command = expand(argv, out)
         commands[key] = shlex.join(command)
@@ -654,6 +660,7 @@ def run_figure(figure: Figure, kernel: str | None) -> dict:
         "commit": commit,
         "code_sha256": code,
         "commands": commands,
+        "keys": list(keys),
         "versions": {k: v for k, v in numerics["versions"].items() if k != "torch" or figure.torch},
         "python": sys.version.split()[0],
         "started": started.isoformat(timespec="seconds"),
@@ -717,25 +724,39 @@ def reproducibility(figure: Figure, document: dict, key: str | None = None) -> t
     if not others:
         kernels = ", ".join(c["kernel"] for c in stale)
         return "not re-checked", f"the {kernels} run checked other code than the published run's"
-    ours = table_data(figure, published["data"], key)
     names = [published["kernel"], *(c["kernel"] for c in others)]
     kernels = ", ".join(names[:-1]) + " and " + names[-1]
+    # A partial check ran some commands only: it is held to the same part of the published data.
+    ours = {c["kernel"]: table_data(figure, part(published["data"], c.get("keys")), key) for c in others}
     theirs = {c["kernel"]: table_data(figure, c["data"], key) for c in others}
-    differ = {kernel: data for kernel, data in theirs.items() if comparable(data) != comparable(ours)}
+    partial = [c for c in others if c.get("keys")]
+    scope = "".join(
+        f"; {c['kernel']} ran {len(c['keys'])} of the {len(figure.commands)} commands" for c in partial
+    )
+    differ = [kernel for kernel in theirs if comparable(theirs[kernel]) != comparable(ours[kernel])]
     if not differ:
-        return "exact on any host", f"the same numbers, byte for byte, under the {kernels} OpenBLAS kernels"
-    if not checkable(ours):
-        return "statistical, not checked", (
-            f"the numbers differ between the {kernels} kernels and the table "
-            "prints no interval to hold them to"
+        return (
+            "exact on any host",
+            f"the same numbers, byte for byte, under the {kernels} OpenBLAS kernels{scope}",
         )
-    bad = {kernel: problems for kernel, data in differ.items() if (problems := figure.compare(ours, data))}
+    if not checkable(ours[differ[0]]):
+        return "statistical, not checked", (
+            f"the numbers differ between the {kernels} kernels and the table prints no interval to hold them to"
+        )
+    bad = {
+        kernel: problems for kernel in differ if (problems := figure.compare(ours[kernel], theirs[kernel]))
+    }
     if bad:
         lines = "; ".join(f"{kernel}: {', '.join(problems[:3])}" for kernel, problems in bad.items())
         return "statistical, CHECK FAILED", f"under {kernels}: {lines}"
     identical = [kernel for kernel in theirs if kernel not in differ]
     same = f"; identical under {', '.join(identical)}" if identical else ""
-    return STATISTICAL, (f"the numbers differ between the {kernels} kernels; {figure.checked}{same}")
+    return STATISTICAL, f"the numbers differ between the {kernels} kernels; {figure.checked}{same}{scope}"
+
+
+def part(data: dict, keys: Sequence[str] | None) -> dict:
+    """The entries of a many-command figure's data that a partial check ran (all of it without ``keys``)."""
+    return {"runs": {key: data["runs"][key] for key in keys}} if keys else data
 
 
 def load(name: str) -> dict:
@@ -1054,6 +1075,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     run = commands.add_parser("run", help="run a figure's commands and write results/NAME.json")
     run.add_argument("name", choices=sorted(FIGURES))
     run.add_argument("--kernel", help="OPENBLAS_CORETYPE of a check run (e.g. Haswell, Sandybridge)")
+    run.add_argument(
+        "--keys",
+        default="",
+        help="a check run of some of a many-command figure's commands only (comma-separated keys, see list)",
+    )
     commands.add_parser("render", help="write docs/results/ and the marked blocks of README.md and docs/")
     commands.add_parser("list", help="the figures and their commands")
     args = parser.parse_args(argv)
@@ -1061,7 +1087,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         return check()
     if args.action == "run":
         figure = FIGURES[args.name]
-        path = write_run(figure, run_figure(figure, args.kernel), check=args.kernel is not None)
+        keys = [key for key in args.keys.split(",") if key]
+        unknown = sorted(set(keys) - set(figure.commands))
+        if unknown or (keys and (args.kernel is None or not figure.partial_checks)):
+            print(
+                f"--keys {args.keys}: a check run (--kernel) of the keys of {figure.name}'s runs "
+                f"({', '.join(figure.commands)}); unknown: {', '.join(unknown) or 'none'}",
+                file=sys.stderr,
+            )
+            return 2
+        path = write_run(figure, run_figure(figure, args.kernel, keys), check=args.kernel is not None)
         print(f"wrote {path.relative_to(ROOT)}")
     elif args.action == "render":
         render()

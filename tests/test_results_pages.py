@@ -176,3 +176,17 @@ def test_a_figure_runs_from_a_copy_of_the_committed_code(tmp_path, monkeypatch):
     ).stdout
     assert (folder / "embodied_adhoc" / "__init__.py").read_bytes() == committed
     assert module.snapshot()[1] == code  # the same commit gives the same digest, and reuses the copy
+
+
+def test_a_partial_check_is_held_to_the_same_part_of_the_published_runs():
+    module = load_script()
+    stats = {"original": {"steps_mean": 9.0, "steps_sd": 3.0, "steps_ci95": [8.0, 10.0]}}
+    published = {"kernel": "SkylakeX", "code_sha256": "c0de", "data": {"runs": {"a": stats, "b": stats}}}
+    check = {"kernel": "Haswell", "code_sha256": "c0de", "keys": ["a"], "data": {"runs": {"a": stats}}}
+    document = {"published": published, "checks": [check]}
+    figure = module.FIGURES["arenas"]
+    klass, how = module.reproducibility(figure, document)
+    assert klass == "exact on any host"
+    assert f"ran 1 of the {len(figure.commands)} commands" in how
+    check["data"] = {"runs": {"a": {"original": {**stats["original"], "steps_mean": 12.0}}}}
+    assert module.reproducibility(figure, document)[0] == "statistical, CHECK FAILED"
