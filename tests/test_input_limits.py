@@ -148,8 +148,9 @@ def test_a_pomdp_header_within_the_limit_still_reads(tmp_path):
     assert (pomdp.n_states, pomdp.n_actions, pomdp.n_observations) == (1000, 3, 2)
 
 
-def test_run_reads_a_confusion_device_up_to_the_cap_only():
-    result = run_limited("run", "toxic-waste", "--confusion", "/dev/zero", "--no-progress")
+@pytest.mark.parametrize("flag", ["--confusion", "--localisation-model"])
+def test_run_reads_a_matrix_device_up_to_the_cap_only(flag):
+    result = run_limited("run", "toxic-waste", flag, "/dev/zero", "--no-progress")
     assert_refused(result, "/dev/zero", "confusion matrix file", "1,048,576")
 
 

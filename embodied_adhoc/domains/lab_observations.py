@@ -54,7 +54,7 @@ def load_localisation_model(source: str) -> ConfusionMatrix:
             ) from None
     from pathlib import Path
 
-    if not Path(source).is_file():
+    if not Path(source).exists():  # a device or a pipe goes on to the loader, which reads it up to its cap
         raise ConfigError(
             f"localisation_model={source!r}: no such file; use 'measured' or the path of a robot-node confusion JSON "
             "(scripts/bench_faults.py --confusion-out writes one)"
