@@ -91,11 +91,37 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     toxic.add_argument(
         "--stream-fps", type=POSITIVE, default=10.0, help="frames per second sent to the page (default 10)"
     )
+    toxic.add_argument(
+        "--study",
+        type=Path,
+        default=None,
+        metavar="PLAN.json",
+        help="run a study: the plan's episodes in counterbalanced order, instructions, a questionnaire after each "
+        "episode; one folder per participant under --out (docs/live.md, study mode)",
+    )
     toxic.set_defaults(func=handle_toxic_waste)
+    summarise = domains.add_parser(
+        "summarise",
+        help="per-agent statistics of a study folder across participants, with bootstrap intervals",
+        description="Read every P###/study.csv of STUDY_DIR (written by `live toxic-waste --study`) and print "
+        "per-agent means over participants with 95 % percentile-bootstrap intervals.",
+    )
+    summarise.add_argument("study_dir", type=Path, metavar="STUDY_DIR", help="the --out folder of the study")
+    summarise.set_defaults(func=handle_summarise)
     parser.set_defaults(_parser=parser)
 
 
+def handle_summarise(args: argparse.Namespace) -> int:
+    from embodied_adhoc.live.study import summarise_study
+
+    print(summarise_study(args.study_dir))
+    return 0
+
+
 def handle_toxic_waste(args: argparse.Namespace) -> int:
+    from embodied_adhoc.live.study import StudyRun, load_plan
+
+    plan = None if args.study is None else load_plan(args.study)  # a bad plan stops here, before any work
     choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
     from embodied_adhoc.live.server import serve
     from embodied_adhoc.live.session import LiveSettings
@@ -110,7 +136,8 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         max_steps=args.max_steps,
         stream_fps=args.stream_fps,
     )
-    server = serve(settings, args.host, args.port, announce=lambda line: print(line, flush=True))
-    session = server.session
-    print(f"live: session ended; files in {session.folder}", flush=True)
+    study = None if plan is None else StudyRun(plan, args.out, args.participant)
+    server = serve(settings, args.host, args.port, announce=lambda line: print(line, flush=True), study=study)
+    folder = server.session.folder if study is None else study.folder
+    print(f"live: session ended; files in {folder}", flush=True)
     return 0

@@ -151,11 +151,14 @@ class RateLimit:
 class LiveServer:
     """The app around one :class:`LiveSession` (module docstring)."""
 
-    def __init__(self, settings: LiveSettings, host: str = "127.0.0.1", port: int = 0):
+    def __init__(self, settings: LiveSettings, host: str = "127.0.0.1", port: int = 0, study=None):
         self.host = host
         self.token = None if is_loopback(host) else secrets.token_urlsafe(18)  # a credential, not simulation
         self.bind(port)
-        self.session = LiveSession(settings, publish=self._publish)
+        self.settings, self.study = settings, study  # study: a live.study.StudyRun, or None
+        self.session = LiveSession(
+            settings if study is None else study.settings(settings), publish=self._publish
+        )
         self.loop: asyncio.AbstractEventLoop | None = None
         self.outbox: asyncio.Queue | None = None  # the connected participant's queue of events
         self._last_error_notice = 0.0
@@ -279,6 +282,7 @@ class LiveServer:
         except (TimeoutError, WebSocketDisconnect):
             pass
         finally:
+            session = self.session  # (a study may have moved on to its next episode)
             session.person.keys(
                 set(), session.person.last_seq
             )  # a dropped page must not leave the human walking
@@ -301,6 +305,7 @@ class LiveServer:
             "stream_fps": session.settings.stream_fps,
             "keys": sorted(DIRECTIONS),
             "restore": session.restore(),
+            "study": None if self.study is None else self.study.page_info(),
             "limits": {
                 "text_bytes": MAX_TEXT_BYTES,
                 "audio_bytes": MAX_AUDIO_BYTES,
@@ -312,7 +317,6 @@ class LiveServer:
     async def _receive_loop(self, websocket, sender: asyncio.Task) -> None:
         """Messages until the page leaves, stops reading (the sender gave up) or says nothing for
         ``IDLE_TIMEOUT`` seconds."""
-        session = self.session
         control = RateLimit(CONTROL_RATE, CONTROL_BURST)
         audio = RateLimit(1.0 / AUDIO_INTERVAL, 1)
         while True:
@@ -324,11 +328,12 @@ class LiveServer:
                 receiving.cancel()
                 with contextlib.suppress(asyncio.CancelledError, Exception):
                     await receiving
-                session.note("dropped", why="idle" if not done else "not reading")
+                self.session.note("dropped", why="idle" if not done else "not reading")
                 return
             message = receiving.result()
             if message["type"] == "websocket.disconnect":
                 return
+            session = self.session
             session.counters["messages"] += 1
             try:
                 reply = await self._handle(message, control, audio)
@@ -368,6 +373,8 @@ class LiveServer:
             if isinstance(t, bool) or not isinstance(t, (int, float)):
                 raise ConfigError('"t" of a ping must be a number')
             return {"type": "pong", "t": t}
+        if kind == "questionnaire":
+            return await self._questionnaire(request.get("answers"))
         if kind == "start":
             started = session.start()
             return {
@@ -396,6 +403,21 @@ class LiveServer:
             return {"type": "heard", **session.reply_from_text(request.get("text"), seq)}
         raise ConfigError(f"unknown message type {kind!r}; use start, keys, act, reply or ping")
 
+    async def _questionnaire(self, answers) -> dict:
+        """A study's post-episode questionnaire: recorded, then the next episode's session is built and the
+        page gets a fresh hello (or the study is complete)."""
+        study, session = self.study, self.session
+        if study is None or study.complete:
+            raise ConfigError("no questionnaire is due: this is no study, or it is complete")
+        if session.done is None:
+            raise ConfigError("the questionnaire comes after the episode")
+        await asyncio.to_thread(session.close)  # the episode is over: its files are written once it returns
+        study.record(session, answers)
+        if study.complete:
+            return {"type": "study_complete", "folder": str(study.folder)}
+        self.session = await asyncio.to_thread(LiveSession, study.settings(self.settings), self._publish)
+        return self._hello()
+
     def _limited(self, what: str) -> dict | None:
         self.session.counters["rate_limited"] += 1
         now = time.monotonic()
@@ -411,6 +433,8 @@ class LiveServer:
         last_seq, last_sent = 0, None
         while True:
             event, binary = await outbox.get()
+            if session is not self.session:  # a study's next episode
+                session, last_seq, last_sent = self.session, 0, None
             if event is FRAME_READY:
                 with session.frame_lock:
                     frame = session.frame
@@ -436,7 +460,7 @@ def _offer(outbox: asyncio.Queue, item) -> None:
 
 
 def serve(
-    settings: LiveSettings, host: str, port: int, announce: Callable[[str], None] = print
+    settings: LiveSettings, host: str, port: int, announce: Callable[[str], None] = print, study=None
 ) -> LiveServer:
     """Listen on ``host:port`` (0: a free port), announce the URL and serve until interrupted."""
     import uvicorn
@@ -450,7 +474,7 @@ def serve(
         listener.close()
         raise ConfigError(f"--host {host} --port {port}: cannot listen there ({error.strerror})") from None
     try:
-        server = LiveServer(settings, host, listener.getsockname()[1])
+        server = LiveServer(settings, host, listener.getsockname()[1], study)
     except BaseException:
         listener.close()
         raise

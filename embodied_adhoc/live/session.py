@@ -65,6 +65,7 @@ class LiveSettings:
     max_steps: int = 100
     stream_fps: float = 10.0
     question_interval: float = QUESTION_INTERVAL
+    run_name: str | None = None  # the run folder's name (a study's episodes); None: <participant>_<UTC time>
     width: int = 640
     height: int = 480
 
@@ -145,7 +146,7 @@ class LiveSession:
             )
         self.participant_id = participant
         stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-        self.folder = out / f"{participant}_{stamp}"
+        self.folder = out / (settings.run_name or f"{participant}_{stamp}")
         self.folder.mkdir(parents=True, exist_ok=False)
         self.started_at = stamp
         self.publish_to_page = publish or (lambda event, binary: None)

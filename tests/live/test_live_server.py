@@ -24,13 +24,13 @@ from embodied_adhoc.live.session import LiveSession, LiveSettings, next_particip
 class _Served:
     """A LiveServer's app on a free loopback port, in a thread (stopped by ``close``)."""
 
-    def __init__(self, tmp: Path, host_label: str = "127.0.0.1"):
+    def __init__(self, tmp: Path, host_label: str = "127.0.0.1", study=None):
         import uvicorn
 
         self.socket = socket.socket()
         self.socket.bind(("127.0.0.1", 0))
         self.port = self.socket.getsockname()[1]
-        self.live = LiveServer(LiveSettings(seed=9, out=tmp, stream_fps=10.0), host_label, self.port)
+        self.live = LiveServer(LiveSettings(seed=9, out=tmp, stream_fps=10.0), host_label, self.port, study)
         config = uvicorn.Config(
             self.live.app(), log_level="warning", ws="websockets-sansio", ws_max_size=MAX_AUDIO_BYTES + 1024
         )
@@ -402,3 +402,122 @@ def test_an_idle_or_non_reading_page_loses_its_slot(served, monkeypatch):
     kinds = [note["kind"] for note in served.live.session.notes]
     assert kinds[:3] == ["connected", "dropped", "disconnected"] and "reconnected" in kinds
     assert served.live.session.notes[1]["why"] == "idle"
+
+
+PLAN = {
+    "episodes": [{"agent": "hotspot", "seed": 1}, {"agent": "random", "seed": 2}],
+    "questionnaire": [{"id": "helpful", "text": "The robot was a helpful teammate.", "scale": 5}],
+    "max_steps": 1,
+}
+
+
+def test_a_study_runs_its_episodes_with_a_questionnaire_and_summarises(tmp_path):
+    """Two one-step episodes (each ends truncated at once) of a plan; the second participant plays them in the
+    other order (Latin square); study.csv and questionnaire.jsonl per participant; summarise reads them."""
+    from embodied_adhoc.commands.live import handle_summarise
+    from embodied_adhoc.live.study import StudyRun, load_plan, summarise_study
+
+    plan_file = tmp_path / "plan.json"
+    plan_file.write_text(json.dumps(PLAN))
+    plan = load_plan(plan_file)
+    study_dir = tmp_path / "study"
+    for participant, expected_agents in ((1, ["hotspot", "random"]), (2, ["random", "hotspot"])):
+        study = StudyRun(plan, study_dir)
+        assert study.participant == f"P00{participant}"
+        served = _Served(tmp_path, study=study)
+        try:
+
+            async def scenario(port=served.port):
+                async with websockets.connect(f"ws://127.0.0.1:{port}/ws", max_size=None) as ws:
+                    hello = json.loads(await ws.recv())
+                    for position in (1, 2):
+                        assert hello["study"]["position"] == position and hello["study"]["of"] == 2
+                        assert hello["study"]["questionnaire"][0]["id"] == "helpful"
+                        await ws.send(json.dumps({"type": "questionnaire", "answers": {"helpful": 4}}))
+                        await ws.send(json.dumps({"type": "start"}))
+                        seen = []
+                        while not seen or seen[-1]["type"] != "done":
+                            message = await asyncio.wait_for(ws.recv(), 60)
+                            if isinstance(message, str):
+                                seen.append(json.loads(message))
+                        answers = ({"helpful": 9}, {"helpful": position + 2})
+                        for answer in answers:
+                            await ws.send(json.dumps({"type": "questionnaire", "answers": answer}))
+                        while seen[-1]["type"] not in ("hello", "study_complete"):
+                            message = await asyncio.wait_for(ws.recv(), 60)
+                            if isinstance(message, str):
+                                seen.append(json.loads(message))
+                        errors = [r["message"] for r in seen if r["type"] == "error"]
+                        assert any("comes after the episode" in m for m in errors)
+                        assert any("questionnaire.helpful" in m for m in errors)
+                        hello = seen[-1]
+                    assert hello["type"] == "study_complete"
+
+            asyncio.run(scenario())
+        finally:
+            served.close()
+        folder = study_dir / f"P00{participant}"
+        rows = (folder / "study.csv").read_text().splitlines()
+        assert len(rows) == 3 and rows[0].startswith("participant,position,episode,agent,seed,outcome")
+        assert [row.split(",")[3] for row in rows[1:]] == expected_agents
+        assert [row.split(",")[-1] for row in rows[1:]] == ["3", "4"]
+        assert all(",truncated,0,1," in row for row in rows[1:])
+        runs = sorted(p.name for p in folder.iterdir() if p.is_dir())
+        assert runs == [
+            f"E01_{expected_agents[0]}_seed{1 if participant == 1 else 2}",
+            f"E02_{expected_agents[1]}_seed{2 if participant == 1 else 1}",
+        ]
+        events = [json.loads(line) for line in (folder / runs[0] / "events.jsonl").read_text().splitlines()]
+        assert {"connected", "balls"} <= {e["kind"] for e in events}
+        assert all("wall_time" in e and "sim_time" in e for e in events)
+        assert json.loads((folder / "plan.json").read_text())["order"] == (
+            [0, 1] if participant == 1 else [1, 0]
+        )
+        assert len((folder / "questionnaire.jsonl").read_text().splitlines()) == 2
+    text = summarise_study(study_dir)
+    assert "4 episodes of 2 participants" in text
+    hotspot = [line for line in text.splitlines() if line.startswith("hotspot") and " helpful " in line]
+    assert len(hotspot) == 1 and hotspot[0].split()[2] == "2" and float(hotspot[0].split()[3]) == 3.5
+    assert handle_summarise(type("Args", (), {"study_dir": study_dir})()) == 0
+
+
+@pytest.mark.parametrize(
+    ("plan", "named"),
+    [
+        ({"episodes": []}, '"episodes"'),
+        ({"episodes": [{"agent": "robot"}]}, "episodes[0].agent"),
+        ({"episodes": [{"seed": -1}]}, "episodes[0].seed"),
+        ({"episodes": [{}], "counterbalance": "random"}, "counterbalance"),
+        ({"episodes": [{}], "questionnaire": [{"id": "Bad id", "text": "x"}]}, "questionnaire[0].id"),
+        (
+            {"episodes": [{}], "questionnaire": [{"id": "a", "text": "x", "scale": 2}]},
+            "questionnaire[0].scale",
+        ),
+        ({"episodes": [{}], "episode": []}, "did you mean 'episodes'"),
+    ],
+)
+def test_a_bad_study_plan_is_one_line_naming_the_field_and_status_2(tmp_path, plan, named):
+    plan_file = tmp_path / "plan.json"
+    plan_file.write_text(json.dumps(plan))
+    result = _live_cli("--study", str(plan_file), tmp=tmp_path / "study")
+    assert result.returncode == 2, result.stderr
+    assert (
+        len(result.stderr.strip().splitlines()) == 1
+        and named in result.stderr
+        and str(plan_file) in result.stderr
+    )
+    assert not (tmp_path / "study").exists()  # refused before any work
+
+
+def test_latin_orders_balance_positions_and_successions():
+    from embodied_adhoc.live.study import latin_order
+
+    for k in (2, 3, 4, 5):
+        rows = [latin_order(k, r) for r in range(2 * k if k % 2 else k)]
+        assert all(sorted(row) == list(range(k)) for row in rows)
+        for position in range(k):  # every episode in every position equally often
+            counts = [sum(row[position] == e for row in rows) for e in range(k)]
+            assert len(set(counts)) == 1
+        pairs = [(a, b) for row in rows for a, b in zip(row, row[1:], strict=False)]
+        follows = [pairs.count((a, b)) for a in range(k) for b in range(k) if a != b]
+        assert len(set(follows)) == 1  # every episode after every other equally often

@@ -90,7 +90,17 @@ function onEvent(event) {
       $("participant").textContent = `participant ${event.participant}`;
       if (event.started) $("start").disabled = true;
       offerPlaces(event.places || []);
+      stats.done = null;
+      $("end").hidden = true;
+      $("start").disabled = !!event.started;
       restore(event.restore);
+      showStudy(event.study);
+      break;
+    case "study_complete":
+      stats.studyComplete = true;
+      $("survey").replaceChildren();
+      $("end-text").textContent = "The study is complete. Thank you for taking part!";
+      log("study complete");
       break;
     case "outcome":
       stats.outcomes.push(event);
@@ -128,6 +138,7 @@ function onEvent(event) {
         ? `All three balls are in the robot's container: done in ${event.sim_time} s and ${event.steps} robot decisions.`
         : `The episode ended (${event.outcome}) after ${event.steps} robot decisions.`;
       closeQuestion();
+      if (study) showSurvey();
       log(`done: ${event.outcome}`);
       break;
     case "error":
@@ -156,6 +167,50 @@ function onState(state) {
   if (state.posterior) showBelief(state.posterior);
   if (state.question_open && $("question-panel").className !== "asking") openQuestion("Where are you?");
   if (!state.question_open && $("question-panel").className === "asking") closeQuestion();
+}
+
+let study = null;
+function showStudy(info) {  // a study: the instructions before each episode, the questionnaire after it
+  study = info;
+  $("study").hidden = !info;
+  if (!info) return;
+  $("study-position").textContent = `episode ${info.position} of ${info.of}`;
+  $("instructions").textContent = info.instructions;
+  $("survey").replaceChildren();
+  stats.studyPosition = info.position;
+}
+
+function showSurvey() {
+  const form = document.createElement("form");
+  form.id = "survey-form";
+  for (const item of study.questionnaire) {
+    const field = document.createElement("fieldset"), legend = document.createElement("legend");
+    legend.textContent = item.text;
+    field.append(legend, "disagree ");
+    for (let value = 1; value <= item.scale; value++) {
+      const label = document.createElement("label"), input = document.createElement("input");
+      input.type = "radio"; input.name = item.id; input.value = String(value); input.id = `${item.id}-${value}`;
+      label.append(input, String(value));
+      field.append(label);
+    }
+    field.append(" agree");
+    form.append(field);
+  }
+  const submit = document.createElement("button");
+  submit.type = "submit"; submit.id = "survey-send"; submit.textContent = "Send and continue";
+  form.append(submit);
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    const answers = {};
+    for (const item of study.questionnaire) {
+      const chosen = form.querySelector(`input[name="${item.id}"]:checked`);
+      if (!chosen) { $("notice").textContent = `please answer: ${item.text}`; return; }
+      answers[item.id] = Number(chosen.value);
+    }
+    send({ type: "questionnaire", answers });
+    submit.disabled = true;
+  });
+  $("survey").replaceChildren(form);
 }
 
 function offerPlaces(places) {  // the names the recogniser understands, as on the map
