@@ -22,6 +22,7 @@ given the true task (at construction), as their definitions require.
 from __future__ import annotations
 
 import argparse
+import math
 
 import numpy as np
 
@@ -111,9 +112,10 @@ def cap_reason(actions, faults: dict, action_names, capped: bool) -> tuple[str, 
     """Why an episode that hit the step cap did not finish: ``(code, sentence)``, ``("", "")`` if not capped.
 
     The sentence names the action chosen most often and every observation that stayed uninformative, e.g.
-    "cap reached: 'locate human' chosen 96/100 steps; RFID missed 2 of 3 reads". The code names the observation
-    uninformative most often relative to its readings (``rfid_missed``, ``reply_lost``, ``no_location``,
-    ``robot_node_unknown``, ``blocked``; ties in this order), or ``no_fault`` when every one was informative.
+    "cap reached: 'locate human' chosen 96/100 steps; RFID missed 2 of 3 reads". The code is ``rfid_missed`` after
+    any missed read (the reader reads a ball once: the model never learns that it went in), else the observation
+    uninformative most often relative to its readings (``reply_lost``, ``no_location``, ``robot_node_unknown``,
+    ``blocked``; ties in this order; a reply or a reading can come again), or ``no_fault`` when none failed.
     """
     if not capped:
         return "", ""
@@ -131,7 +133,12 @@ def cap_reason(actions, faults: dict, action_names, capped: bool) -> tuple[str, 
             "replies",
             "no location heard in {} of {} replies" + (f" ({lost} lost)" if lost else ""),
         ),
-        ("robot_node_unknown", "robot_node_unknown", "robot_node_readings", "robot node unknown in {} of {}"),
+        (
+            "robot_node_unknown",
+            "robot_node_unknown",
+            "robot_node_readings",
+            "robot node unknown in {} of {} readings",
+        ),
         ("blocked", "blocked_moves", "moves", "blocked in {} of {} moves"),
     )
     code, worst = "no_fault", 0.0
@@ -139,8 +146,9 @@ def cap_reason(actions, faults: dict, action_names, capped: bool) -> tuple[str, 
         bad, total = faults.get(bad_key, 0), faults.get(total_key, 0)
         if bad and total:
             parts.append(text.format(bad, total))
-            if bad / total > worst:
-                code, worst = name, bad / total
+            share = math.inf if name == "rfid_missed" else bad / total
+            if share > worst:
+                code, worst = name, share
     if faults.get("relocalisations"):
         parts.append(f"{faults['relocalisations']} re-localisation(s)")
     if code == "no_fault":

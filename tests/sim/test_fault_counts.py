@@ -153,6 +153,8 @@ def test_cap_reason_picks_the_worst_channel_and_says_when_none_failed():
         "replies_lost": 5,
     }
     assert cap_reason([4] * 10, lost, NAMES, capped=True)[0] == "reply_lost"
+    # a missed read is never repeated: it names the cap even where more replies than reads failed
+    assert cap_reason([4] * 10, {**lost, "rfid_misses": 1}, NAMES, capped=True)[0] == "rfid_missed"
     unknown = {**FAULTS, "robot_node_readings": 11, "robot_node_unknown": 9, "moves": 10, "blocked_moves": 2}
     code, detail = cap_reason([0] * 10, unknown, NAMES, capped=True)
     assert code == "robot_node_unknown" and "blocked in 2 of 10 moves" in detail
