@@ -70,12 +70,20 @@ def test_train_refuses_cuda_without_one_before_the_progress_bar(tmp_path):
     assert not out.exists()
 
 
-def test_run_refuses_a_frame_larger_than_the_renderer_before_the_episode(tmp_path):
+@pytest.mark.parametrize(
+    ("width", "height", "expected"),
+    [
+        ("100000", "100000", "--width 100000 --height 100000: render size"),
+        ("641", "480", "must be positive and even"),
+    ],
+    ids=["beyond-the-renderer", "odd-for-the-video"],
+)
+def test_run_refuses_a_frame_it_cannot_record_before_the_episode(tmp_path, width, height, expected):
     out = tmp_path / "episode"
     result = run_cli(
-        "run", "toxic-waste", "--record", str(out), "--width", "100000", "--height", "100000", "--no-progress"
+        "run", "toxic-waste", "--record", str(out), "--width", width, "--height", height, "--no-progress"
     )
-    assert_refused(result, "--width 100000 --height 100000", "1920x1536")
+    assert_refused(result, f"{width}x{height}", expected)
     assert not out.exists()
 
 

@@ -22,6 +22,17 @@ from embodied_adhoc.record.overlay import annotate
 from embodied_adhoc.record.worker import BackgroundWorker
 
 
+def check_video_settings(width: int, height: int, fps: float) -> None:
+    """The refusals of :class:`VideoWriter` for its size and rate, callable before anything is built."""
+    if width <= 0 or height <= 0 or width % 2 or height % 2:
+        raise ConfigError(
+            f"video size {width}x{height}: width and height must be positive and even (H.264 yuv420p); "
+            "pass e.g. --width 640 --height 480"
+        )
+    if not fps > 0:
+        raise ConfigError(f"video fps={fps}: must be > 0 (e.g. --video-fps 15)")
+
+
 class VideoWriter:
     """Write RGB frames (``uint8``, shape ``(height, width, 3)``) to an H.264 mp4 at ``fps`` frames per second.
 
@@ -39,13 +50,7 @@ class VideoWriter:
         crf: int = 20,
         queue_frames: int = 16,
     ):
-        if width <= 0 or height <= 0 or width % 2 or height % 2:
-            raise ConfigError(
-                f"video size {width}x{height}: width and height must be positive and even (H.264 yuv420p); "
-                "pass e.g. --width 640 --height 480"
-            )
-        if not fps > 0:
-            raise ConfigError(f"video fps={fps}: must be > 0 (e.g. --video-fps 15)")
+        check_video_settings(width, height, fps)
         crf = checks.integer("VideoWriter crf (x264 constant quality: 0 lossless .. 51 worst)", crf, 0, 51)
         import imageio_ffmpeg
 
