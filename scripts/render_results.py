@@ -545,6 +545,15 @@ FIGURES = {
             ("docs/hotspot.md", "README.md"),
         ),
         Figure(
+            "bopa",
+            "BOPA: thesis Table 5.1 (Panic Buttons, 32 episodes per agent and setting, seed 0)",
+            {"reproduce": ["{python}", "scripts/reproduce_bopa.py", "--out", "{out}", "--markdown"]},
+            markdown_extract("reproduce"),
+            markdown_figure_tables(("table5_1", "bopa_vs_greedy")),
+            compare_markdown_tables,
+            ("docs/atpo.md",),
+        ),
+        Figure(
             "chapter5",
             "ATPO: thesis Tables 5.5 and 5.6 and the belief dynamics "
             "(32 episodes per agent and domain, seed 0)",
