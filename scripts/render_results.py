@@ -111,6 +111,8 @@ class Figure:
     """whether its commands use torch (its version is recorded then)"""
     partial_checks: bool = False
     """whether a check may run some commands only (the data holds one entry per command under ``"runs"``)"""
+    markdown: bool = False
+    """whether its one command prints Markdown tables (a check may then add arguments and print fewer rows)"""
 
 
 # ------------------------------------------------------------------------------------------ extraction
@@ -172,29 +174,38 @@ def compare_trial_agents(published: dict, check: dict, label: str = "") -> list[
     return failures
 
 
+VALUE_CELL = re.compile(rf"\**(?:{NUMBER}(?: ± {NUMBER})?(?: %)?|\[{NUMBER}, {NUMBER}\]|n/a|-)\**")
+
+
+def row_label(row: Sequence[str]) -> tuple[str, ...]:
+    """A table row's leading label cells (domain, agent, ...): what names the row in another run's table."""
+    values = [i for i, cell in enumerate(row) if VALUE_CELL.fullmatch(cell.strip())]
+    return tuple(row[: values[0] if values else len(row)])
+
+
 def compare_markdown_tables(published: dict, check: dict) -> list[str]:
-    """Every mean with a published interval beside it lies inside it in the check; verdict columns agree."""
+    """Every mean with a published interval beside it lies inside it in the check; verdict columns agree.
+    Rows are matched by their labels, so a check that ran some of the rows (e.g. some domains) is held to those."""
     failures = []
     for ours, theirs in zip(published["tables"], check["tables"], strict=True):
         headers = ours["headers"]
-        for row, other in zip(ours["rows"], theirs["rows"], strict=True):
+        others = {row_label(row): row for row in theirs["rows"]}
+        for row in ours["rows"]:
+            other = others.get(row_label(row))
+            if other is None:
+                continue
+            name = f"{ours['caption'][:40]} / {' '.join(row_label(row))}"
             for column, cell in enumerate(row):
                 if headers[column].lower() in VERDICTS:
                     if cell != other[column]:
-                        failures.append(
-                            f"{ours['caption'][:40]} / {row[0]} {row[1]}: {headers[column]} "
-                            f"{cell} -> {other[column]}"
-                        )
+                        failures.append(f"{name}: {headers[column]} {cell} -> {other[column]}")
                     continue
                 interval = ci_of(cell)
                 if interval is None or column == 0:
                     continue
                 mean = mean_of(other[column - 1])
                 if mean is not None and not interval[0] <= mean <= interval[1]:
-                    failures.append(
-                        f"{ours['caption'][:40]} / {' '.join(row[:2])}: {headers[column - 1]} "
-                        f"{mean} outside the published {cell}"
-                    )
+                    failures.append(f"{name}: {headers[column - 1]} {mean} outside the published {cell}")
     return failures
 
 
@@ -543,6 +554,7 @@ FIGURES = {
             markdown_figure_tables(("steps", "claims")),
             compare_markdown_tables,
             ("docs/hotspot.md", "README.md"),
+            markdown=True,
         ),
         Figure(
             "bopa",
@@ -552,6 +564,7 @@ FIGURES = {
             markdown_figure_tables(("table5_1", "bopa_vs_greedy")),
             compare_markdown_tables,
             ("docs/atpo.md",),
+            markdown=True,
         ),
         Figure(
             "chapter5",
@@ -571,6 +584,7 @@ FIGURES = {
             markdown_figure_tables(("table5_5", "table5_6", "beliefs")),
             compare_markdown_tables,
             ("docs/atpo.md", "README.md"),
+            markdown=True,
         ),
     )
 }
@@ -626,7 +640,9 @@ def published_code(figure: Figure) -> tuple[str, str, Path] | None:
     return (published["commit"], code, folder) if code and folder.is_dir() else None
 
 
-def run_figure(figure: Figure, kernel: str | None, keys: Sequence[str] = ()) -> dict:
+def run_figure(
+    figure: Figure, kernel: str | None, keys: Sequence[str] = (), extra: Sequence[str] = ()
+) -> dict:
     """Run the commands of ``figure`` (those named in ``keys``, or all) in turn under ``OPENBLAS_CORETYPE=kernel``
     (None: the host's).
 
@@ -654,7 +670,7 @@ def run_figure(figure: Figure, kernel: str | None, keys: Sequence[str] = ()) -> 
         if keys and key not in keys:
             continue
         out = f"runs/{figure.name}-{label}-{key}"
-        command = expand(argv, out)
+        command = expand(argv, out) + list(extra)
         commands[key] = shlex.join(command)
         print(f"[{figure.name} {label}] {commands[key]}", file=sys.stderr, flush=True)
         shutil.rmtree(folder / out, ignore_errors=True)
@@ -670,6 +686,7 @@ def run_figure(figure: Figure, kernel: str | None, keys: Sequence[str] = ()) -> 
         "code_sha256": code,
         "commands": commands,
         "keys": list(keys),
+        "extra": shlex.join(extra),
         "versions": {k: v for k, v in numerics["versions"].items() if k != "torch" or figure.torch},
         "python": sys.version.split()[0],
         "started": started.isoformat(timespec="seconds"),
@@ -735,13 +752,15 @@ def reproducibility(figure: Figure, document: dict, key: str | None = None) -> t
         return "not re-checked", f"the {kernels} run checked other code than the published run's"
     names = [published["kernel"], *(c["kernel"] for c in others)]
     kernels = ", ".join(names[:-1]) + " and " + names[-1]
-    # A partial check ran some commands only: it is held to the same part of the published data.
-    ours = {c["kernel"]: table_data(figure, part(published["data"], c.get("keys")), key) for c in others}
+    # A partial check ran some commands or rows only: it is held to the same part of the published data.
+    ours = {c["kernel"]: table_data(figure, part(published["data"], c), key) for c in others}
     theirs = {c["kernel"]: table_data(figure, c["data"], key) for c in others}
-    partial = [c for c in others if c.get("keys")]
     scope = "".join(
-        f"; {c['kernel']} ran {len(c['keys'])} of the {len(figure.commands)} commands" for c in partial
+        f"; {c['kernel']} ran {len(c['keys'])} of the {len(figure.commands)} commands"
+        for c in others
+        if c.get("keys")
     )
+    scope += "".join(f"; {c['kernel']} ran with `{c['extra']}` only" for c in others if c.get("extra"))
     differ = [kernel for kernel in theirs if comparable(theirs[kernel]) != comparable(ours[kernel])]
     if not differ:
         return (
@@ -763,9 +782,18 @@ def reproducibility(figure: Figure, document: dict, key: str | None = None) -> t
     return STATISTICAL, f"the numbers differ between the {kernels} kernels; {figure.checked}{same}{scope}"
 
 
-def part(data: dict, keys: Sequence[str] | None) -> dict:
-    """The entries of a many-command figure's data that a partial check ran (all of it without ``keys``)."""
-    return {"runs": {key: data["runs"][key] for key in keys}} if keys else data
+def part(data: dict, check: dict) -> dict:
+    """The part of the published ``data`` that a check ran: the commands in its ``keys``, or for a check with
+    ``extra`` arguments (e.g. fewer domains) the table rows it printed; all of it for a full check."""
+    if check.get("keys"):
+        return {"runs": {key: data["runs"][key] for key in check["keys"]}}
+    if check.get("extra") and "tables" in data:
+        tables = []
+        for ours, theirs in zip(data["tables"], check["data"]["tables"], strict=True):
+            labels = {row_label(row) for row in theirs["rows"]}
+            tables.append({**ours, "rows": [row for row in ours["rows"] if row_label(row) in labels]})
+        return {"tables": tables}
+    return data
 
 
 def load(name: str) -> dict:
@@ -786,7 +814,8 @@ def provenance(figure: Figure, document: dict, page: Path) -> str:
     run = document["published"]
     commands = "; ".join(f"`{command}`" for command in run["commands"].values())
     if len(run["commands"]) > 3:
-        commands = f"{len(run['commands'])} `{script_of(figure)}` commands, listed on the results page"
+        scripts = ", ".join(f"`{name}`" for name in script_of(figure).split(", "))
+        commands = f"{len(run['commands'])} commands ({scripts}), listed on the results page"
     link = os.path.relpath(PAGES / f"{figure.name}.md", page.parent)
     return (
         f"*Generated from `results/{figure.name}.json` ({run['started'][:10]}, commit {run['commit'][:10]}, "
@@ -1085,6 +1114,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument("name", choices=sorted(FIGURES))
     run.add_argument("--kernel", help="OPENBLAS_CORETYPE of a check run (e.g. Haswell, Sandybridge)")
     run.add_argument(
+        "--extra",
+        default="",
+        help="a check run with these arguments added to the figure's one command (e.g. '--domains gridworld mit')",
+    )
+    run.add_argument(
         "--keys",
         default="",
         help="a check run of some of a many-command figure's commands only (comma-separated keys, see list)",
@@ -1097,6 +1131,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.action == "run":
         figure = FIGURES[args.name]
         keys = [key for key in args.keys.split(",") if key]
+        extra = shlex.split(args.extra)
         unknown = sorted(set(keys) - set(figure.commands))
         if unknown or (keys and (args.kernel is None or not figure.partial_checks)):
             print(
@@ -1105,7 +1140,14 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-        path = write_run(figure, run_figure(figure, args.kernel, keys), check=args.kernel is not None)
+        if extra and (args.kernel is None or not figure.markdown):
+            print(
+                f"--extra: a check run (--kernel) of a one-command figure whose output is Markdown tables "
+                f"({', '.join(n for n, f in FIGURES.items() if f.markdown)})",
+                file=sys.stderr,
+            )
+            return 2
+        path = write_run(figure, run_figure(figure, args.kernel, keys, extra), check=args.kernel is not None)
         print(f"wrote {path.relative_to(ROOT)}")
     elif args.action == "render":
         render()

@@ -190,3 +190,26 @@ def test_a_partial_check_is_held_to_the_same_part_of_the_published_runs():
     assert f"ran 1 of the {len(figure.commands)} commands" in how
     check["data"] = {"runs": {"a": {"original": {**stats["original"], "steps_mean": 12.0}}}}
     assert module.reproducibility(figure, document)[0] == "statistical, CHECK FAILED"
+
+
+def test_a_check_of_fewer_rows_is_held_to_the_rows_it_printed():
+    module = load_script()
+    headers = ["domain", "agent", "reward (ours)", "95% CI (bootstrap)"]
+    rows = [
+        ["mit", "atpo", "80.00 ± 5.00", "[78.00, 82.00]"],
+        ["cit", "atpo", "70.00 ± 5.00", "[68.00, 72.00]"],
+    ]
+    table = {"caption": "", "headers": headers, "rows": rows}
+    published = {"kernel": "SkylakeX", "code_sha256": "c0de", "data": {"tables": [table]}}
+    inside = [["cit", "atpo", "71.00 ± 5.00", "[69.00, 73.00]"]]
+    check = {"kernel": "Haswell", "code_sha256": "c0de", "extra": "--domains cit", "keys": [],
+             "data": {"tables": [{"caption": "", "headers": headers, "rows": inside}]}}  # fmt: skip
+    document = {"published": published, "checks": [check]}
+    figure = module.FIGURES["chapter5"]
+    klass, how = module.reproducibility(figure, document)
+    assert klass == "statistical"
+    assert "--domains cit" in how
+    check["data"]["tables"][0]["rows"] = [["cit", "atpo", "75.00 ± 5.00", "[73.00, 77.00]"]]
+    assert module.reproducibility(figure, document)[0] == "statistical, CHECK FAILED"
+    check["data"]["tables"][0]["rows"] = [rows[1]]
+    assert module.reproducibility(figure, document)[0] == "exact on any host"
