@@ -216,9 +216,15 @@ class Participant:
         walker = env.world.human
         if not walker.finished:  # a pick or drop motion script is playing: keys wait for it
             env.tick_walker(dt)
+            if self._motion is not None and self._motion_done(walker):
+                # the outcome counts when the ball changes hands, not when the walker has stepped back: the
+                # last drop ends the episode before that
+                kind, ball = self._motion
+                self._report(env, walker, f"{'picked' if kind == 'pick' else 'dropped'} ball {ball}", True)
             if walker.finished:
                 self.notice = walker.status  # "picked ball 2", or why a drop failed
-                self._motion_finished(env, walker)
+                if self._motion is not None:
+                    self._report(env, walker, walker.status, bool(walker.succeeded))
             return
         direction = np.zeros(2)
         for key in self.held:
@@ -252,11 +258,15 @@ class Participant:
             self.log.motion_latency_s.append(time.perf_counter() - self._pending_motion[1])
             self._pending_motion = None
 
-    def _motion_finished(self, env, walker) -> None:
-        """The outcome of a pick or drop motion, for the log and the page."""
-        kind, ball = self._motion if self._motion is not None else ("motion", None)
+    def _motion_done(self, walker) -> bool:
+        kind, ball = self._motion
+        return walker.holding == ball if kind == "pick" else walker.holding is None
+
+    def _report(self, env, walker, result: str, succeeded: bool) -> None:
+        """The outcome of a pick or drop motion, for the log and the page (once per motion)."""
+        kind, ball = self._motion
         self._motion = None
-        entry = _entry(env, kind, ball=ball, result=walker.status, succeeded=bool(walker.succeeded))
+        entry = _entry(env, kind, ball=ball, result=result, succeeded=succeeded)
         self.log.entries.append(entry)
         if self.on_event is not None:
             self.on_event(entry)

@@ -126,6 +126,8 @@ def test_the_participant_picks_a_ball_in_reach_and_answers_by_typing():
         assert info["utterances"] == ("typed",)
         assert [e["kind"] for e in person.log.entries] == ["act", "pick", "question", "reply"]
         assert person.log.entries[1]["succeeded"] and person.log.entries[1]["result"] == "picked ball 1"
+        # logged at the grasp, before the walker stood up
+        assert person.log.entries[1]["sim_time"] < env.world.data.time - 0.5
     finally:
         env.close()
 
