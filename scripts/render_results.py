@@ -15,9 +15,9 @@ Every table of the README and docs/ that this script knows (``FIGURES``) is prod
 Each table states its class, derived from the runs in its result file, never typed:
 
 * *exact on any host*: a second kernel's run gives the same numbers (the data compare equal byte for byte);
-* *statistical*: the numbers differ between kernels, and the figure's own check passes (each second-kernel mean
-  lies inside the published 95 % interval, every thesis claim keeps its verdict; for a solver value the second
-  kernel's lower bound lies in the published [lower, upper] bracket);
+* *statistical*: the numbers differ between kernels, and the figure's own check passes (each second-kernel
+  mean lies inside the published 95 % interval, every thesis claim keeps its verdict; for a solver value the
+  second kernel's lower bound lies in the published [lower, upper] bracket);
 * *timing*: seconds and ratios of seconds, which depend on the host and its load; recorded, never compared;
 * *not re-checked*: only one kernel has run it.
 
@@ -50,8 +50,8 @@ RESULTS = ROOT / "results"
 PAGES = ROOT / "docs" / "results"
 SCRIPT = "scripts/render_results.py"
 RUN_DIR = "runs/render-results"
-"""The frozen copies of the code that figures run from, each with its runs' ``--out`` folders (cleared before a
-run, so that a run never resumes an older one)."""
+"""The frozen copies of the code that figures run from, each with its runs' ``--out`` folders (cleared before
+a run, so that a run never resumes an older one)."""
 CACHE_DIR = "runs/render-results/cache"
 """Policy cache per kernel (``XDG_CACHE_HOME``): one kernel's solved policies never serve another's run."""
 MARKER = re.compile(r"^<!-- results:(?P<name>[A-Za-z0-9_-]+(?:\.[A-Za-z0-9_-]+)?) (?P<edge>start|end) -->$")
@@ -96,7 +96,8 @@ class Figure:
     name: str
     title: str
     commands: dict[str, list[str]]
-    """key -> argv, run from the repository root; ``{python}`` is the venv's python, ``{out}`` a run folder"""
+    """key -> argv, run in the root of a copy of the committed code; ``{python}``: the venv's python;
+    ``{out}``: a fresh run folder"""
     extract: Callable[[dict[str, str]], dict]
     """stdout per command -> the result data (JSON); timings go under the data's ``"timing"`` key"""
     tables: Callable[[dict], list[Table]]
@@ -185,7 +186,7 @@ def row_label(row: Sequence[str]) -> tuple[str, ...]:
 
 def compare_markdown_tables(published: dict, check: dict) -> list[str]:
     """Every mean with a published interval beside it lies inside it in the check; verdict columns agree.
-    Rows are matched by their labels, so a check that ran some of the rows (e.g. some domains) is held to those."""
+    Rows are matched by their labels, so a check that ran some rows (e.g. some domains) is held to those."""
     failures = []
     for ours, theirs in zip(published["tables"], check["tables"], strict=True):
         headers = ours["headers"]
@@ -602,15 +603,15 @@ def expand(argv: Sequence[str], out: str) -> list[str]:
 
 
 CODE = ("embodied_adhoc", "scripts", "assets", "scenes", "pyproject.toml", "constraints.txt")
-"""What a run executes, taken from the commit: a check run counts only against a published run of the same code."""
+"""What a run executes, taken from the commit: a check counts against a published run of that code only."""
 
 
 def snapshot() -> tuple[str, str, Path]:
     """HEAD's commit, the SHA-256 of its files under ``CODE`` (names and blobs), and a copy of those files.
 
-    A figure runs from the copy (``PYTHONPATH`` first, ahead of the editable install), so its numbers are those of
-    the commit it records: uncommitted edits in the checkout, and edits made while it runs, never reach it. This
-    renderer is left out of the digest, since it changes the pages, never a number."""
+    A figure runs from the copy (``PYTHONPATH`` first, ahead of the editable install), so its numbers are
+    those of the commit it records: uncommitted edits in the checkout, and edits made while it runs, never
+    reach it. This renderer is left out of the digest, since it changes the pages, never a number."""
     commit = git("rev-parse", "HEAD")
     listing = git("ls-tree", "-r", commit, "--", *CODE).splitlines()
     code = hashlib.sha256(
@@ -643,8 +644,8 @@ def published_code(figure: Figure) -> tuple[str, str, Path] | None:
 def run_figure(
     figure: Figure, kernel: str | None, keys: Sequence[str] = (), extra: Sequence[str] = ()
 ) -> dict:
-    """Run the commands of ``figure`` (those named in ``keys``, or all) in turn under ``OPENBLAS_CORETYPE=kernel``
-    (None: the host's).
+    """Run the commands of ``figure`` (those named in ``keys``, or all) in turn under
+    ``OPENBLAS_CORETYPE=kernel`` (None: the host's), each with ``extra`` arguments added.
 
     A check run (``kernel`` given) runs the published run's frozen code when it is still here, so the two runs
     differ in the kernel only; otherwise it freezes HEAD, and the class shows any difference."""
@@ -769,7 +770,8 @@ def reproducibility(figure: Figure, document: dict, key: str | None = None) -> t
         )
     if not checkable(ours[differ[0]]):
         return "statistical, not checked", (
-            f"the numbers differ between the {kernels} kernels and the table prints no interval to hold them to"
+            f"the numbers differ between the {kernels} kernels and the table prints no interval to hold "
+            "them to"
         )
     bad = {
         kernel: problems for kernel in differ if (problems := figure.compare(ours[kernel], theirs[kernel]))
@@ -884,7 +886,8 @@ def figure_page(figure: Figure, document: dict) -> str:
         versions = ", ".join(f"{k} {v}" for k, v in each["versions"].items())
         coretype = f" (OPENBLAS_CORETYPE={each['openblas_coretype']})" if each["openblas_coretype"] else ""
         lines.append(
-            f"| {label} | {each['kernel']}{coretype} | {each['commit'][:10]} | {each.get('code_sha256', 'not recorded')[:16]} | "
+            f"| {label} | {each['kernel']}{coretype} | {each['commit'][:10]} | "
+            f"{each.get('code_sha256', 'not recorded')[:16]} | "
             f"python {each['python']}, {versions} | {each['started'].replace('T', ' ')[:16]} |"
         )
     return "\n".join(lines) + "\n"
@@ -1116,7 +1119,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument(
         "--extra",
         default="",
-        help="a check run with these arguments added to the figure's one command (e.g. '--domains gridworld mit')",
+        help="a check run with these arguments added to the figure's command (e.g. '--domains gridworld')",
     )
     run.add_argument(
         "--keys",
