@@ -27,13 +27,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg
 
 from embodied_adhoc.decision.models import POMDP
+from embodied_adhoc.decision.products import dot
 from embodied_adhoc.errors import SolverError
 
 _DENSE_DENSITY = 0.1  # observation-matrix density from which scores use a dense projection of the vectors
 _DENSE_MAX_ELEMENTS = 20_000_000
+_EPS = float(np.finfo(np.float64).eps)
 _SPLIT_MIN_WORK = 1 << 22  # multiply-adds (nnz x columns) from which a product is split over the threads
 
 
@@ -63,8 +64,10 @@ class RowProducts:
     ) -> np.ndarray:
         """``reduce(matrix @ dense)`` for a ``reduce`` that works row by row (e.g. an argmax over axis 1)."""
         reduce = reduce or _identity
-        if self._pool is None or not sp.issparse(matrix) or matrix.nnz * dense.shape[-1] < _SPLIT_MIN_WORK:
-            return reduce(matrix @ dense)
+        if not sp.issparse(matrix):  # dense rows (beliefs) in CSR form: scipy's fixed summation order, never BLAS
+            matrix = sp.csr_matrix(matrix)
+        if self._pool is None or matrix.nnz * dense.shape[-1] < _SPLIT_MIN_WORK:
+            return reduce(dot(matrix, dense))
         matrix = matrix.tocsr()
         dense = np.ascontiguousarray(dense)  # scipy copies a non-contiguous operand per product: once, here
         indptr = matrix.indptr
@@ -183,7 +186,7 @@ class BackupOperator:
         return best["top"], best["first"], best["clean"]
 
     def _projection(self, prepared: PreparedAlphas, action: int) -> np.ndarray | None:
-        """Dense projection (Z*K, S) of every vector on every observation of ``action``, for dense observation
+        """Dense projection (S, Z*K) of every vector on every observation of ``action``, for dense observation
         models (a dense BLAS product then beats the support-restricted one despite the zeros); None when the
         observations are sparse or the projection would exceed ``_DENSE_MAX_ELEMENTS``."""
         if action in prepared.projections:
@@ -192,9 +195,10 @@ class BackupOperator:
         n_vectors, n_obs, n_states = alphas.shape[0], self.n_observations, self.pomdp.n_states
         projection = None
         if not self.sparse_observations[action] and n_vectors * n_obs * n_states <= _DENSE_MAX_ELEMENTS:
-            # Laid out (Z, K, S) so that the scores come out (n, Z, K), K last for a contiguous argmax.
-            dense_t = self.entries[action][4].toarray()  # (Z, S)
-            projection = (dense_t[:, None, :] * alphas[None, :, :]).reshape(n_obs * n_vectors, n_states)
+            # Laid out (S, Z, K) so that the scores come out (n, Z, K), K last for a contiguous argmax, and the
+            # product's right operand is C-contiguous.
+            dense = self.observation_rows[action].toarray()  # (S, Z)
+            projection = (dense[:, :, None] * alphas.T[:, None, :]).reshape(n_states, n_obs * n_vectors)
         prepared.projections[action] = projection
         return projection
 
@@ -287,6 +291,7 @@ class BackupOperator:
         n, n_states = beliefs.shape
         n_actions, n_obs = self.pomdp.n_actions, self.n_observations
         beliefs_t = np.ascontiguousarray(beliefs.T)  # (S, n)
+        immediate = dot(beliefs, self.pomdp.rewards).T  # (A, n): R(b_i, a)
         action_values = np.empty((n_actions, n))
         chosen_by_action = np.empty((n_actions, n_obs, n), dtype=np.int64)
         for action in range(n_actions):
@@ -303,13 +308,12 @@ class BackupOperator:
                 )
                 chosen[branch_observations, branch_beliefs] = best
             else:
-                scores = (predicted.T @ projected.T).reshape(n, n_obs, -1)
-                chosen[:] = np.argmax(scores, axis=2).T
-                continuation = np.take_along_axis(scores, chosen.T[:, :, None], axis=2)[:, :, 0].sum(axis=1)
-                impossible = (self.entries[action][4] @ predicted) <= 0.0  # (Z, n)
+                branch_mass = self.entries[action][4] @ predicted  # (Z, n): P(z | b_i, a)
+                chosen[:], continuation = _dense_choices(predicted, projected, branch_mass, prepared.alphas)
+                impossible = branch_mass <= 0.0
                 if impossible.any():
                     chosen[:] = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
-            action_values[action] = beliefs @ self.rewards_by_action[action] + self.discount * continuation
+            action_values[action] = immediate[action] + self.discount * continuation
         best_actions = np.argmax(action_values, axis=0)  # the first of equal values, as a running maximum would
         best_vectors = np.empty((n, n_states))
         best_values = np.empty(n)
@@ -319,7 +323,8 @@ class BackupOperator:
             chosen = chosen_by_action[action][:, which]
             vectors = self._vectors(alphas, int(action), chosen)  # (S, len(which))
             best_vectors[which] = vectors.T
-            best_values[which] = np.einsum("si,si->i", beliefs_t[:, which], vectors)
+            # summed over s in increasing order (a reduction over the first axis), as dot() sums
+            best_values[which] = np.add.reduce(beliefs_t[:, which] * vectors, axis=0)
             best_children[which] = chosen.T
         if with_children:
             return best_vectors, best_actions, best_values, best_children
@@ -334,19 +339,84 @@ class BackupOperator:
         return self.rewards_by_action[action][:, None] + self.discount * (self.transitions[action] @ continuation)
 
 
+def _dense_choices(
+    predicted: np.ndarray, projected: np.ndarray, branch_mass: np.ndarray, alphas: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Best vector of every branch ``(z, i)`` from the dense projection (S, Z*K), and each belief's continuation value
+    ``sum_z score(i, z, best)``, both the same on any host.
+
+    The scores come from one BLAS product (fast), whose last bits depend on the kernel. Any summation order is
+    within ``gamma_S sum_s |terms| <= S u max|alpha| P(z | b_i)`` (``branch_mass``, Z x n) of the exact sum, so a
+    vector more than ``margin`` (twice the distance between two orders, with slack) below a branch's best BLAS score
+    is below its best fixed-order score too: the first maximum of the fixed-order scores lies among the candidates
+    within ``margin``, and only those (exact ties, mostly) are rescored in a fixed order (a reduction over ``s``).
+    Impossible branches (all scores 0) are left to the caller's fallback. The continuation is summed from
+    fixed-order scores of the chosen vectors alone."""
+    n_states, n = predicted.shape
+    n_obs = branch_mass.shape[0]
+    scores = (predicted.T @ projected).reshape(n, n_obs, -1)  # (n, Z, K)
+    n_vectors = scores.shape[2]
+    unit = 4.0 * n_states * _EPS * float(np.abs(alphas).max())
+    margin = (unit * branch_mass.T + 1e-290)[:, :, None]  # (n, Z, 1)
+    first = np.argmax(scores, axis=2)  # (n, Z)
+    top = np.take_along_axis(scores, first[:, :, None], axis=2)
+    threshold = top - margin
+    # the runner-up of each branch: its best score masked for one max pass (cheaper than counting a comparison)
+    np.put_along_axis(scores, first[:, :, None], -np.inf, axis=2)
+    second = scores.max(axis=2, keepdims=True) if n_vectors > 1 else np.full_like(top, -np.inf)
+    np.put_along_axis(scores, first[:, :, None], top, axis=2)
+    tied_i, tied_z = np.nonzero((second >= threshold)[:, :, 0] & (branch_mass.T > 0.0))
+    if tied_i.size:
+        # the candidates of the tied branches only (the full boolean array's nonzero costs as much as the product)
+        rows, near_k = np.nonzero(scores[tied_i, tied_z] >= threshold[tied_i, tied_z])
+        near_i, near_z = tied_i[rows], tied_z[rows]
+        exact = _fixed_order_scores(predicted, projected, near_i, near_z * n_vectors + near_k)
+        # per tied branch, the first (lowest k) of the largest fixed-order scores: sort by branch, -score, k
+        order = np.lexsort((near_k, -exact, near_i * n_obs + near_z))
+        branch = (near_i * n_obs + near_z)[order]
+        leads = np.flatnonzero(np.r_[True, branch[1:] != branch[:-1]])
+        first[near_i[order][leads], near_z[order][leads]] = near_k[order][leads]
+    chosen = first.T  # (Z, n)
+    beliefs = np.tile(np.arange(n), n_obs)
+    columns = (np.arange(n_obs)[:, None] * n_vectors + chosen).ravel()
+    continuation = np.add.reduce(_fixed_order_scores(predicted, projected, beliefs, columns).reshape(n_obs, n), axis=0)
+    return chosen, continuation
+
+
+def _fixed_order_scores(predicted: np.ndarray, projected: np.ndarray, beliefs: np.ndarray, columns: np.ndarray):
+    """``predicted[:, beliefs[j]] . projected[:, columns[j]]`` for each ``j``, summed over ``s`` in increasing order."""
+    return np.add.reduce(predicted[:, beliefs] * projected[:, columns], axis=0)
+
+
 def _row_argmax(scores: np.ndarray) -> np.ndarray:
     return np.argmax(scores, axis=1)
 
 
-def blind_policy_vectors(pomdp: POMDP) -> np.ndarray:
-    """Values of the blind policies "always do a" (A x S): ``alpha_a = (I - gamma T_a)^-1 R(., a)``.
+def blind_policy_vectors(pomdp: POMDP, tolerance: float = 1e-13) -> np.ndarray:
+    """Values of the blind policies "always do a" (A x S): ``alpha_a = R(., a) + gamma T_a alpha_a``, to within
+    ``tolerance`` times the return scale, from below.
 
-    Each is the exact value of an executable policy, so ``max_a alpha_a . b`` is a lower bound of V*(b):
-    the initial value function of Perseus. Requires ``gamma < 1``.
+    Each is (a lower bound of) the value of an executable policy, so ``max_a alpha_a . b`` is a lower bound of V*(b):
+    the initial value function of Perseus. Computed by iterating the policy's Bellman operator with sparse products
+    (the same bits on any host; a sparse LU solve goes through BLAS, whose kernel decides the last bits and with them
+    Perseus' later ties) from the constant ``min_s R(s, a) / (1 - gamma)``, which the operator maps above itself: the
+    iterates rise towards the exact value and stop below it, and each vector is then at most its own backup, as the
+    plan graph's closure needs. Requires ``gamma < 1``.
     """
-    identity = sp.identity(pomdp.n_states, format="csc")
-    vectors = []
-    for action, matrix in enumerate(pomdp.transitions):
-        system = (identity - pomdp.discount * matrix).tocsc()
-        vectors.append(scipy.sparse.linalg.spsolve(system, pomdp.rewards[:, action]))
-    return np.atleast_2d(np.asarray(vectors, dtype=np.float64))
+    gamma = pomdp.discount
+    rewards = np.ascontiguousarray(pomdp.rewards.T)  # (A, S)
+    flat_rewards = rewards.ravel()
+    # All actions in one product: the block-diagonal matrix of the T_a applied to the stacked vectors.
+    blocks = sp.block_diag(pomdp.transitions, format="csr")
+    scale = max(float(np.abs(rewards).max()) / (1.0 - gamma), 1.0)
+    # A change of c leaves at most c gamma / (1 - gamma) to go; the floor of 64 units in the last place keeps the
+    # threshold above the rounding noise of the iterates when gamma is close to 1.
+    threshold = max(tolerance * (1.0 - gamma), 64 * _EPS) * scale
+    values = np.repeat(rewards.min(axis=1) / (1.0 - gamma), pomdp.n_states)
+    while True:
+        new = flat_rewards + gamma * (blocks @ values)
+        change = float(np.max(np.abs(new - values)))
+        values = new
+        if change <= threshold:
+            break
+    return np.atleast_2d(values.reshape(pomdp.n_actions, pomdp.n_states))

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from embodied_adhoc.decision.models import POMDP
+from embodied_adhoc.decision.products import dot
 
 _DENSE_OBSERVATION_LIMIT = 20_000_000
 _EXHAUSTED_AFTER = 1000  # consecutive steps without a new belief: the reachable set is (nearly) exhausted
@@ -69,7 +70,7 @@ def collect_beliefs(
         if depth >= max_depth:
             belief, state, depth = pomdp.initial_belief, pomdp.sample_initial_state(rng), 0
         if greedy_q is not None and rng.random() >= epsilon:
-            action = int(np.argmax(belief @ greedy_q))
+            action = int(np.argmax(dot(belief, greedy_q)))
         else:
             action = int(rng.integers(pomdp.n_actions))
         state, observation, _ = pomdp.step(state, action, rng)

@@ -37,6 +37,7 @@ from embodied_adhoc.decision.beliefs import collect_beliefs
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.plan_graph import PlanGraph
 from embodied_adhoc.decision.policy import AlphaVectorPolicy, SolverStats
+from embodied_adhoc.decision.products import dot, transposed
 from embodied_adhoc.decision.upper_bound import SawtoothBound, fast_informed_bound
 from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import SolverError
@@ -186,7 +187,7 @@ def _infinite_horizon(
     rows = _belief_rows(beliefs)
     values = (rows @ alphas.T).max(axis=1)  # V_n on the belief set
     known = {_belief_key(b) for b in beliefs}
-    trace = [(clock() - start, float((alphas @ b0).max()))]
+    trace = [(clock() - start, float(dot(b0, alphas.T).max()))]
     bounds = _Bounds(trace[-1][1], float(upper.values(b0)[0]))
 
     def report(at_iteration: int, gain: float, n_beliefs: int | None = None) -> None:
@@ -220,7 +221,7 @@ def _infinite_horizon(
                 current, alphas, actions = grown, graph.vectors[grown], graph.actions[grown]
                 owner, old_rows = None, None
                 values = np.maximum(values, np.asarray(rows @ added.T).max(axis=1))
-            lower_b0 = float((alphas @ b0).max())
+            lower_b0 = float(dot(b0, alphas.T).max())
             gain = lower_b0 - bounds.lower
             trial_skip = 0 if gain > config.tolerance and gain >= stage_gain else max(1, 2 * trial_skip)
             trial_wait, trial_seconds = trial_skip, trial_seconds + clock() - now
@@ -252,7 +253,7 @@ def _infinite_horizon(
         witness = stage.witness if stage.witness is not None else np.full(len(current), -1)
         owner = stage.owner
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
-        lower_b0 = float((alphas @ b0).max())
+        lower_b0 = float(dot(b0, alphas.T).max())
         stage_gain, bounds = lower_b0 - bounds.lower, _Bounds(lower_b0, bounds.upper)
         trace.append((clock() - start, bounds.lower))
         report(iteration, improvement)
@@ -318,7 +319,7 @@ def _infinite_horizon(
             added = np.asarray(new)
             beliefs = np.vstack([beliefs, added])
             rows = _belief_rows(beliefs)
-            values = np.concatenate([values, (added @ alphas.T).max(axis=1)])
+            values = np.concatenate([values, dot(added, alphas.T).max(axis=1)])
             on_beliefs, owner, old_rows = False, None, None
     report(iteration, improvement)  # the bounds as returned (a last upper-bound round may have moved them)
     stats = SolverStats(
@@ -351,7 +352,8 @@ class _Bounds:
 
 
 def _lower_values(alphas: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
-    return lambda beliefs: (np.atleast_2d(beliefs) @ alphas.T).max(axis=1)
+    alphas_t = transposed(alphas)
+    return lambda beliefs: dot(np.atleast_2d(beliefs), alphas_t).max(axis=1)
 
 
 def _time_budget(start: float, deadline: float | None, clock: Callable[[], float]) -> float:
@@ -410,7 +412,7 @@ def _lower_trial(
     for belief in reversed(path):
         alphas = graph.vectors[current]
         vector, action, value, children = operator.backup(belief[None, :], alphas, with_children=True, project=False)
-        if value[0] > float((alphas @ belief).max()) + 1e-12:
+        if value[0] > float(dot(belief, alphas.T).max()) + 1e-12:
             current = np.append(current, graph.add(vector, action, current[children]))
     return current
 
@@ -634,7 +636,7 @@ def _perseus_iteration(
                 kept_here.append(j)
             else:
                 # V_n's best vector at b (b is pending: V_n's value there is still its value)
-                old = int(np.argmax(alphas @ beliefs[index])) if seidel is None else int(owner[index])
+                old = int(np.argmax(dot(beliefs[index], alphas.T))) if seidel is None else int(owner[index])
                 if not kept_old[old]:
                     kept_old[old] = True
                     kept_vectors.append(alphas[old])
@@ -782,10 +784,9 @@ def _full_backup_check(
 
 
 def _belief_rows(beliefs: np.ndarray) -> np.ndarray | sp.csr_matrix:
-    """The belief set for value products ``B @ Gamma^T``: CSR when sparse (large models' beliefs mostly are)."""
-    if np.count_nonzero(beliefs) < 0.3 * beliefs.size:
-        return sp.csr_matrix(beliefs)
-    return beliefs
+    """The belief set for value products ``B @ Gamma^T``, as CSR even when dense: scipy's products sum each row in
+    one fixed order (products.py), so values on B and the ties they decide do not depend on the BLAS kernel."""
+    return sp.csr_matrix(beliefs)
 
 
 def _stack(
@@ -839,7 +840,7 @@ def _finite_horizon(
         stage_numbers.append(np.full(len(actions), stage, dtype=np.int64))
         previous = vectors
         seconds = clock() - start
-        trace.append((seconds, float((vectors @ b0).max())))
+        trace.append((seconds, float(dot(b0, vectors.T).max())))
         if progress is not None:
             progress(SolverProgress(stage, seconds, trace[-1][1], vectors.shape[0], float("nan")))
         if config.time_limit is not None and seconds > config.time_limit and stage < horizon:

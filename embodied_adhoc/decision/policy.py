@@ -15,14 +15,15 @@ files (format 1) load unchanged.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import scipy.sparse as sp
 
 from embodied_adhoc.atomic import atomic_open
+from embodied_adhoc.decision.products import dot, transposed
 from embodied_adhoc.errors import ModelError
 
 _FORMAT_VERSION = 2  # 1: uncompressed float64; 2: compressed, float32 rounded down for closed policies
@@ -89,6 +90,17 @@ class AlphaVectorPolicy:
         object.__setattr__(self, "actions", actions.astype(np.int64))
         object.__setattr__(self, "stages", stages.astype(np.int64))
 
+    @functools.cached_property
+    def _alphas_t(self) -> np.ndarray:
+        """(S, K) C-contiguous: the right operand of the value products (products.py: the same bits on any host,
+        so the same belief picks the same action whatever BLAS kernel the host runs)."""
+        return transposed(self.alphas)
+
+    def _scores(self, beliefs: np.ndarray, steps_to_go: int | None) -> np.ndarray:
+        """``beliefs @ alphas[rows].T`` for the vectors of ``steps_to_go``, in products.py's fixed order."""
+        rows = self._rows(steps_to_go)
+        return dot(beliefs, self._alphas_t)[..., rows]
+
     @property
     def n_vectors(self) -> int:
         return self.alphas.shape[0]
@@ -116,23 +128,19 @@ class AlphaVectorPolicy:
 
     def values(self, beliefs: np.ndarray, steps_to_go: int | None = None) -> np.ndarray:
         """``max_k alpha_k . b`` for each row of ``beliefs`` (N, S), batched."""
-        return (np.atleast_2d(beliefs) @ self.alphas[self._rows(steps_to_go)].T).max(axis=1)
+        return self._scores(np.atleast_2d(beliefs), steps_to_go).max(axis=1)
 
     def value(self, belief: np.ndarray, steps_to_go: int | None = None) -> float:
         return float(self.values(belief, steps_to_go)[0])
 
     def action(self, belief: np.ndarray, steps_to_go: int | None = None) -> int:
-        rows = self._rows(steps_to_go)
-        scores = self.alphas[rows] @ np.asarray(belief, dtype=np.float64)
-        return int(self.actions[rows][int(np.argmax(scores))])
+        scores = self._scores(np.asarray(belief, dtype=np.float64), steps_to_go)
+        return int(self.actions[self._rows(steps_to_go)][int(np.argmax(scores))])
 
     def actions_of(self, beliefs: np.ndarray, steps_to_go: int | None = None) -> np.ndarray:
         """The action of each row of ``beliefs`` (N, S), batched."""
-        rows = self._rows(steps_to_go)
-        beliefs = np.atleast_2d(beliefs)
-        if np.count_nonzero(beliefs) < 0.3 * beliefs.size:  # sparse beliefs: a product over their support only
-            beliefs = sp.csr_matrix(beliefs)
-        return self.actions[rows][np.asarray(np.argmax(beliefs @ self.alphas[rows].T, axis=1)).ravel()]
+        scores = self._scores(np.atleast_2d(beliefs), steps_to_go)  # over each belief's support only
+        return self.actions[self._rows(steps_to_go)][np.argmax(scores, axis=1)]
 
     # ------------------------------------------------------------------------------------------ files
     def as_stored(self) -> AlphaVectorPolicy:

@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from embodied_adhoc.decision.models import POMDP
+from embodied_adhoc.decision.products import dot
 from embodied_adhoc.decision.value_iteration import value_iteration
 
 
@@ -99,7 +100,7 @@ class SawtoothBound:
     def values(self, beliefs: np.ndarray) -> np.ndarray:
         """``U(b)`` for each row of ``beliefs`` (n, S)."""
         beliefs = np.atleast_2d(beliefs)
-        bound = (beliefs @ self.fib).max(axis=1)
+        bound = dot(beliefs, self.fib).max(axis=1)
         if not self.n_points:
             return bound
         if self._excess is None:
@@ -127,7 +128,7 @@ class SawtoothBound:
                 ratios = beliefs[np.repeat(rows, lengths), self._support[positions]] / self._masses[positions]
             phi = np.minimum.reduceat(ratios, np.cumsum(lengths) - lengths)
             np.minimum.at(terms, rows, phi * self._excess[points])
-        sawtooth = beliefs @ self.corners + terms
+        sawtooth = dot(beliefs, self.corners) + terms
         return np.minimum(bound, sawtooth)
 
     def successors(self, belief: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -149,10 +150,10 @@ class SawtoothBound:
         values = self.values(np.vstack([posteriors for _, _, posteriors in successors]))
         ends = np.cumsum([len(probabilities) for _, probabilities, _ in successors])
         expected = [
-            float(probabilities @ part)
+            float(dot(probabilities, part))
             for (_, probabilities, _), part in zip(successors, np.split(values, ends[:-1]), strict=True)
         ]
-        return belief @ self.pomdp.rewards + self.pomdp.discount * np.asarray(expected)
+        return dot(belief, self.pomdp.rewards) + self.pomdp.discount * np.asarray(expected)
 
     def update(self, belief: np.ndarray, successors=None) -> float:
         """Back up ``U`` at ``belief`` and keep the point when it tightens the bound; returns the new ``U(b)``."""

@@ -146,7 +146,7 @@ def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
     rows = sp.csr_matrix(beliefs)
     alphas = blind_policy_vectors(pomdp)
     actions = np.arange(pomdp.n_actions)
-    values = (beliefs @ alphas.T).max(axis=1)
+    values = (rows @ alphas.T).max(axis=1)  # the solver's own products (CSR), so ties compare exactly
     rng = np.random.default_rng(0)
     for _ in range(4):  # a few stages, so that old vectors are kept and batches grow
         stage = perseus_module._perseus_iteration(
@@ -224,7 +224,9 @@ def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
 
     pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
     operator = BackupOperator(pomdp)
-    beliefs = collect_beliefs(pomdp, 300, np.random.default_rng(2))
+    # A belief set whose first stages already improve several beliefs with different vectors (with seed 2 or 4 Tag's
+    # first six stages keep only 1-3 new vectors each, one of which covers every belief, so none continues another)
+    beliefs = collect_beliefs(pomdp, 300, np.random.default_rng(0))
     rows = perseus_module._belief_rows(beliefs)
     graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
     current = np.arange(len(graph))

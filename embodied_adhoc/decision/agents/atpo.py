@@ -19,6 +19,7 @@ import numpy as np
 from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.decision.agents.task_beliefs import LibraryBeliefs, LibraryKernels
+from embodied_adhoc.decision.products import dot
 from embodied_adhoc.errors import ModelError
 
 __all__ = ["AtpoAgent"]
@@ -69,7 +70,7 @@ class AtpoAgent(AgentBase):
                 for z in np.flatnonzero(joint > 0.0):
                     posterior = self.kernels.column(k, a, int(z)) * predicted / joint[z]
                     future += joint[z] * policy.value(posterior)
-                q[a] = belief @ pomdp.rewards[:, a] + pomdp.discount * future
+                q[a] = dot(belief, pomdp.rewards[:, a]) + pomdp.discount * future  # host-independent bits
             result.append(policy.value(belief) - q)
         return np.array(result)
 

@@ -21,6 +21,7 @@ from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.decision.agents.task_beliefs import check_library
 from embodied_adhoc.decision.models import MDP
+from embodied_adhoc.decision.products import dot
 from embodied_adhoc.errors import ConfigError, ModelError
 
 __all__ = ["BopaAgent", "optimal_policies"]
@@ -63,7 +64,7 @@ class BopaAgent(AgentBase):
 
     def action_distribution(self) -> np.ndarray:
         """Eq. 5.2 at the current state."""
-        return self.posterior @ self.policies[:, self.state, :]
+        return dot(self.posterior, self.policies[:, self.state, :])  # fixed summation order: ties decided alike on any host
 
     def act(self) -> int:
         return draw_action(self.action_distribution(), self.rng, self.greedy)

@@ -31,6 +31,7 @@ from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.decision.agents.task_beliefs import LibraryBeliefs, LibraryKernels, normalised_entropy
 from embodied_adhoc.decision.models import POMDP
+from embodied_adhoc.decision.products import dot
 from embodied_adhoc.decision.value_iteration import value_iteration
 from embodied_adhoc.errors import ConfigError
 
@@ -152,7 +153,7 @@ class HotspotAgent(AgentBase):
             weights = np.outer(tracker.posterior, belief)  # p(m) b(x)
         else:
             weights = tracker.posterior[:, None] * tracker.beliefs  # p(m) b_m(x)
-        values = weights.ravel() @ plan.stacked_q
+        values = dot(weights.ravel(), plan.stacked_q)  # fixed summation order: ties decided alike on any host
         n_actions = values.size // 2
         return (1.0 - entropy) * values[:n_actions] + entropy * values[n_actions:]
 

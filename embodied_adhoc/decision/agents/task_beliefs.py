@@ -22,6 +22,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from embodied_adhoc.decision.models import POMDP
+from embodied_adhoc.decision.products import dot
 from embodied_adhoc.errors import ModelError
 
 __all__ = ["LibraryBeliefs", "LibraryKernels", "check_library", "normalised_entropy"]
@@ -134,4 +135,4 @@ class LibraryBeliefs:
 
     def average_belief(self) -> np.ndarray:
         """Eq. 7.2: ``b(x) = sum_m p(m) b_m(x)``."""
-        return self.posterior @ self.beliefs
+        return dot(self.posterior, self.beliefs)  # fixed summation order (products.py): the same bits on any host
