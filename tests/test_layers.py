@@ -15,8 +15,9 @@ import pytest
 
 PACKAGE_ROOT = Path(__file__).resolve().parents[1] / "embodied_adhoc"
 
-FOUNDATION = frozenset({"errors", "atomic", "paths", "checks", "gl", "__init__"})
-"""Top-level modules every layer may import (errors, atomic writes, data paths, validation, GL platform)."""
+FOUNDATION = frozenset({"errors", "atomic", "paths", "checks", "gl", "plugins", "__init__"})
+"""Top-level modules every layer may import (errors, atomic writes, data paths, validation, GL platform, the
+plug-in resolver)."""
 
 ALLOWED: dict[str, frozenset[str]] = {
     # layer: the layers (besides FOUNDATION) it may import. Lower layers first.
@@ -61,6 +62,7 @@ FOUNDATION_ALLOWED: dict[str, frozenset[str]] = {
     "paths": frozenset({"errors"}),
     "checks": frozenset({"errors"}),
     "gl": frozenset(),
+    "plugins": frozenset({"errors"}),
     "__init__": frozenset(),
 }
 FORBIDDEN_THIRD_PARTY: dict[str, frozenset[str]] = {

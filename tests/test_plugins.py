@@ -317,3 +317,15 @@ def test_entropy_plot_without_curves_draws_no_empty_legend(tmp_path):
         warnings.simplefilter("error")  # matplotlib's "No artists with labels found" would raise here
         path = plot_entropy({"known-task": [[0.0, 0.0, 0.0]]}, tmp_path / "entropy.png")
     assert path.is_file()
+
+
+def test_teamster_takes_a_chapter_4_plugin(tmp_path):
+    shutil.copytree(FIXTURES / "plugin_pkg" / "my_adhoc_agent", tmp_path / "my_adhoc_agent")
+    spec = "my_adhoc_agent:chapter4_agent"
+    ok = _cli("teamster", "pursuit", "--agents", spec, "--steps", "10", "--points", "1", "--trials", "1",
+              "--json", cwd=tmp_path)  # fmt: skip
+    assert ok.returncode == 0, ok.stderr
+    assert spec in json.loads(ok.stdout)["agents"]
+    bad = _cli("teamster", "pursuit", "--agents", "my_adhoc_agent:make_agent", "--steps", "10", "--points", "1",
+               cwd=tmp_path)  # fmt: skip
+    assert bad.returncode == 2 and "does not meet the chapter-4 TeamworkAgent protocol" in bad.stderr

@@ -32,10 +32,15 @@ def _agents(text: str, domain: str = "pursuit") -> list[str]:
 
     allowed = AGENTS if domain == "pursuit" else DEFAULT_AGENTS + NAVIGATION_TEAMS
     names = [name.strip() for name in text.split(",") if name.strip()]
-    unknown = [name for name in names if name not in allowed]
+    from embodied_adhoc.plugins import names_plugin, resolve
+
+    unknown = [name for name in names if name not in allowed and not names_plugin("agent", name)]
     if unknown or not names:
         raise ConfigError(f"--agents {text!r}: unknown {', '.join(unknown) or '(none given)'} on {domain}; choose "
-                          f"from {', '.join(allowed)}")
+                          f"from {', '.join(allowed)}, or a plug-in MODULE:CALLABLE (docs/plugins.md)")
+    for name in names:  # a plug-in that cannot be imported stops here, before any learning
+        if name not in allowed:
+            resolve("agent", name, builtin=allowed, flag="--agents")
     return list(dict.fromkeys(names))
 
 
@@ -101,7 +106,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("domain", choices=("pursuit", "ntu", "isr", "pentagon"),
                         help="pursuit (5x5, 4 predators) or a navigation map (ntu, isr, pentagon)")
     parser.add_argument("--agents", default=",".join(DEFAULT_AGENTS), metavar="A,B,...",
-                        help=f"comma-separated from {{{', '.join(AGENTS)}}} (default {','.join(DEFAULT_AGENTS)})")
+                        help=f"comma-separated from {{{', '.join(AGENTS)}}} (default {','.join(DEFAULT_AGENTS)}), or "
+                             "plug-ins: factory(world, rng=, horizon=) -> a chapter-4 agent (docs/plugins.md)")
     parser.add_argument("--steps", type=positive_int, default=5000,
                         help="interaction steps per team, a multiple of --points (default 5000)")
     parser.add_argument("--trials", type=positive_int, default=8, help="trials per agent (default 8)")

@@ -67,6 +67,11 @@ class AdhocGridEnv(gymnasium.Env):
         info["teammate_actions"] = actions[1:].tolist()
         return self._observation(), reward, terminated, False, info
 
+    def privileged_state(self) -> dict:
+        """The true state, as ``info["state"]`` holds it: the one channel through which the episode loop gives it to
+        privileged agents (``observes_state``); agents never read ``info``."""
+        return self.core.episode.state.as_dict()
+
     def render(self):
         if self.render_mode != "rgb_array":
             return None

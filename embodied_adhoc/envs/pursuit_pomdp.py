@@ -156,6 +156,11 @@ class PursuitPomdpEnv(gymnasium.Env):
         self.task, self.state, self.steps = 0, 0, 0
         self.cells = np.zeros((3, 2), dtype=np.int64)
 
+    def privileged_state(self) -> int:
+        """The true state, as ``info["state"]`` holds it: the one channel through which the episode loop gives it to
+        privileged agents (``observes_state``); agents never read ``info``."""
+        return int(self.state)
+
     def _info(self) -> dict:
         info = {"observation_index": self.observation, "state": self.state, "task": self.task,
                 "task_name": self.library.task_names[self.task], "cells": self.cells.tolist(), "steps": self.steps}

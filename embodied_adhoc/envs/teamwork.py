@@ -121,9 +121,14 @@ class TeamworkEnv(gymnasium.Env):
         self.state = np.zeros(self.n_agents, dtype=np.int64)
         self.mates = np.full(self.n_mates, NO_ACTION, dtype=np.int64)
 
-    def observation_index(self, observation, info: dict) -> int:
-        """The state's :func:`state_code` (for the episode loop's trace)."""
+    def observation_index(self, observation) -> int:
+        """The state's :func:`state_code` (for the episode loop's trace), from the observation alone."""
         return state_code(np.asarray(observation)[:self.n_agents], self.world.cells)
+
+    def privileged_state(self) -> np.ndarray:
+        """The true state, as ``info["state"]`` holds it: the one channel through which the episode loop gives it to
+        privileged agents (``observes_state``); agents never read ``info``."""
+        return self.state.copy()
 
     def _observation(self) -> np.ndarray:
         return np.concatenate([self.state, self.mates]).astype(np.int64)

@@ -336,6 +336,11 @@ class ToxicWasteEnv(gymnasium.Env):
         self._counts["robot_node_unknown"] += robot_reading is None
         return LabObservation(robot_reading, human, bool(rfid), n)
 
+    def privileged_state(self) -> int:
+        """The true state, as ``info["state"]`` holds it: the one channel through which the episode loop gives it to
+        privileged agents (``observes_state``); agents never read ``info``."""
+        return self._state_index
+
     def _info(self, observation, truth, entered, result, utterances, speech_audio) -> dict:
         robot_node = _area(self.layout, truth.robot_pose, truth.robot_node)
         states = self.library.states
@@ -345,6 +350,7 @@ class ToxicWasteEnv(gymnasium.Env):
         odometry_pose = self.world.odometry_pose()
         estimate = self.world.pose_estimate()
         localiser = self.world.localiser
+        self._state_index = int(state)
         return {
             "state": int(state),
             "observation_index": observation.encode(),

@@ -123,7 +123,13 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
             "disposed_this_step": disposed,
             "observation_index": index,
         }
+        self._state_index = info["state"]
         return model.vector(index), info
+
+    def privileged_state(self) -> int:
+        """The true state, as ``info["state"]`` holds it: the one channel through which the episode loop gives it to
+        privileged agents (``observes_state``); agents never read ``info``."""
+        return self._state_index
 
     def render(self):
         if self.render_mode == "rgb_array":

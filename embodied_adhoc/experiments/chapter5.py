@@ -60,7 +60,8 @@ in CPU seconds per stage (docs/atpo.md, "The solve budget")."""
 class LibraryEnv:
     """The true model as an episode simulator (Gymnasium's ``reset``/``step`` signatures).
 
-    ``reset(seed, options={"task": k, "start": x})``; ``info`` carries ``state`` and ``observation_index``. The
+    ``reset(seed, options={"task": k, "start": x})``; the observation is the model's observation index (-1 at
+    reset: none yet); ``info`` carries ``state`` and ``observation_index`` (ground truth and diagnostics). The
     episode terminates on entering the model's absorbing state; truncation is the runner's cap.
     """
 
@@ -76,13 +77,17 @@ class LibraryEnv:
         self.model = int(options["task"])
         self.pomdp = self.pomdps[self.model]
         self.state = int(options["start"])
-        return self.state, {"state": self.state, "observation_index": -1}
+        return -1, {"state": self.state, "observation_index": -1}  # no observation before the first step
 
     def step(self, action: int):
         next_state, observation, reward = self.pomdp.step(self.state, int(action), self.rng)
         self.state = next_state
         terminated = next_state == self.library.absorbing(self.model)
         return observation, reward, terminated, False, {"state": next_state, "observation_index": observation}
+
+    def privileged_state(self) -> int:
+        """The true state: the channel through which the episode loop gives it to ``observes_state`` agents."""
+        return self.state
 
     def close(self) -> None:
         return None
@@ -150,8 +155,8 @@ class Chapter5Session:
     def reset_options(self, spec: dict) -> dict:
         return {"task": int(spec["task"]), "start": int(spec["start"])}
 
-    def observation_index(self, observation, info: dict) -> int:
-        return int(info["observation_index"])
+    def observation_index(self, observation) -> int:
+        return int(observation)
 
     def policies(self) -> tuple:
         if self._policies is None:

@@ -1,18 +1,22 @@
 """The one episode loop: an agent acting in any env of the project, step by step, with observers attached.
 
 Shared by the trial runner (``experiments.trial.run_trial``: ``trials``), the recorded physics run
-(``experiments.recorded_episode``: ``run toxic-waste``) and any future live mode, so that every command runs an
-episode the same way::
+(``experiments.recorded_episode``: ``run toxic-waste``) and the live mode, so that every command runs an episode
+the same way::
 
     obs, info = env.reset(seed=env_seed, options=reset_options)
-    agent.reset(agent_rng, state=info["state"] if agent.observes_state else None)
+    agent.reset(agent_rng, state=env.unwrapped.privileged_state() if agent.observes_state else None)
     agent.start(obs)                          # a no-op unless the agent reads raw observations (ATLPO)
     repeat up to max_steps:  a = agent.act(); obs, r, terminated, truncated, info = env.step(a)
-                             agent.observe(a, z, state=info["state"] if agent.observes_state else None)
+                             agent.observe(a, z, state=<privileged state> if agent.observes_state else None)
 
-``z`` is ``observation_index(obs, info)`` (the tabular agents' observation index), or the env's raw observation
-itself for agents that declare ``observes_raw`` (learned agents over egocentric arrays); the trace records the
-index either way. Agents that learn from rewards (chapter 4's, through
+The observation contract: the agent's observation is ``obs`` and nothing else. ``z`` is
+``observation_index(obs)`` (the tabular agents' observation index, computed from ``obs`` alone), or ``obs`` itself
+for agents that declare ``observes_raw`` (learned agents over egocentric arrays); the trace records the index
+either way. ``info`` (ground truth and diagnostics) goes to the observers, never to the agent. The one privileged
+channel is the env's ``privileged_state()`` (the true state, as ``info["state"]`` holds it), read only for agents
+that declare ``observes_state`` (the oracle, value iteration, BOPA; see
+:mod:`embodied_adhoc.decision.agents.base`). Agents that learn from rewards (chapter 4's, through
 :class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`) declare ``observes_reward`` and also get
 ``reward=r, terminated=...`` in ``observe``.
 
@@ -99,6 +103,19 @@ def _posterior(agent) -> np.ndarray | None:
     return None if posterior is None else np.array(posterior, dtype=np.float64, copy=True)
 
 
+def _privileged_channel(env, agent) -> Callable[[], Any]:
+    """The env's ``privileged_state`` method: the one way the true state reaches an ``observes_state`` agent."""
+    from embodied_adhoc.errors import ConfigError
+
+    channel = getattr(getattr(env, "unwrapped", env), "privileged_state", None)
+    if channel is None:
+        raise ConfigError(
+            f"agent '{agent.name}' observes the state (observes_state = True), but {type(env).__name__} offers no "
+            "privileged_state(): run it on an env that does, or declare observes_state = False"
+        )
+    return channel
+
+
 def run_episode_loop(
     env,
     agent,
@@ -107,19 +124,21 @@ def run_episode_loop(
     agent_rng: np.random.Generator,
     reset_options: dict | None,
     max_steps: int,
-    observation_index: Callable[[Any, dict], int],
+    observation_index: Callable[[Any], int],
     observers: Sequence[EpisodeObserver] = (),
 ) -> EpisodeTrace:
-    """Run one episode of ``agent`` in ``env``; ``observation_index(observation, info)`` gives the agent's
-    observation. Agents that declare ``observes_state`` (BOPA, the oracle) also get ``info["state"]``; agents that
-    declare ``observes_raw`` get the env's observations themselves, the first one through ``agent.start``."""
+    """Run one episode of ``agent`` in ``env``; ``observation_index(observation)`` gives the agent's observation
+    index. Agents that declare ``observes_state`` (BOPA, the oracle) also get the env's ``privileged_state()``;
+    agents that declare ``observes_raw`` get the env's observations themselves, the first one through
+    ``agent.start``."""
     trace = EpisodeTrace()
     observation, info = env.reset(seed=env_seed, options=reset_options)
     trace.reset_info = info
     # The capability flags of the Agent protocol (decision/agents/base.py), checked when the agent was built.
     privileged, raw = bool(agent.observes_state), bool(agent.observes_raw)
     rewarded = bool(agent.observes_reward)
-    agent.reset(agent_rng, state=info["state"] if privileged else None)
+    state_of = _privileged_channel(env, agent) if privileged else None
+    agent.reset(agent_rng, state=state_of() if privileged else None)
     agent.start(observation)
     trace.posteriors.append(_posterior(agent))
     for observer in observers:
@@ -131,9 +150,9 @@ def run_episode_loop(
         for observer in observers:
             observer.action_chosen(step, action)
         observation, reward, terminated, truncated, info = env.step(action)
-        index = int(observation_index(observation, info))
+        index = int(observation_index(observation))
         outcome = {"reward": float(reward), "terminated": bool(terminated)} if rewarded else {}
-        agent.observe(action, observation if raw else index, state=info["state"] if privileged else None, **outcome)
+        agent.observe(action, observation if raw else index, state=state_of() if privileged else None, **outcome)
         posterior = _posterior(agent)
         trace.actions.append(action)
         trace.observations.append(index)

@@ -120,7 +120,7 @@ class GridTrialSession:
             return library_agent(self.domain, self.library, self.rules.config, name=name)
         raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
 
-    def observation_index(self, observation, info: dict) -> int:
+    def observation_index(self, observation) -> int:
         return zlib.crc32(np.ascontiguousarray(observation).tobytes())
 
 

@@ -120,8 +120,8 @@ class PursuitPairsSession:
         true_task = int(spec["task"]) if name in AGENTS_GIVEN_THE_TASK else None
         return make_agent(name, self.library, true_task=true_task, rng_seed=seed)
 
-    def observation_index(self, observation, info: dict) -> int:
-        return int(info["observation_index"])
+    def observation_index(self, observation) -> int:
+        return int(observation)
 
 
 def pomdp_options(task: int | None = None, cache: bool = True) -> dict:

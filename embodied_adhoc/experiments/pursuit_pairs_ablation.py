@@ -168,7 +168,7 @@ def ablation_steps(
                 agent_rng=np.random.default_rng([seed, episode, 1]),
                 reset_options={"task": task, "start": start},
                 max_steps=cap,
-                observation_index=lambda observation, info: int(info["observation_index"]),
+                observation_index=int,  # LibraryEnv: the observation is the index
             )
             counts.append(len(trace.actions))
         steps[name] = np.array(counts)

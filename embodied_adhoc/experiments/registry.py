@@ -2,9 +2,9 @@
 
 A *trial* is one episode of one agent: the runner resets a Gymnasium env with the episode's spec, resets the
 agent, then alternates ``agent.act()`` -> ``env.step(action)`` -> ``agent.observe(action, z, state=...)`` until the
-env terminates (success) or the step cap is hit. ``z`` is ``info["observation_index"]`` (or the session's
-:meth:`TrialSession.observation_index`); ``state=info["state"]`` is given only to agents with
-``observes_state`` (see :mod:`embodied_adhoc.decision.agents.base`). Nothing else of ``info`` reaches an agent.
+env terminates (success) or the step cap is hit. ``z`` is :meth:`TrialSession.observation_index` of the env's
+observation; ``state=`` (the env's ``privileged_state()``) is given only to agents with ``observes_state`` (see
+:mod:`embodied_adhoc.decision.agents.base`). Nothing of ``info`` reaches an agent.
 
 Plugging a domain in
 --------------------
@@ -33,7 +33,8 @@ which the runner calls once per worker process and caches.
     truncate episodes before ``max_steps``, the runner's cap; backend chosen here by env id/kwargs: e.g. ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` vs ``EmbodiedAdhoc/ToxicWaste-v0``);
     ``reset_options(spec) -> dict``: the ``options`` of ``env.reset`` that impose the spec;
     ``make_agent(name, spec, seed) -> Agent``: a fresh agent (``spec["task"]`` only for agents defined to know it);
-    ``observation_index(observation, info) -> int``: the flat observation index the agents consume.
+    ``observation_index(observation) -> int``: the flat observation index the agents consume, computed from the
+    env's observation alone (``info`` is ground truth: it never reaches an agent).
 
 Agents by name or as plug-ins
 ----------------------------
@@ -70,7 +71,7 @@ class TrialSession(Protocol):
 
     def make_agent(self, name: str, spec: dict, seed: int) -> Any: ...
 
-    def observation_index(self, observation: Any, info: dict) -> int: ...
+    def observation_index(self, observation: Any) -> int: ...
 
 
 @runtime_checkable

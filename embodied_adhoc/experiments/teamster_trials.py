@@ -93,7 +93,7 @@ class Pursuit4Session:
             agent.bind(TEAMS[int(spec["task"])])
         return EpisodeSeat(agent, N_AGENTS, evaluation=True)
 
-    def observation_index(self, observation, info: dict) -> int:
+    def observation_index(self, observation) -> int:
         from embodied_adhoc.envs.teamwork import state_code
 
         return state_code(observation[:N_AGENTS], 25)

@@ -11,9 +11,9 @@ Backends (same kwargs, same ``reset`` options, same observation encoding):
 * ``mujoco``: ``EmbodiedAdhoc/ToxicWaste-v0`` (the env engineer's physics env). Extension point: the runner
   needs only that this id is registered, accepts the kwargs ``tasks``, ``human_epsilon``, ``communication``,
   ``confusion`` (the lab parameters of ``domains.lab.LabConfig``), is capped by gymnasium's ``TimeLimit`` (set to
-  the runner's ``--max-steps``), takes ``reset(seed=..., options={"task", "robot_node", "human_node"})``, and puts
-  ``info["observation_index"]`` (flat :class:`LabObservation` index) and ``info["state"]`` (index in the library's
-  shared state space) in every ``reset``/``step`` info. Nothing in this module changes when it lands.
+  the runner's ``--max-steps``), takes ``reset(seed=..., options={"task", "robot_node", "human_node"})``, returns
+  the :class:`LabObservation` vector as its observation (the agents' index is decoded from it alone) and offers
+  ``privileged_state()`` (index in the library's shared state space, for the agents that observe the state).
 
 Agents come from ``embodied_adhoc.decision.agents.factory.make_agent``; only ``known-task`` and ``oracle`` are
 given the true task (at construction), as their definitions require.
@@ -257,9 +257,7 @@ class ToxicWasteSession:
         true_task = int(spec["task"]) if name in AGENTS_GIVEN_THE_TASK else None
         return self._make_agent(name, self.library, true_task=true_task, rng_seed=seed)
 
-    def observation_index(self, observation, info: dict) -> int:
-        if "observation_index" in info:
-            return int(info["observation_index"])
+    def observation_index(self, observation) -> int:
         return self._observation.from_vector(observation, self.library.graph.n_nodes).encode()
 
     def trial_extras(self, trace, info: dict) -> dict:

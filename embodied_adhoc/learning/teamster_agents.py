@@ -116,4 +116,28 @@ def build_agent(name: str, world: Pursuit4, rng: np.random.Generator, horizon: i
         return OriginalTeammate(policies)
     if name in world.teams:
         return OriginalTeammate(policies, name=name, fixed=name)
+    from embodied_adhoc.plugins import names_plugin
+
+    if names_plugin("agent", name):
+        return plugin_agent(name, world, rng, horizon)
     raise ConfigError(f"agent {name!r}: choose from {', '.join(AGENTS[:7] + tuple(world.teams))}")
+
+
+TEAMWORK_METHODS = ("start_team", "act", "observe", "set_evaluation", "finish_team")
+
+
+def plugin_agent(spec: str, world: Pursuit4, rng: np.random.Generator, horizon: int):
+    """A user's chapter-4 agent: ``factory(world, rng=rng, horizon=horizon)`` (the ``embodied_adhoc.plugins`` spec
+    ``spec``) returning a :class:`~embodied_adhoc.decision.agents.teamwork.TeamworkAgent`; refused with the
+    methods it lacks."""
+    from embodied_adhoc.plugins import resolve
+
+    agent = resolve("agent", spec, builtin=AGENTS, flag="--agents").factory(world, rng=rng, horizon=horizon)
+    missing = [m for m in TEAMWORK_METHODS if not callable(getattr(agent, m, None))]
+    if missing or not isinstance(getattr(agent, "name", None), str):
+        lacks = [f"{m}()" for m in missing] + ([] if isinstance(getattr(agent, "name", None), str) else ["name"])
+        raise ConfigError(
+            f"agent {spec!r}: {type(agent).__name__} does not meet the chapter-4 TeamworkAgent protocol "
+            f"(decision.agents.teamwork): it lacks {', '.join(lacks)}"
+        )
+    return agent

@@ -26,9 +26,12 @@ def with_plugin_teams(library: dict, chosen, rules) -> dict:
     ``rules``; names keep their library entry."""
     from embodied_adhoc.plugins import names_plugin, resolve
 
-    if chosen is None:
+    if isinstance(chosen, str):
+        items = [chosen]
+    elif isinstance(chosen, (list, tuple)):
+        items = list(chosen)
+    else:  # None (the whole library) or a value the env's own check refuses
         return library
-    items = [chosen] if isinstance(chosen, str) else list(chosen)
     specs = [
         item
         for item in items

@@ -37,6 +37,9 @@ class GuessEnv(gym.Env):
         done = self.progress >= 3
         return reading, -1.0, done, False, {"state": self.progress, "observation_index": int(reading)}
 
+    def privileged_state(self):
+        return self.progress
+
 
 class BayesAgent(AgentBase):
     observes_state = False
@@ -122,8 +125,8 @@ class Session:
             return OracleAgent(name, spec["task"])
         return RandomAgent(name)
 
-    def observation_index(self, observation, info):
-        return info["observation_index"]
+    def observation_index(self, observation):
+        return int(observation)
 
 
 class GuessDomain:

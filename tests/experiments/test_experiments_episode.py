@@ -16,6 +16,9 @@ class CountdownEnv:
         self.seed, self.options = seed, options
         return 0, {"state": 0}
 
+    def privileged_state(self):
+        return self.ones
+
     def step(self, action):
         self.steps += 1
         self.ones += action == 1
@@ -75,7 +78,7 @@ def run(env, max_steps, observers=()):
         agent_rng=np.random.default_rng(0),
         reset_options={"task": 1},
         max_steps=max_steps,
-        observation_index=lambda observation, info: info["observation_index"],
+        observation_index=lambda observation: 10 + observation,
         observers=observers,
     )
     return trace, agent

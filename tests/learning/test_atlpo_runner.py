@@ -67,7 +67,7 @@ def test_the_episode_loop_hands_atlpo_the_arrays_and_the_first_observation(tmp_p
                                                               original_observe(action, observation, state))
     env = gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0")
     trace = run_episode_loop(env, agent, env_seed=0, agent_rng=np.random.default_rng(0), reset_options=None,
-                             max_steps=4, observation_index=lambda observation, info: 7)
+                             max_steps=4, observation_index=lambda observation: 7)
     assert seen[0] == ("start", (6, 5, 5)) and all(s == ("observe", (6, 5, 5)) for s in seen[1:])
     assert len(seen) == trace.steps + 1 and trace.observations == [7] * trace.steps  # the trace keeps the index
     history = trace.posterior_history()
