@@ -53,7 +53,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     toxic.add_argument(
-        "--agent", choices=AGENTS, default="hotspot", help="the robot's agent (default hotspot)"
+        "--agent",
+        default="hotspot",
+        metavar="NAME|MODULE:CALLABLE",
+        help=f"the robot's agent: {', '.join(AGENTS)} (default hotspot), or a plug-in (docs/plugins.md)",
     )
     toxic.add_argument("--seed", type=seed, default=0, help="episode seed: task and start nodes (default 0)")
     toxic.add_argument("--port", type=_port, default=8000, help="TCP port (default 8000; 0: any free port)")
@@ -122,6 +125,10 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     from embodied_adhoc.live.study import StudyRun, load_plan
 
     plan = None if args.study is None else load_plan(args.study)  # a bad plan stops here, before any work
+    from embodied_adhoc.experiments.registry import agent_plugin
+    from embodied_adhoc.experiments.toxic_waste import DOMAIN
+
+    agent_plugin(DOMAIN, args.agent, "--agent")  # so does an unknown agent or a plug-in that cannot be imported
     choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
     from embodied_adhoc.live.server import serve
     from embodied_adhoc.live.session import LiveSettings
