@@ -2,8 +2,9 @@
 
 Every shipped agent of every trial domain runs one episode twice, once on the env as it is and once on the env with
 ``info`` replaced by an empty dict; the privileged agents (``observes_state``) get the state through the env's
-``privileged_state()`` both times. Identical trajectories (actions, observation indices, rewards, task
-posteriors) mean that nothing an agent did depended on ``info``. Together the cases cover every registered env id.
+``privileged_state()`` both times, and they are exactly the agents the tables mark as privileged. Identical
+trajectories (actions, observation indices, rewards, task posteriors) mean that nothing an agent did depended on
+``info``. Together the cases cover every registered env id.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import pytest
 from embodied_adhoc.envs.registry import ENV_SPECS
 from embodied_adhoc.experiments import seeding
 from embodied_adhoc.experiments.executors import open_session
-from embodied_adhoc.experiments.registry import get_trial_domain
+from embodied_adhoc.experiments.registry import build_agent, get_trial_domain
 from embodied_adhoc.experiments.trial import TrialJob, run_trial
 
 
@@ -123,6 +124,9 @@ def test_every_shipped_agent_acts_the_same_without_info(name, flags, backend, mo
     try:
         for agent in _agents(domain, options):
             job = TrialJob(domain.name, backend, options, 3, cap, agent, 0, spec)
+            built = build_agent(domain, session, agent, spec, 0)
+            declared = agent in getattr(domain, "privileged_agents", ())
+            assert bool(built.observes_state) == declared, f"{agent}: the tables' privileged mark is wrong"
             a = _trajectory(session, env, job)
             b = _trajectory(session, EmptyInfo(env), job)
             assert len(a[0]) >= 1, agent

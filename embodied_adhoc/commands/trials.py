@@ -167,6 +167,17 @@ def _note_single_task(domain_name: str, backend: str, options: dict) -> None:
         )
 
 
+def _privileged_agents(config) -> tuple[str, ...]:
+    from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.executors import open_session
+    from embodied_adhoc.experiments.registry import privileged_agents
+
+    domain = get_trial_domain(config.domain)
+    session = open_session(config.domain, config.backend, dict(config.options))
+    spec = domain.episode_spec(dict(config.options), seeding.episode_rng(config.seed, 0))
+    return privileged_agents(domain, session, config.agents, spec, seeding.agent_seed(config.seed, 0, "check"))
+
+
 def _default_cap(domain_name: str, backend: str, options: dict) -> int:
     """The registered step cap (``envs/registry.py``, the one definition) of the env id the sweep runs; a plug-in
     domain whose session names no registered id (``session.env_id``) gets the runner's default."""
@@ -221,6 +232,9 @@ def _run_one(args: argparse.Namespace, config, out):
     )
     print()
     print(summary_table(summary))
+    marked = _privileged_agents(config)
+    if marked:  # the baselines defined by privileged access, apart from the ad hoc agents
+        print(f"privileged (observe the true state, through the env's privileged_state()): {', '.join(marked)}")
     from embodied_adhoc.experiments.summary import extras_table
 
     extras = extras_table(summary)

@@ -144,6 +144,7 @@ class PursuitTrialDomain(GridTrialDomain):
 
     agent_names = GridTrialDomain.agent_names + POMDP_AGENTS
     default_agents = GridTrialDomain.default_agents
+    privileged_agents = ("original", "oracle", "bopa")  # observes_state: marked in the tables
 
     def blas_dependent(self, options: dict) -> bool:
         """``--pairs`` solves the pair models with Perseus, whose policies come from BLAS sums."""

@@ -20,7 +20,8 @@ which the runner calls once per worker process and caches.
 
 :class:`TrialDomain` (light, one per domain)
     ``name``, ``description``, ``backends`` (e.g. ``("abstract", "mujoco")``), ``agent_names`` (what
-    ``make_agent`` accepts), ``default_agents``;
+    ``make_agent`` accepts), ``default_agents``, optionally ``privileged_agents`` (those that observe the state,
+    marked in the tables);
     ``add_arguments(parser)``: the domain's own CLI flags (e.g. ``--human-epsilon``, ``--team``);
     ``options_from_args(args) -> dict``: those flags as a JSON-able dict (validated; raise ``ConfigError``);
     ``episode_spec(options, rng) -> dict``: one episode's draw (task, start positions, ...) as flat JSON scalars,
@@ -134,6 +135,21 @@ def build_agent(domain: TrialDomain, session: TrialSession, spec: str, episode_s
             "(subclass embodied_adhoc.decision.agents.base.AgentBase; see docs/plugins.md)"
         )
     return agent
+
+
+def privileged_agents(domain: TrialDomain, session: TrialSession, agents, episode_spec: dict, seed: int) -> tuple:
+    """Those of ``agents`` that observe the true state (``observes_state``), which the tables mark: a built-in
+    name when the domain lists it in ``privileged_agents``, a plug-in when the agent it builds declares it."""
+    declared = set(getattr(domain, "privileged_agents", ()))
+    marked = []
+    for name in agents:
+        if agent_plugin(domain, name).builtin:
+            privileged = name in declared
+        else:
+            privileged = bool(build_agent(domain, session, name, episode_spec, seed).observes_state)
+        if privileged:
+            marked.append(name)
+    return tuple(marked)
 
 
 _DOMAINS: dict[str, str | Callable[[], TrialDomain] | TrialDomain] = {}

@@ -106,6 +106,7 @@ class Pursuit4TrialDomain:
     backends = ("abstract", "mujoco")
     agent_names = AGENTS
     default_agents = ("plastic-model", "random", "original")
+    privileged_agents = ()  # every chapter-4 agent observes the (fully observable) state through obs
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group(f"{self.name} options")

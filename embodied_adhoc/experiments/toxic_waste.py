@@ -286,6 +286,7 @@ class ToxicWasteDomain:
     backends = ("abstract", "mujoco")
     agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
     default_agents = ("hotspot", "known-task", "oracle", "random")
+    privileged_agents = ("oracle", "bopa")  # observes_state: marked in the tables
     blas_dependent = True  # ATPO's Perseus policies and BOPA's value iteration come from BLAS sums
 
     def input_files(self, options: dict) -> dict:
