@@ -142,6 +142,8 @@ def _import_module(label: str, name: str):
     here = os.getcwd()
     if here not in sys.path and "" not in sys.path:
         sys.path.insert(0, here)  # as python -m: a module beside the user is found first
+    _forget_shadowed(name.partition(".")[0], Path(here))
+    importlib.invalidate_caches()  # a module written since the last import is found too
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as error:
@@ -157,6 +159,18 @@ def _import_module(label: str, name: str):
         ) from None
     except Exception as error:
         raise ConfigError(f"{label}: importing '{name}' failed: {_describe(error)}") from None
+
+
+def _forget_shadowed(top: str, here: Path) -> None:
+    """Drop ``top`` (and its submodules) from the imported modules when it was loaded from another folder while the
+    current directory holds its own ``top.py`` or ``top/``: the current directory's wins, as in a fresh process."""
+    loaded = sys.modules.get(top)
+    local = [path for path in (here / f"{top}.py", here / top / "__init__.py") if path.is_file()]
+    origin = getattr(loaded, "__file__", None)
+    if loaded is None or not local or origin is None or Path(origin).resolve() == local[0].resolve():
+        return
+    for key in [key for key in sys.modules if key == top or key.startswith(top + ".")]:
+        del sys.modules[key]
 
 
 def _load_file(label: str, where: str):

@@ -100,6 +100,20 @@ def test_errors_name_the_spec_and_the_fix(user_folder):
         resolve("agent", "./typo.py:make")
 
 
+def test_the_current_directory_wins_over_a_module_imported_from_elsewhere(tmp_path, monkeypatch):
+    for folder in ("first", "second"):
+        (tmp_path / folder).mkdir()
+        (tmp_path / folder / "same_name_plugin.py").write_text(
+            f"def make(library, **options):\n    return {folder!r}\n"
+        )
+    monkeypatch.chdir(tmp_path / "first")
+    assert resolve("agent", "same_name_plugin:make").factory(None) == "first"
+    monkeypatch.chdir(tmp_path / "second")
+    plugin = resolve("agent", "same_name_plugin:make")
+    assert plugin.factory(None) == "second" and plugin.source == (tmp_path / "second" / "same_name_plugin.py")
+    monkeypatch.delitem(sys.modules, "same_name_plugin")
+
+
 def test_entry_points_are_found_and_listed(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(_installed_fixture_package(tmp_path)))
     assert {"my-qmdp"} <= set(installed("agent"))
