@@ -521,3 +521,29 @@ def test_latin_orders_balance_positions_and_successions():
         pairs = [(a, b) for row in rows for a, b in zip(row, row[1:], strict=False)]
         follows = [pairs.count((a, b)) for a in range(k) for b in range(k) if a != b]
         assert len(set(follows)) == 1  # every episode after every other equally often
+
+
+def test_a_reconnecting_page_gets_the_whole_page_state(served):
+    async def scenario():
+        uri = f"ws://127.0.0.1:{served.port}/ws"
+        async with websockets.connect(uri, max_size=None) as ws:
+            assert json.loads(await ws.recv())["restore"]["history"] == []
+            await ws.send(json.dumps({"type": "start"}))
+            seen = []
+            while not any(e["type"] == "step" for e in seen):
+                message = await asyncio.wait_for(ws.recv(), 60)
+                if isinstance(message, str):
+                    seen.append(json.loads(message))
+        async with websockets.connect(uri, max_size=None) as ws:
+            hello = json.loads(await ws.recv())
+        restore = hello["restore"]
+        kinds = [e["type"] for e in restore["history"]]
+        assert "started" in kinds and "step" in kinds and hello["started"] is True
+        step = next(e for e in restore["history"] if e["type"] == "step")
+        assert step == next(e for e in seen if e["type"] == "step")
+        assert {"question_open", "action", "balls", "human", "robot_node"} <= set(restore["state"])
+        assert restore["posterior"] is not None and len(restore["posterior"]) == len(hello["tasks"])
+
+    asyncio.run(scenario())
+    kinds = [note["kind"] for note in served.live.session.notes]
+    assert kinds == ["connected", "disconnected", "reconnected", "disconnected"]
