@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from embodied_adhoc.decision.agents.base import AgentBase
+from embodied_adhoc.decision.agents.baselines import RandomPickerAgent
 from embodied_adhoc.errors import ConfigError
 
 __all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "LibraryEnv", "RandomPickerAgent", "return_table", "timing_line"]
@@ -91,37 +91,6 @@ class LibraryEnv:
 
     def close(self) -> None:
         return None
-
-
-class RandomPickerAgent(AgentBase):
-    """ATPO's policies, but the model is picked uniformly at random at each episode start (section 5.2.4)."""
-
-    observes_state = False
-
-    def __init__(self, kernels, policies, name: str = "random-picker") -> None:
-        from embodied_adhoc.decision.agents.atpo import AtpoAgent
-
-        self.inner = AtpoAgent(kernels, policies, name=name)
-        self.name = name
-        self.rng = np.random.default_rng(0)
-
-    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
-        n_models = self.inner.kernels.n_models
-        prior = np.zeros(n_models)
-        prior[int(rng.integers(n_models))] = 1.0
-        self.inner.tracker.prior = prior
-        self.inner.reset(rng)
-        self.rng = rng
-
-    def act(self) -> int:
-        return self.inner.act()
-
-    def observe(self, action: int, observation: int, state: int | None = None) -> None:
-        self.inner.observe(action, observation)
-
-    @property
-    def task_posterior(self):
-        return None  # it keeps no posterior of its own: the picked model is not an inference
 
 
 class Chapter5Session:

@@ -1,4 +1,4 @@
-"""Reference agents: ``oracle`` (sees the state, knows the task) and ``random``.
+"""Reference agents: ``oracle`` (sees the state, knows the task), ``random`` and ``random-picker`` (chapter 5).
 
 The third baseline, ``known-task`` (optimal under partial observability), is TEBOPA given the true task: a
 :class:`~embodied_adhoc.decision.agents.hotspot.HotspotAgent` whose prior is one-hot on it (see ``factory``).
@@ -12,7 +12,7 @@ from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["OracleAgent", "RandomAgent"]
+__all__ = ["OracleAgent", "RandomAgent", "RandomPickerAgent"]
 
 
 class OracleAgent(AgentBase):
@@ -66,3 +66,34 @@ class RandomAgent(AgentBase):
     @property
     def task_posterior(self) -> None:
         return None
+
+
+class RandomPickerAgent(AgentBase):
+    """ATPO's policies, but the model is picked uniformly at random at each episode start (section 5.2.4)."""
+
+    observes_state = False
+
+    def __init__(self, kernels, policies, name: str = "random-picker") -> None:
+        from embodied_adhoc.decision.agents.atpo import AtpoAgent
+
+        self.inner = AtpoAgent(kernels, policies, name=name)
+        self.name = name
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
+        n_models = self.inner.kernels.n_models
+        prior = np.zeros(n_models)
+        prior[int(rng.integers(n_models))] = 1.0
+        self.inner.tracker.prior = prior
+        self.inner.reset(rng)
+        self.rng = rng
+
+    def act(self) -> int:
+        return self.inner.act()
+
+    def observe(self, action: int, observation: int, state: int | None = None) -> None:
+        self.inner.observe(action, observation)
+
+    @property
+    def task_posterior(self):
+        return None  # it keeps no posterior of its own: the picked model is not an inference
