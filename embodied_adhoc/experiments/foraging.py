@@ -32,21 +32,6 @@ ENV_IDS = {
 }
 
 
-class RandomAgent(AgentBase):
-    """Uniform over the five actions."""
-
-    name, observes_state, task_posterior = "random", False, None
-
-    def reset(self, rng: np.random.Generator, state=None) -> None:
-        self.rng = rng
-
-    def act(self) -> int:
-        return int(self.rng.integers(5))
-
-    def observe(self, action: int, observation: int, state=None) -> None:
-        pass
-
-
 class OriginalTeammateAgent(AgentBase):
     """The team's own policy in the ad hoc robot's seat (thesis section 6.2.4): knows task and team and sees
     the full state (``info['state']``), hence ``observes_state``."""
@@ -110,8 +95,10 @@ class GridTrialSession:
         return {"task": int(spec["task"]) + 1, "team": spec["team"], "state": json.loads(spec["start"])}
 
     def make_agent(self, name: str, spec: dict, seed: int):
-        if name == "random":
-            return RandomAgent()
+        if name == "random":  # uniform over the five actions
+            from embodied_adhoc.decision.agents.baselines import RandomAgent
+
+            return RandomAgent(5, name=name)
         if name == "original":
             return OriginalTeammateAgent(self.rules, self.tasks[int(spec["task"])], self.teams[spec["team"]])
         if name == "atlpo-mf":
