@@ -282,6 +282,11 @@ def test_user_teammates_and_human_by_module_without_pythonpath(tmp_path):
     assert lab.returncode == 0, lab.stderr
     known = json.loads(lab.stdout)["agents"]["known-task"]
     assert known["success_rate"] == 0.0  # the robot cannot pick balls up: an idle human finishes nothing
+    physics = _cli("run", "toxic-waste", "--agent", "random", "--human", "my_adhoc_agent:idle_human", "--max-steps",
+                   "2", "--record", str(tmp_path / "rec"), "--no-progress", "--json", cwd=tmp_path)  # fmt: skip
+    assert physics.returncode == 0, physics.stderr
+    recorded = json.loads((tmp_path / "rec" / "metrics.json").read_text())["config"]
+    assert recorded["human"] == "my_adhoc_agent:idle_human"
     bad = _cli("trials", "toxic-waste", "--human", "my_adhoc_agent:nobody", "--episodes", "1", cwd=tmp_path)
     assert bad.returncode == 2 and "has no 'nobody'" in bad.stderr and "Traceback" not in bad.stderr
 

@@ -470,7 +470,8 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
     from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     agent = build_agent(DOMAIN, session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
-    metrics = episode_metrics(config, setup, "run toxic-waste")
+    human = {"human": config.env_kwargs["human"]} if "human" in config.env_kwargs else {}  # a plug-in human
+    metrics = episode_metrics(config, setup, "run toxic-waste", **human)
     recording = config.record_dir is not None
     return play_recorded_episode(
         env,
