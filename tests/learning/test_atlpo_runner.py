@@ -124,7 +124,7 @@ def test_run_foraging_records_atlpo_in_the_arena(tmp_path):
 
 
 @pytest.mark.parametrize(("args", "named"), [(("--team", "tau9"), "--team tau9"), (("--task", "7"), "--task 7"),
-                                             (("--size", "15"), "--size (15)")])
+                                             (("--size", "15"), "--size: 15")])
 def test_run_foraging_bad_input_is_one_line_and_exit_2(args, named):
     done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "run", "foraging", *args, "--no-progress"],
                           capture_output=True, text=True, timeout=300)
