@@ -14,7 +14,6 @@ if [ "$#" -gt 0 ]; then
 fi
 .venv/bin/python -m pytest -q
 KERNEL_SUBSET=(
-    tests/decision/test_kernel_independence.py
     tests/decision/test_solver_backup.py
     tests/decision/test_solver_bounds.py::test_no_expand_reproduces_the_fixed_set_solver
     tests/decision/test_pomdp_solvers.py

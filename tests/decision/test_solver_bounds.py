@@ -149,19 +149,29 @@ def test_fast_informed_bound_equals_the_dense_operator(name):
 
 def test_gap_closes_and_sets_converged_on_tiger():
     pomdp = _model("tiger.95.POMDP")
-    policy = perseus(pomdp, PerseusConfig(n_beliefs=100, expand=True, precision=0.05, time_limit=30.0))
+    # a CPU-time cap (a safety net, not the property): on a loaded machine a wall-clock one ran out first
+    policy = perseus(pomdp, PerseusConfig(n_beliefs=100, expand=True, precision=0.05, time_limit=60.0, clock="cpu"))
     assert policy.stats.converged and policy.stats.gap <= 0.05
     assert policy.stats.lower <= 19.3721 and policy.stats.upper >= 19.3711
 
 
 def test_expansion_never_lowers_v_b0():
+    """V(b0) never falls within a run, across the rounds that add beliefs too. (Not compared with a fixed-set run:
+    expansion draws its beliefs from the same generator as the stages' orders, and its upper-bound rounds have
+    wall-clock budgets, so the two runs' stages differ and either may end higher.)"""
     pomdp = _model("hallway.POMDP")
-    fixed = perseus(pomdp, PerseusConfig(n_beliefs=50, tolerance=0.05, seed=0))
-    grown = perseus(pomdp, PerseusConfig(n_beliefs=50, tolerance=0.05, seed=0, expand=True, max_beliefs=120))
+    reports = []
+    grown = perseus(
+        pomdp,
+        PerseusConfig(n_beliefs=50, tolerance=0.05, seed=0, expand=True, max_beliefs=120),
+        progress=lambda report: reports.append((report.n_beliefs, report.value_b0)),
+    )
     values = [value for _, value in grown.stats.trace]
     assert all(b >= a - 1e-12 for a, b in zip(values, values[1:], strict=False))
-    assert grown.stats.n_beliefs > fixed.stats.n_beliefs
-    assert grown.stats.lower >= fixed.stats.lower - 1e-12
+    assert grown.stats.n_beliefs > 50
+    before = [value for count, value in reports if count <= 50]
+    after = [value for count, value in reports if count > 50]
+    assert before and after and min(after) >= max(before) - 1e-12
 
 
 def test_expansion_is_seeded():
