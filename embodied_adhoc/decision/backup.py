@@ -14,6 +14,10 @@ times the nonzeros of ``W``, never more than a product with the projection of al
 with that projection. Each action's value follows from the best scores (float64, on the same entries); the
 vector, mapped back through ``T_a`` by two sparse products, is built only for each belief's best action.
 
+Every product that decides a choice gives the same bits on any host (products.py): sparse products are scipy's,
+in one summation order; the dense projection's BLAS scores are rescored in a fixed order wherever a runner-up lies
+within the summation-order error bound of the best (:func:`_dense_choices`).
+
 Branches ``(a, z)`` impossible at a belief still get a continuation vector (the one best for a uniform spread
 over the states emitting ``z``): dropping them would give a vector that is not the value of any plan, and the
 solver's value would no longer be a lower bound.
