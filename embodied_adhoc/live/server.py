@@ -279,7 +279,9 @@ class LiveServer:
             await asyncio.wait_for(websocket.send_json(self._hello()), SEND_TIMEOUT)
             sender = asyncio.create_task(self._send_loop(websocket, outbox))
             await self._receive_loop(websocket, sender)
-        except (TimeoutError, WebSocketDisconnect):
+        except TimeoutError:  # a reply could not be sent in SEND_TIMEOUT: the page stopped reading
+            self.session.note("dropped", why="not reading")
+        except WebSocketDisconnect:
             pass
         finally:
             session = self.session  # (a study may have moved on to its next episode)
@@ -324,11 +326,11 @@ class LiveServer:
             done, _ = await asyncio.wait(
                 {receiving, sender}, timeout=IDLE_TIMEOUT, return_when="FIRST_COMPLETED"
             )
-            if receiving not in done:
+            if receiving not in done or sender in done:
                 receiving.cancel()
                 with contextlib.suppress(asyncio.CancelledError, Exception):
                     await receiving
-                self.session.note("dropped", why="idle" if not done else "not reading")
+                self.session.note("dropped", why="not reading" if sender in done else "idle")
                 return
             message = receiving.result()
             if message["type"] == "websocket.disconnect":

@@ -547,3 +547,51 @@ def test_a_reconnecting_page_gets_the_whole_page_state(served):
     asyncio.run(scenario())
     kinds = [note["kind"] for note in served.live.session.notes]
     assert kinds == ["connected", "disconnected", "reconnected", "disconnected"]
+
+
+def _masked_text_frame(text: str) -> bytes:
+    payload = text.encode()
+    assert len(payload) < 126
+    mask = os.urandom(4)
+    return bytes([0x81, 0x80 | len(payload)]) + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+
+
+def test_a_page_that_stops_reading_loses_its_slot(served, monkeypatch):
+    """A raw client that completes the handshake, starts the episode and keeps sending pings but never reads:
+    once the socket buffers are full the server's sends time out and the slot is freed for a real page."""
+    import base64
+
+    from embodied_adhoc.live import server as server_module
+
+    monkeypatch.setattr(server_module, "SEND_TIMEOUT", 2.0)
+    raw = socket.socket()
+    raw.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    raw.connect(("127.0.0.1", served.port))
+    key = base64.b64encode(os.urandom(16)).decode()
+    raw.sendall(
+        (
+            f"GET /ws HTTP/1.1\r\nHost: 127.0.0.1:{served.port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            f"Sec-WebSocket-Key: {key}\r\nSec-WebSocket-Version: 13\r\n\r\n"
+        ).encode()
+    )
+    assert raw.recv(12) == b"HTTP/1.1 101"
+    try:
+        raw.sendall(_masked_text_frame(json.dumps({"type": "start"})))
+        deadline = time.monotonic() + 60
+        while not any(note["kind"] == "dropped" for note in served.live.session.notes):
+            assert time.monotonic() < deadline, "the non-reading page kept its slot"
+            try:
+                raw.sendall(_masked_text_frame(json.dumps({"type": "ping", "t": 1})))
+            except OSError:
+                break  # the server closed it
+            time.sleep(0.5)
+    finally:
+        raw.close()
+    dropped = next(note for note in served.live.session.notes if note["kind"] == "dropped")
+    assert dropped["why"] == "not reading"
+
+    async def scenario():
+        async with websockets.connect(f"ws://127.0.0.1:{served.port}/ws") as page:
+            assert json.loads(await page.recv())["type"] == "hello"
+
+    asyncio.run(scenario())
