@@ -34,6 +34,7 @@ def _port(text: str) -> int:
 
 
 POSITIVE = bounded(float, math.ulp(0.0), "a finite number > 0")
+NON_NEGATIVE = bounded(float, 0.0, "a finite number >= 0")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -95,6 +96,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--stream-fps", type=POSITIVE, default=10.0, help="frames per second sent to the page (default 10)"
     )
     toxic.add_argument(
+        "--question-interval",
+        type=NON_NEGATIVE,
+        default=8.0,
+        metavar="S",
+        help="simulated seconds after an answer before the robot asks again, unless its belief moved (default 8)",
+    )
+    toxic.add_argument(
         "--study",
         type=Path,
         default=None,
@@ -142,6 +150,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         reply_timeout=args.reply_timeout,
         max_steps=args.max_steps,
         stream_fps=args.stream_fps,
+        question_interval=args.question_interval,
     )
     study = None if plan is None else StudyRun(plan, args.out, args.participant)
     server = serve(settings, args.host, args.port, announce=lambda line: print(line, flush=True), study=study)

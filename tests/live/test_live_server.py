@@ -224,6 +224,7 @@ def _live_cli(*args: str, tmp: Path):
         (("--speed", "0"), "--speed"),
         (("--participant", "../escape"), "--participant"),
         (("--max-steps", "0"), "--max-steps"),
+        (("--question-interval", "-1"), "--question-interval"),
     ],
 )
 def test_bad_live_flags_are_one_line_and_status_2(tmp_path, args, named):
