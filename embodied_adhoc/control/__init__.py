@@ -1,4 +1,4 @@
 """Waypoint planning and tracking for the wheeled robots (ruckig + numpy; no mujoco import): takes poses, returns
 wheel speeds.
 
-Where this layer sits and what it may import: README, "Layout and conventions"."""
+Where this layer sits and what it may import: docs/layout.md."""

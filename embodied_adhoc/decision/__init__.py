@@ -2,4 +2,4 @@
 belief updates and the decision agents (HOTSPOT/TEBOPA, ATPO, BOPA, baselines); no mujoco, no gymnasium
 (docs/pomdp.md, docs/hotspot.md).
 
-Where this layer sits and what it may import: README, "Layout and conventions"."""
+Where this layer sits and what it may import: docs/layout.md."""

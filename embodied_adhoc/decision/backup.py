@@ -228,8 +228,8 @@ class BackupOperator:
         position = observation.indptr[ends][owner] + np.arange(total) - first
         keys = columns[owner] * n_obs + observation.indices[position]  # branch (i, z) of every product entry
         if predicted.shape[1] * n_obs <= max(4 * total, 1 << 16):
-            # The branches present, numbered in key order without sorting (np.unique's argsort was 14 % of a
-            # backup of the pursuit model): a mark per possible key, then its running count.
+            # The branches present, numbered in key order without sorting (np.unique's argsort would be a
+            # large share of a backup): a mark per possible key, then its running count.
             present = np.zeros(predicted.shape[1] * n_obs, dtype=bool)
             present[keys] = True
             branch_keys, rows = np.flatnonzero(present), (np.cumsum(present) - 1)[keys]

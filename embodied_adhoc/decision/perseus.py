@@ -63,7 +63,8 @@ class PerseusConfig:
     stop: str = "bound"
     # update="gauss-seidel": each batch of a stage is backed up against the vectors of V_n still best at a belief
     # not improved yet and every vector the stage kept so far (_perseus_iteration with a _Seidel: fewer stages, the same
-    # acceptance rule); "perseus": the classic stage, every backup against V_n (chapter 5 and ATPO pin it).
+    # acceptance rule); "perseus": the classic stage, every backup against V_n (Spaan & Vlassis'
+    # Algorithm 1, whose result does not depend on the batch schedule).
     update: str = "gauss-seidel"
     max_iterations: int = 10_000
     time_limit: float | None = None
@@ -211,8 +212,9 @@ def _infinite_horizon(
         if config.expand and trial_wait <= 0 and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start)):
             # A trial from b0 before a stage (for at most half the last stage's time, and a tenth of the time so
             # far, with a time limit). A trial that raises V(b0) by less than the tolerance, or by less than the
-            # last stage did, doubles the number of stages until the next one (Tag: trials before every stage
-            # halved the stages done in 20 s and lowered V(b0) there; cit and sunysb need them early).
+            # last stage did, doubles the number of stages until the next one: a trial before every stage
+            # would take stages from a time-limited solve where breadth pays (Tag), while a b0 far from the
+            # goal (cit, sunysb) needs trials early.
             end = None if deadline is None else min(deadline, now + max(0.05, 0.5 * stage_seconds))
             grown = _lower_trial(operator, graph, current, upper, b0, config.precision, end, clock)
             if len(grown) > len(current):
@@ -283,7 +285,7 @@ def _infinite_horizon(
         # Tighten the upper bound along excess-gap paths (belief_expansion.py), and when expanding add half as
         # many beliefs as B holds, from the trajectories B was collected from (PBVI-like breadth: the set grows
         # geometrically). The excess-gap beliefs themselves are not added: chosen greedily on a loose upper bound
-        # they cost backups without raising the lower bound (Tag, 20 s: -6.45 with them, -6.26 without).
+        # they cost backups without raising the lower bound.
         _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock)
         new: list[np.ndarray] = []
         if config.expand:
@@ -740,7 +742,7 @@ def _values_everywhere(
 
 def _blas_threads(count: int | None) -> contextlib.AbstractContextManager:
     """Limit BLAS threads: the backups' dense products are small, and threads then cost more than they give
-    (measured 1.5x faster single-threaded on a busy 2-core machine). Needs ``threadpoolctl`` (optional)."""
+    (they spin on cores that other threads or processes need). Needs ``threadpoolctl`` (optional)."""
     if count is None:
         return contextlib.nullcontext()
     try:

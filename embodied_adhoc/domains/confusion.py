@@ -37,7 +37,7 @@ MEASURED_MATRIX = "data/speech_confusion_measured.json"
 MAX_FILE_CHARS = 1 << 20
 """Longest confusion file read, in characters (a 5-node matrix takes about 1 kB)."""
 DEFAULT_CONFUSION = "measured"
-"""The lab model's default observation matrix for "locate human" (issue 7: our measured offline pipeline).
+"""The lab model's default observation matrix for "locate human": the one our offline pipeline measured.
 The thesis reproduction pins ``"thesis"`` explicitly (``scripts/reproduce_hotspot.py``)."""
 
 

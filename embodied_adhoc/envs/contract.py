@@ -1,6 +1,6 @@
-"""The env contract, written once (README "Env contract"); every env of the package goes through it: the toxic-waste
-lab (``ToxicWasteAbstract-v0``, ``ToxicWaste-v0``), the arenas (grid twins and MuJoCo) and the PettingZoo
-:class:`~embodied_adhoc.envs.multiagent.GridParallelEnv`.
+"""The env contract, written once (docs/envs.md, "The env contract"); every env of the package goes through
+it: the toxic-waste lab (``ToxicWasteAbstract-v0``, ``ToxicWaste-v0``), the arenas (grid twins and MuJoCo) and
+the PettingZoo :class:`~embodied_adhoc.envs.multiagent.GridParallelEnv`.
 
 * **Actions** are integers: a Python ``int``, a numpy integer of any width or a 0-d integer array, inside the
   action space. Bools, floats, strings, ``None`` and arrays with a shape get one :class:`ConfigError`

@@ -41,7 +41,7 @@ ENV_SPECS: list[EnvSpec] = [
         max_episode_steps=100,
         backend="mujoco",
     ),
-    # arenas (issue 6): level-based foraging and predator-prey, grid twin + MuJoCo arena
+    # the arenas: level-based foraging and predator-prey, grid twin + MuJoCo arena
     EnvSpec("EmbodiedAdhoc/ForagingGrid-v0", "embodied_adhoc.envs.foraging:ForagingEnv",
             "Level-based foraging grid twin: 5x5, 4 foragers, N/S/W/E tasks, teams tau0-2, egocentric 5x5 view",
             max_episode_steps=200),
@@ -60,14 +60,14 @@ ENV_SPECS: list[EnvSpec] = [
     EnvSpec("EmbodiedAdhoc/PursuitPair-v0", "embodied_adhoc.envs.pursuit:PursuitEnv",
             "Fig. 7.12 two-predator pursuit in the MuJoCo arena",
             kwargs={"pairs": True, "backend": "mujoco"}, max_episode_steps=150, backend="mujoco"),
-    # issue 14: Fig. 7.12 with the pursuit POMDP's own dynamics and observations (HOTSPOT, ATPO, ... drive it)
+    # Fig. 7.12 with the pursuit POMDP's own dynamics and observations (HOTSPOT, ATPO, ... drive it)
     EnvSpec("EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "embodied_adhoc.envs.pursuit_pomdp:PursuitPomdpEnv",
             "Fig. 7.12 two-predator pursuit on the 5x5 torus, the pursuit-task POMDP as rules; Discrete(81) obs",
             max_episode_steps=150),
     EnvSpec("EmbodiedAdhoc/PursuitPairPomdp-v0", "embodied_adhoc.envs.pursuit_pomdp:PursuitPomdpEnv",
             "Fig. 7.12 pursuit POMDP executed by robots in the MuJoCo arena; observation from the physical poses",
             kwargs={"backend": "mujoco"}, max_episode_steps=150, backend="mujoco"),
-    # issue 16: chapter 4's pursuit (TEAMSTER, PLASTIC-Model), its rules on the grid twin and in the arena
+    # chapter 4's pursuit (TEAMSTER, PLASTIC-Model), its rules on the grid twin and in the arena
     EnvSpec("EmbodiedAdhoc/Pursuit4Grid-v0", "embodied_adhoc.envs.teamwork:TeamworkEnv",
             "Chapter-4 pursuit: 5x5 torus, 4 predators, teams teammate-aware/greedy/probabilistic destinations",
             max_episode_steps=100),

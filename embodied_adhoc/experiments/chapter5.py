@@ -97,7 +97,7 @@ class Chapter5Session:
     """One library built and its policies solved (lazily, cached) per process; envs and agents made from it."""
 
     blas_threads = 1  # trials (and the lazy solves inside them) run with one BLAS thread (executors.execute_job):
-    # measured on gridworld + ntu, 384 warm trials: 12.1 s with OpenBLAS's default 2 threads, 4.1 s with 1
+    # their products are small, and OpenBLAS's default pool spins on the cores the worker processes need
 
     def __init__(self, domain: str, options: dict) -> None:
         from embodied_adhoc.domains.chapter5 import build_library

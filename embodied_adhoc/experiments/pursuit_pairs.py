@@ -64,11 +64,10 @@ ATPO_SOLVER = {"tolerance": 0.01, "stop": "gain", "time_limit": None, "max_itera
 """Perseus for ATPO / perseus: Table 5.4's tolerance 0.01 with Perseus's own stopping rule (the largest gain of a
 backup, confirmed by a full backup of the belief set), 5000 beliefs (Table 5.2, the library's), at most 80
 iterations and no time limit, so the policies, and every trial, do not depend on the machine's load (a
-time-limited solve did: two sessions of one sweep solved different policies). Measured (decision/ at db460cb, one
-BLAS thread, nice 10, load 9-12 on 2 cores): tasks 0 and 1 (N+S, W+E) stop by the rule after 76 and 78
-iterations (41 and 86 s of CPU); the diagonal tasks reach the cap (2: 195 s, residual 0.019; 3: 218 s, residual
-0.058): with a 200 cap task 2 was at iteration 92 after 7 min of CPU, its sampled gains below 0.01 but each full
-backup finding beliefs that still gain more, at about 1 min of CPU per iteration. The policies are cached on disk
+time-limited solve does not: its policies depend on how fast the machine runs). Tasks 0 and 1 (N+S, W+E) stop
+by the rule before the cap; the diagonal tasks reach it, their sampled gains below 0.01 but each full backup
+finding beliefs that still gain more, at a high cost per iteration, so a larger cap buys little (the solve
+times: docs/arenas.md). The policies are cached on disk
 (:mod:`~embodied_adhoc.experiments.policy_cache`)."""
 
 

@@ -195,7 +195,7 @@ register_trial_domain("toxic-waste", "embodied_adhoc.experiments.toxic_waste:DOM
 register_trial_domain("foraging", "embodied_adhoc.experiments.foraging:DOMAIN")
 register_trial_domain("pursuit", "embodied_adhoc.experiments.pursuit:DOMAIN")
 register_trial_domain("pursuit4", "embodied_adhoc.experiments.teamster_trials:DOMAIN")  # chapter 4
-# Chapter 5 (issue 13): one plug-in per library of embodied_adhoc.domains.chapter5
+# Chapter 5: one plug-in per library of embodied_adhoc.domains.chapter5
 for _name in ("panic-buttons", "gridworld", "pursuit-task", "pursuit-teammate", "pursuit-both", "power-plant", "ntu",
               "isr", "mit", "pentagon", "cit", "overcooked", "map"):
     register_trial_domain(_name, f"embodied_adhoc.experiments.chapter5:DOMAIN_{_name.replace('-', '_')}")

@@ -232,7 +232,7 @@ def run_trial(agent_name: str, trial: int, config: ProtocolConfig,
               tick: Callable[[], None] | None = None) -> dict:
     """The whole protocol for one agent and one trial (see the module docstring); ``tick`` after each phase. Runs
     on one torch thread and one BLAS thread: the networks' products are small, and a multi-threaded OpenBLAS only
-    spins (a 310-step trial took 50.6 CPU s with the default BLAS pool and 3.8 s with one thread, measured)."""
+    spins, costing many times the CPU of the trial itself."""
     from threadpoolctl import threadpool_limits
 
     one_thread()

@@ -7,9 +7,9 @@ node pairs, all balls on the ground).
 
 Backends (same kwargs, same ``reset`` options, same observation encoding):
 
-* ``abstract``: ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` (the lab engineer's tabular simulator);
-* ``mujoco``: ``EmbodiedAdhoc/ToxicWaste-v0`` (the env engineer's physics env). Extension point: the runner
-  needs only that this id is registered, accepts the kwargs ``tasks``, ``human_epsilon``, ``communication``,
+* ``abstract``: ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` (the tabular simulator);
+* ``mujoco``: ``EmbodiedAdhoc/ToxicWaste-v0`` (the physics env). What the runner needs of a backend's env:
+  that its id is registered, accepts the kwargs ``tasks``, ``human_epsilon``, ``communication``,
   ``confusion`` (the lab parameters of ``domains.lab.LabConfig``), is capped by gymnasium's ``TimeLimit`` (set to
   the runner's ``--max-steps``), takes ``reset(seed=..., options={"task", "robot_node", "human_node"})``, returns
   the :class:`LabObservation` vector as its observation (the agents' index is decoded from it alone) and offers

@@ -3,4 +3,4 @@ ATLPO, world models, replay buffers, weights stored as safetensors (``torch.load
 Agents built on it implement the same ``Agent`` protocol as the tabular ones, so the trial runner does not know
 the difference.
 
-Where this layer sits and what it may import: README, "Layout and conventions"."""
+Where this layer sits and what it may import: docs/layout.md."""

@@ -1,6 +1,6 @@
-"""Held-out-teammate protocol for ATLPO (issue 15 item 8, beyond the thesis, as current ad hoc teamwork benchmarks
-evaluate): teams no library member was trained with, scores normalised between random (0) and the original
-teammate (1), summarised by the interquartile mean with percentile-bootstrap intervals
+"""Held-out-teammate protocol for ATLPO (beyond the thesis, as current ad hoc teamwork benchmarks evaluate):
+teams no library member was trained with, scores normalised between random (0) and the original teammate (1),
+summarised by the interquartile mean with percentile-bootstrap intervals
 (``experiments.stats.summarise_sample``, passed to :func:`normalised_scores`).
 
 A *team* is a callable ``team(rules, state, task, rng, members) -> actions`` giving the actions of the listed

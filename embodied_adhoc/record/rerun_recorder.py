@@ -35,11 +35,12 @@ entity                           archetype          content
 
 Timelines: ``step`` (macro step, sequence) and ``sim_time`` (simulated seconds, duration).
 
-Batching: per-frame poses (robot, odometry, human, balls, odometry error) and the localiser's estimate and particle
-clouds are buffered and sent as columns (``send_columns``), their colours and sizes logged once (static); everything else is logged row by row and compacted by the SDK's batcher, which flushes by size
-only (no 200 ms wall-clock tick). An episode's file thus holds one or two chunks per entity (the main job: 47
-chunks in all, of which 20 are the blueprint's, instead of 530). Camera frames are JPEG-encoded on a worker
-thread (``record.worker``) and sent as columns too, every ``IMAGE_BATCH`` images and on close.
+Batching: per-frame poses (robot, odometry, human, balls, odometry error) and the localiser's estimate and
+particle clouds are buffered and sent as columns (``send_columns``), their colours and sizes logged once
+(static); everything else is logged row by row and compacted by the SDK's batcher, which flushes by size only
+(no 200 ms wall-clock tick). An episode's file thus holds one or two chunks per entity, not one per row.
+Camera frames are JPEG-encoded on a worker thread (``record.worker``) and sent as columns too, every
+``IMAGE_BATCH`` images and on close.
 """
 
 from __future__ import annotations
