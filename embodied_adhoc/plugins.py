@@ -55,10 +55,6 @@ class Plugin:
     def builtin(self) -> bool:
         return self.source is None and self.factory is None
 
-    def source_digest(self) -> str | None:
-        """sha256 of the source file's bytes (what identifies a user's code in a run), None for built-ins."""
-        return None if self.source is None else hashlib.sha256(self.source.read_bytes()).hexdigest()
-
 
 _CACHE: dict[tuple[str, str, str], Plugin] = {}
 

@@ -8,7 +8,7 @@ Every table of the README and docs/ that this script knows (``FIGURES``) is prod
    commit's code, the exact commands, the OpenBLAS kernel that threadpoolctl reports in the same environment,
    numpy/scipy/mujoco/torch versions, the date). ``run NAME --kernel Haswell`` runs the same commands under
    ``OPENBLAS_CORETYPE=Haswell`` and adds that run to the file as a check of the published one;
-2. ``render`` writes ``docs/results/NAME.md`` (one page per figure, plus ``docs/results/index.md``) and
+2. ``render`` writes one ``docs/results/`` page per figure (``NAME.md`` plus ``docs/results/index.md``) and
    replaces, in README.md and docs/**/*.md, whatever lies between ``<!-- results:NAME start -->`` and
    ``<!-- results:NAME end -->`` (``NAME`` alone: every table of the figure; ``NAME.KEY``: one of them).
 

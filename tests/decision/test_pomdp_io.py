@@ -203,7 +203,7 @@ def test_malformed_files_name_file_line_and_expectation(text, line, found, tmp_p
 
 
 def test_unreadable_file_is_a_format_error(tmp_path):
-    with pytest.raises(PomdpFormatError, match="cannot read"):
+    with pytest.raises(PomdpFormatError, match="no such file"):
         read_pomdp(tmp_path / "missing.pomdp")
 
 

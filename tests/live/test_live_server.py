@@ -546,6 +546,10 @@ def test_a_reconnecting_page_gets_the_whole_page_state(served):
         assert restore["posterior"] is not None and len(restore["posterior"]) == len(hello["tasks"])
 
     asyncio.run(scenario())
+    # the server notes a disconnect when its handler unwinds, which can follow the client's close by a moment
+    deadline = time.monotonic() + 20
+    while len(served.live.session.notes) < 4 and time.monotonic() < deadline:
+        time.sleep(0.05)
     kinds = [note["kind"] for note in served.live.session.notes]
     assert kinds == ["connected", "disconnected", "reconnected", "disconnected"]
 
