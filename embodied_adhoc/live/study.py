@@ -66,7 +66,7 @@ DEFAULT_INSTRUCTIONS = (
 DEFAULT_QUESTIONNAIRE = (
     {"id": "understood", "text": "The robot understood where I was.", "scale": 5},
     {"id": "helpful", "text": "The robot was a helpful teammate.", "scale": 5},
-    {"id": "questions", "text": "The robot asked at the right moments.", "scale": 5},
+    {"id": "timing", "text": "The robot asked at the right moments.", "scale": 5},
 )
 CSV_COLUMNS = (
     "participant",
@@ -160,7 +160,17 @@ def load_plan(path: Path) -> StudyPlan:
         if not isinstance(episode, dict):
             raise ConfigError(f'{name} must be an object like {{"agent": "hotspot", "seed": 0}}')
         checks.refuse_unknown(name, episode, ("agent", "seed"), "field")
-        agent = checks.choice(f"{name}.agent", episode.get("agent", "hotspot"), AGENTS)
+        agent = episode.get("agent", "hotspot")
+        if not isinstance(agent, str) or not agent:
+            raise ConfigError(
+                f"{name}.agent must be an agent name or a plug-in spec (docs/plugins.md), not {agent!r}"
+            )
+        # a plug-in: an unknown name or an unimportable module stops here, before any work
+        if agent not in AGENTS:
+            from embodied_adhoc.experiments.registry import agent_plugin
+            from embodied_adhoc.experiments.toxic_waste import DOMAIN
+
+            agent_plugin(DOMAIN, agent, f"{name}.agent")
         seed = checks.integer(f"{name}.seed", episode.get("seed", 0), 0, 2**31 - 1)
         checked.append({"agent": agent, "seed": seed})
     counterbalance = checks.choice(

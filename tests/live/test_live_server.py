@@ -487,6 +487,8 @@ def test_a_study_runs_its_episodes_with_a_questionnaire_and_summarises(tmp_path)
     [
         ({"episodes": []}, '"episodes"'),
         ({"episodes": [{"agent": "robot"}]}, "episodes[0].agent"),
+        ({"episodes": [{"agent": "no_such_module_xyz:make"}]}, "episodes[0].agent"),
+        ({"episodes": [{"agent": 3}]}, "episodes[0].agent"),
         ({"episodes": [{"seed": -1}]}, "episodes[0].seed"),
         ({"episodes": [{}], "counterbalance": "random"}, "counterbalance"),
         ({"episodes": [{}], "questionnaire": [{"id": "Bad id", "text": "x"}]}, "questionnaire[0].id"),
@@ -600,3 +602,22 @@ def test_a_page_that_stops_reading_loses_its_slot(served, monkeypatch):
             assert json.loads(await page.recv())["type"] == "hello"
 
     asyncio.run(scenario())
+
+
+def test_a_study_plan_takes_a_plugin_agent(tmp_path):
+    from embodied_adhoc.live.study import load_plan
+
+    spec = f"{Path(__file__).resolve().parents[1] / 'fixtures' / 'my_agent.py'}:make"
+    plan_file = tmp_path / "plan.json"
+    plan_file.write_text(json.dumps({"episodes": [{"agent": spec, "seed": 1}, {"agent": "hotspot"}]}))
+    plan = load_plan(plan_file)
+    assert [episode["agent"] for episode in plan.episodes] == [spec, "hotspot"]
+
+
+def test_the_default_questionnaire_is_a_valid_plan(tmp_path):
+    from embodied_adhoc.live.study import CSV_COLUMNS, DEFAULT_QUESTIONNAIRE, load_plan
+
+    plan_file = tmp_path / "plan.json"
+    plan_file.write_text(json.dumps({"episodes": [{"agent": "hotspot"}]}))
+    assert [item["id"] for item in load_plan(plan_file).questionnaire] == [i["id"] for i in DEFAULT_QUESTIONNAIRE]
+    assert not {item["id"] for item in DEFAULT_QUESTIONNAIRE} & set(CSV_COLUMNS)
