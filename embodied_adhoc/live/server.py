@@ -330,7 +330,12 @@ class LiveServer:
                 receiving.cancel()
                 with contextlib.suppress(asyncio.CancelledError, Exception):
                     await receiving
-                self.session.note("dropped", why="not reading" if sender in done else "idle")
+                # a sender that failed other than by timing out met a page that closed: a disconnect, not a drop
+                stalled = (
+                    sender in done and not sender.cancelled() and isinstance(sender.exception(), TimeoutError)
+                )
+                if stalled or sender not in done:
+                    self.session.note("dropped", why="not reading" if stalled else "idle")
                 return
             message = receiving.result()
             if message["type"] == "websocket.disconnect":
