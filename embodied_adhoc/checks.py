@@ -52,7 +52,9 @@ def integer(name: str, value, low: int | None = None, high: int | None = None) -
         )
     result = int(value)
     if (low is not None and result < low) or (high is not None and result > high):
-        raise ConfigError(f"{name}={result}: " + (f"outside {bounds}" if ".." in bounds else f"must be {bounds}"))
+        raise ConfigError(
+            f"{name}={result}: " + (f"outside {bounds}" if ".." in bounds else f"must be {bounds}")
+        )
     return result
 
 
@@ -76,7 +78,9 @@ def number(
     result = float(value)
     below = low is not None and (result <= low if low_open else result < low)
     if not math.isfinite(result) or below or (high is not None and result > high):
-        bound = f"{'(' if low_open else '['}{'-inf' if low is None else low}, {'inf' if high is None else high}]"
+        bound = (
+            f"{'(' if low_open else '['}{'-inf' if low is None else low}, {'inf' if high is None else high}]"
+        )
         raise ConfigError(f"{name}={value!r}: must be a finite number in {bound}")
     return result
 
@@ -103,7 +107,9 @@ def _equal(value, option) -> bool:
         return False
 
 
-def refuse_unknown(where: str, given: Mapping | Iterable[str], accepted: Iterable[str], what: str = "keyword") -> None:
+def refuse_unknown(
+    where: str, given: Mapping | Iterable[str], accepted: Iterable[str], what: str = "keyword"
+) -> None:
     """Refuse names in ``given`` that are not ``accepted`` (typos get a suggestion)."""
     accepted = tuple(accepted)
     unknown = sorted(set(given) - set(accepted))

@@ -56,8 +56,11 @@ def thesis_p(sample: np.ndarray, agent: str) -> float:
     """Welch p-value of ``sample`` against the thesis's 32 trials (population sd converted to ddof 1)."""
     mean, sd, _ = THESIS_FIG_7_12[agent]
     sd = sd * math.sqrt(THESIS_TRIALS / (THESIS_TRIALS - 1))
-    return float(stats.ttest_ind_from_stats(sample.mean(), sample.std(ddof=1), sample.size, mean, sd, THESIS_TRIALS,
-                                            equal_var=False).pvalue)
+    return float(
+        stats.ttest_ind_from_stats(
+            sample.mean(), sample.std(ddof=1), sample.size, mean, sd, THESIS_TRIALS, equal_var=False
+        ).pvalue
+    )
 
 
 def main() -> None:
@@ -71,19 +74,34 @@ def main() -> None:
         variant = original_library(library, wrap, n_tasks)
         steps = ablation_steps(variant, ABLATION_AGENTS, args.episodes, args.seed, reward_gain=gain)
         if locate:
-            steps.update(ablation_steps(with_locate(variant), ("known-task", "hotspot"), args.episodes, args.seed,
-                                        reward_gain=gain))
+            steps.update(
+                ablation_steps(
+                    with_locate(variant),
+                    ("known-task", "hotspot"),
+                    args.episodes,
+                    args.seed,
+                    reward_gain=gain,
+                )
+            )
         row = [label]
         for agent in ABLATION_AGENTS:
             sample = steps[agent]
-            row.append(f"{sample.mean():.2f} ± {sample.std(ddof=1):.2f} (p {p_value(thesis_p(sample, agent))})")
+            row.append(
+                f"{sample.mean():.2f} ± {sample.std(ddof=1):.2f} (p {p_value(thesis_p(sample, agent))})"
+            )
         rows.append(row)
         print(f"done: {label}", flush=True)
-    rows.append(["thesis (original's result files)"] + [
-        f"{THESIS_FIG_7_12[a][0]:.2f} ± {THESIS_FIG_7_12[a][1] * math.sqrt(THESIS_TRIALS / (THESIS_TRIALS - 1)):.2f}"
-        for a in ABLATION_AGENTS])
-    print(f"\nFig. 7.12 ablation: {args.episodes} episodes per cell, seed {args.seed}, cap 150, steps to the capture "
-          "reward (mean ± sd, Welch p vs the thesis)\n")
+    rows.append(
+        ["thesis (original's result files)"]
+        + [
+            f"{THESIS_FIG_7_12[a][0]:.2f} ± {THESIS_FIG_7_12[a][1] * math.sqrt(THESIS_TRIALS / (THESIS_TRIALS - 1)):.2f}"
+            for a in ABLATION_AGENTS
+        ]
+    )
+    print(
+        f"\nFig. 7.12 ablation: {args.episodes} episodes per cell, seed {args.seed}, cap 150, steps to the capture "
+        "reward (mean ± sd, Welch p vs the thesis)\n"
+    )
     print(format_table(["model and protocol", *ABLATION_AGENTS], rows, args.markdown))
 
 

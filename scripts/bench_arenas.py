@@ -63,9 +63,19 @@ def lbforaging_rate(args: Args) -> float | None:
         from lbforaging.foraging import ForagingEnv as LbfEnv
     except ImportError:
         return None
-    env = LbfEnv(players=4, min_player_level=1, max_player_level=2, min_food_level=1, max_food_level=None,
-                 field_size=(5, 5), max_num_food=1, sight=2, max_episode_steps=200, force_coop=True,
-                 grid_observation=False)  # its grid_observation=True fails on gymnasium 1.4 (Box shape bug)
+    env = LbfEnv(
+        players=4,
+        min_player_level=1,
+        max_player_level=2,
+        min_food_level=1,
+        max_food_level=None,
+        field_size=(5, 5),
+        max_num_food=1,
+        sight=2,
+        max_episode_steps=200,
+        force_coop=True,
+        grid_observation=False,
+    )  # its grid_observation=True fails on gymnasium 1.4 (Box shape bug)
     rng = np.random.default_rng(args.seed)
     seeds = iter(range(10**9))
 
@@ -101,8 +111,12 @@ def main(args: Args) -> None:
         parallel.step(actions)
         return not parallel.agents
 
-    results.append((f"{args.domain} grid twin (PettingZoo), random joint actions",
-                    rate(parallel_step, lambda: parallel.reset(seed=next(seeds)), args.seconds)))
+    results.append(
+        (
+            f"{args.domain} grid twin (PettingZoo), random joint actions",
+            rate(parallel_step, lambda: parallel.reset(seed=next(seeds)), args.seconds),
+        )
+    )
 
     def single_rate(env_id: str, budget: float) -> float:
         env = gymnasium.make(env_id, max_episode_steps=10**6).unwrapped
@@ -114,8 +128,10 @@ def main(args: Args) -> None:
         env.close()
         return value
 
-    ids = {"foraging": ("EmbodiedAdhoc/ForagingGrid-v0", "EmbodiedAdhoc/Foraging-v0"),
-           "pursuit": ("EmbodiedAdhoc/PursuitGrid-v0", "EmbodiedAdhoc/Pursuit-v0")}[args.domain]
+    ids = {
+        "foraging": ("EmbodiedAdhoc/ForagingGrid-v0", "EmbodiedAdhoc/Foraging-v0"),
+        "pursuit": ("EmbodiedAdhoc/PursuitGrid-v0", "EmbodiedAdhoc/Pursuit-v0"),
+    }[args.domain]
     results.append((f"{ids[0]}, random ad hoc + scripted team", single_rate(ids[0], args.seconds)))
 
     from embodied_adhoc.learning.vector_grid import GridVectorEnv
@@ -133,8 +149,12 @@ def main(args: Args) -> None:
         return False  # sub-envs reset themselves (NEXT_STEP autoreset)
 
     vector_rate = rate(vector_step, lambda: None, args.seconds) * args.num_envs
-    results.append((f"GridVectorEnv x{args.num_envs} ({args.domain}), random ad hoc + scripted team", vector_rate))
-    notes = [f"GridVectorEnv: its first step (the move table, built once per grid and process) took {setup:.2f} s"]
+    results.append(
+        (f"GridVectorEnv x{args.num_envs} ({args.domain}), random ad hoc + scripted team", vector_rate)
+    )
+    notes = [
+        f"GridVectorEnv: its first step (the move table, built once per grid and process) took {setup:.2f} s"
+    ]
 
     arena_env = gymnasium.make(ids[1]).unwrapped
     backend = arena_env.core.backend
@@ -157,10 +177,12 @@ def main(args: Args) -> None:
     for name, value in results:
         print(f"{name:62s} {value:10.1f} {value / reference:8.3f}")
     print(f"\nratios against: {reference_name}; clock: {args.clock}")
-    print(f"MuJoCo macro step = {macro_time / raw:.0f} raw mj_step of the same model "
-          f"({mj_steps_per_macro:.0f} mj_step calls per macro step, i.e. physics overhead "
-          f"{macro_time / (mj_steps_per_macro * raw):.2f}x the physics it runs; "
-          f"timestep {backend.model.opt.timestep} s)")
+    print(
+        f"MuJoCo macro step = {macro_time / raw:.0f} raw mj_step of the same model "
+        f"({mj_steps_per_macro:.0f} mj_step calls per macro step, i.e. physics overhead "
+        f"{macro_time / (mj_steps_per_macro * raw):.2f}x the physics it runs; "
+        f"timestep {backend.model.opt.timestep} s)"
+    )
     print("\n".join(notes))
     if args.domain == "pursuit":
         hotspot_pursuit_overhead(args)
@@ -206,10 +228,12 @@ def hotspot_pursuit_overhead(args: Args) -> None:
     raw = (now() - raw_start) / raw_n
     env.close()
     macro_time = env_time / macro
-    print(f"HOTSPOT in the Fig. 7.12 arena (PursuitPairPomdp-v0), {macro} macro steps: a macro step "
-          f"{macro_time * 1e3:.1f} ms = {macro_time / raw:.0f} raw mj_step ({calls:.0f} mj_step calls per macro step: "
-          f"{macro_time / (calls * raw):.2f}x the physics it drives); HOTSPOT act + observe "
-          f"{agent_time / macro * 1e3:.2f} ms per step ({agent_time / env_time:.3f} of the macro step)")
+    print(
+        f"HOTSPOT in the Fig. 7.12 arena (PursuitPairPomdp-v0), {macro} macro steps: a macro step "
+        f"{macro_time * 1e3:.1f} ms = {macro_time / raw:.0f} raw mj_step ({calls:.0f} mj_step calls per macro step: "
+        f"{macro_time / (calls * raw):.2f}x the physics it drives); HOTSPOT act + observe "
+        f"{agent_time / macro * 1e3:.2f} ms per step ({agent_time / env_time:.3f} of the macro step)"
+    )
 
 
 if __name__ == "__main__":

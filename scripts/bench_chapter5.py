@@ -78,7 +78,9 @@ def time_table_5_5(args: Args) -> None:
         start, cpu_start = time.perf_counter(), time.process_time()
         returns, trials = {}, 0
         for domain in args.domains:
-            config = sweep_config(domain, episodes=args.episodes)  # reproduce_atpo.py's: the same cache entries
+            config = sweep_config(
+                domain, episodes=args.episodes
+            )  # reproduce_atpo.py's: the same cache entries
             result = run_sweep(config, workers=args.workers, executor=executor)
             trials += len(result.records)
             returns[domain] = sorted((r.agent, r.episode, r.total_reward) for r in result.records)
@@ -88,7 +90,9 @@ def time_table_5_5(args: Args) -> None:
             if args.returns_json:
                 Path(args.returns_json).write_text(json.dumps(returns, indent=0))
         same = "yes" if returns == first else "NO"
-        rows.append([executor, str(trials), f"{seconds:.1f}", f"{cpu:.1f}", f"{seconds / reference:.2f}", same])
+        rows.append(
+            [executor, str(trials), f"{seconds:.1f}", f"{cpu:.1f}", f"{seconds / reference:.2f}", same]
+        )
     headers = ["executor", "trials", "Table 5.5 s (wall)", "driver CPU s", f"ratio to {args.executors[0]}",
                "same returns"]  # fmt: skip
     print(format_table(headers, rows, args.markdown))
@@ -126,7 +130,12 @@ def main() -> None:
         rows.append(row)
     headers = ["domain", "models", "build s (ours)", "setup s (thesis, x models)", "thesis / ours"]
     if args.solve:
-        headers += ["stages: budget (done)", "solve CPU s per model (ours)", "solve s per model (thesis)", "thesis / ours"]
+        headers += [
+            "stages: budget (done)",
+            "solve CPU s per model (ours)",
+            "solve s per model (thesis)",
+            "thesis / ours",
+        ]
     print(format_table(headers, rows, args.markdown))
     print(
         f"\nall libraries built in {total_build:.2f} s"

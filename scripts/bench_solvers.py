@@ -228,8 +228,16 @@ def corpus_row(name: str, args: Args) -> None:
 # SARSOP's lower bound over time where it was recorded (../shared/pomdp/README.md, 2-core machine, undated):
 # (seconds, lb). Other files: only the 20 s figures of SARSOP above.
 SARSOP_TRACES = {
-    "sarsop-TagAvoid.pomdp": [(0.17, -9.71), (0.48, -6.76), (0.75, -6.53), (1.4, -6.43), (2.1, -6.37), (7.0, -6.33),
-                              (20.0, -6.32), (120.0, -6.18)],
+    "sarsop-TagAvoid.pomdp": [
+        (0.17, -9.71),
+        (0.48, -6.76),
+        (0.75, -6.53),
+        (1.4, -6.43),
+        (2.1, -6.37),
+        (7.0, -6.33),
+        (20.0, -6.32),
+        (120.0, -6.18),
+    ],
 }
 
 
@@ -286,9 +294,15 @@ def anytime_row(name: str, args: Args) -> None:
 
 
 def anytime_table(args: Args) -> None:
-    source = "measured in this run" if shutil.which("pomdpsol") else "recorded (../shared/pomdp/README.md, undated)"
-    print(f"\n## Time to value: lower / upper bound at b0, Perseus (CLI defaults) vs SARSOP ({source}, "
-          f"{args.clock} seconds)\n")
+    source = (
+        "measured in this run"
+        if shutil.which("pomdpsol")
+        else "recorded (../shared/pomdp/README.md, undated)"
+    )
+    print(
+        f"\n## Time to value: lower / upper bound at b0, Perseus (CLI defaults) vs SARSOP ({source}, "
+        f"{args.clock} seconds)\n"
+    )
     header = " | ".join(f"Perseus {t:g} s | SARSOP {t:g} s" for t in args.checkpoints)
     print(f"| file | S | {header} |")
     print("|---|---|" + "---|" * (2 * len(args.checkpoints)))

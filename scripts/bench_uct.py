@@ -55,15 +55,22 @@ def main() -> None:
 
     states = world.sample_states(np.random.default_rng(args.seed), args.decisions)
     rows = []
-    for name, planner in (("plain per-node UCT", PlainUct(UctConfig())),
-                          (f"batched UCT (wave {args.wave})", BatchedUct(UctConfig(wave=args.wave)))):
+    for name, planner in (
+        ("plain per-node UCT", PlainUct(UctConfig())),
+        (f"batched UCT (wave {args.wave})", BatchedUct(UctConfig(wave=args.wave))),
+    ):
         rng = np.random.default_rng(args.seed)
         planner.plan(states[0], simulate, rng)  # warm-up
         cpu, wall = time.process_time(), time.perf_counter()
         for state in states:
             planner.plan(state, simulate, rng)
-        rows.append((name, (time.process_time() - cpu) / len(states) * 1e3,
-                     (time.perf_counter() - wall) / len(states) * 1e3))
+        rows.append(
+            (
+                name,
+                (time.process_time() - cpu) / len(states) * 1e3,
+                (time.perf_counter() - wall) / len(states) * 1e3,
+            )
+        )
     for name, ms, wall_ms in rows:
         print(f"{name:28s} {ms:8.2f} ms CPU/decision  {1e3 / ms:7.1f} decisions/s  ({wall_ms:.2f} ms wall)")
     print(f"speed-up batched / plain: {rows[0][1] / rows[1][1]:.1f}x  (goal: batched < 20 ms)")
@@ -71,11 +78,15 @@ def main() -> None:
         planner, rng = BatchedUct(UctConfig(wave=args.wave)), np.random.default_rng(args.seed)
         cpu = time.process_time()
         for state in states:
-            joint = np.concatenate([[planner.plan(state, simulate, rng)], sample_rows(team.probs(state[None])[0], rng)])
+            joint = np.concatenate(
+                [[planner.plan(state, simulate, rng)], sample_rows(team.probs(state[None])[0], rng)]
+            )
             nxt, reward, done = world.step(state[None], joint[None], rng)
             env.update(state, joint, float(reward[0]), nxt[0], bool(done[0]))
             team.update(state, joint[1:])
-        print(f"{'TEAMSTER step (plan + learn)':28s} {(time.process_time() - cpu) / len(states) * 1e3:8.2f} ms CPU/step")
+        print(
+            f"{'TEAMSTER step (plan + learn)':28s} {(time.process_time() - cpu) / len(states) * 1e3:8.2f} ms CPU/step"
+        )
 
 
 if __name__ == "__main__":

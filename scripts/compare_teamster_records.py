@@ -19,10 +19,16 @@ import sys
 from pathlib import Path
 
 CASES = [
-    ("pursuit", {"steps": 40, "eval_steps": 20, "points": 2, "changed": "mirror", "changed_steps": 40},
-     ["teamster", "plastic-model", "learns-team", "plastic-policy", "random", "original"]),
-    ("ntu", {"domain": "ntu", "steps": 20, "points": 2, "eval_episodes": 2, "changed": 0.2},
-     ["teamster", "plastic-model", "plastic-policy", "random", "original"]),
+    (
+        "pursuit",
+        {"steps": 40, "eval_steps": 20, "points": 2, "changed": "mirror", "changed_steps": 40},
+        ["teamster", "plastic-model", "learns-team", "plastic-policy", "random", "original"],
+    ),
+    (
+        "ntu",
+        {"domain": "ntu", "steps": 20, "points": 2, "eval_episodes": 2, "changed": 0.2},
+        ["teamster", "plastic-model", "plastic-policy", "random", "original"],
+    ),
 ]
 CODE = """
 import json, sys
@@ -38,10 +44,22 @@ print(json.dumps(out))
 
 
 def records(tree: Path) -> dict:
-    where = "experiments" if (tree / "embodied_adhoc/experiments/teamster_protocol.py").is_file() else "learning"
+    where = (
+        "experiments" if (tree / "embodied_adhoc/experiments/teamster_protocol.py").is_file() else "learning"
+    )
     env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    done = subprocess.run([sys.executable, "-c", CODE.format(module=f"embodied_adhoc.{where}.teamster_protocol"),
-                           json.dumps(CASES)], cwd=tree, env=env, capture_output=True, text=True)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            CODE.format(module=f"embodied_adhoc.{where}.teamster_protocol"),
+            json.dumps(CASES),
+        ],
+        cwd=tree,
+        env=env,
+        capture_output=True,
+        text=True,
+    )
     if done.returncode:
         sys.exit(f"{tree}: the protocol failed:\n{done.stderr.strip()}")
     return json.loads(done.stdout)
@@ -56,8 +74,10 @@ def main() -> int:
     for key in old:
         same = old[key] == new.get(key)
         points = sum(len(curve) for curve in old[key]["curves"].values())
-        print(f"{key}: {'identical' if same else 'DIFFERENT'} ({points} curve points, after-learning matrix, "
-              f"changed phase {old[key].get('changed')})")
+        print(
+            f"{key}: {'identical' if same else 'DIFFERENT'} ({points} curve points, after-learning matrix, "
+            f"changed phase {old[key].get('changed')})"
+        )
     print("ALL IDENTICAL" if old == new else "NOT IDENTICAL")
     return 0 if old == new else 1
 

@@ -76,7 +76,9 @@ def team_episodes(args: Args, rng: np.random.Generator, count: int, oracle: bool
     def step(state, own: int, team: str, k: int):
         batch = GridBatch.stack([state] * k)
         task = np.broadcast_to(offsets, (k, n, 2))
-        actions = planner.actions(batch, task, False, TeamTable.of([teams[team]] * k), rng.random((k, n, TEAM_DRAWS)))
+        actions = planner.actions(
+            batch, task, False, TeamTable.of([teams[team]] * k), rng.random((k, n, TEAM_DRAWS))
+        )
         actions[:, 0] = own
         prey = rng.random((k, rules.config.n_targets, 2)) if rules.prey_draws() else None
         return rules.plan_batch(batch, task, False, actions, prey)
@@ -91,8 +93,13 @@ def team_episodes(args: Args, rng: np.random.Generator, count: int, oracle: bool
             for _ in range(HORIZON):
                 for view in args.views:
                     seen[view].append(egocentric_observation(rules, state, 0, view))
-                own = planner.actions(GridBatch.stack([state]), offsets, False, TeamTable.of([teams[team]]),
-                                      rng.random((1, n, TEAM_DRAWS)))[0, 0]
+                own = planner.actions(
+                    GridBatch.stack([state]),
+                    offsets,
+                    False,
+                    TeamTable.of([teams[team]]),
+                    rng.random((1, n, TEAM_DRAWS)),
+                )[0, 0]
                 action = int(own) if rng.random() < args.mixing else int(rng.integers(5))
                 real = step(state, action, team, 1)
                 if oracle:
@@ -102,8 +109,11 @@ def team_episodes(args: Args, rng: np.random.Generator, count: int, oracle: bool
                         if rules.prey_draws():
                             match &= np.all(simulated.targets == real.targets[0], axis=(1, 2))
                         log_posterior[j] += np.log(max(match.mean(), 1e-3))
-                    correct.append(log_posterior.argmax() == label if np.ptp(log_posterior) > 0
-                                   else rng.random() < 1 / len(names))
+                    correct.append(
+                        log_posterior.argmax() == label
+                        if np.ptp(log_posterior) > 0
+                        else rng.random() < 1 / len(names)
+                    )
                 state = rules.apply(state, type(real)(real.agents[0], real.targets[0], real.completed[0]))
                 if not state.alive.any():
                     break
@@ -116,8 +126,15 @@ def team_episodes(args: Args, rng: np.random.Generator, count: int, oracle: bool
             labels.append(label)
             lengths.append(length)
             verdicts.append(correct + [None] * (HORIZON - len(correct)))
-    data = {view: Trajectories(np.stack(observations[view]).astype(np.float32), np.stack(previous), np.array(labels),
-                               np.array(lengths)) for view in args.views}
+    data = {
+        view: Trajectories(
+            np.stack(observations[view]).astype(np.float32),
+            np.stack(previous),
+            np.array(labels),
+            np.array(lengths),
+        )
+        for view in args.views
+    }
     return data, verdicts
 
 
@@ -135,15 +152,25 @@ def teams(args: Args) -> dict:
     rng = np.random.default_rng(args.seed)
     train, _ = team_episodes(args, rng, args.train_episodes, oracle=False)
     test, verdicts = team_episodes(args, rng, args.test_episodes, oracle=True)
-    out = {"what": "teams", "domain": args.domain, "train_episodes_per_team": args.train_episodes,
-           "test_episodes_per_team": args.test_episodes, "iterations": args.iterations}
+    out = {
+        "what": "teams",
+        "domain": args.domain,
+        "train_episodes_per_team": args.train_episodes,
+        "test_episodes_per_team": args.test_episodes,
+        "iterations": args.iterations,
+    }
     for view in args.views:
         torch.manual_seed(args.seed)
-        model = RecurrentBayesianClassifier(ClassifierConfig(channels=train[view].observations.shape[2],
-                                                             environments=3, view=view))
+        model = RecurrentBayesianClassifier(
+            ClassifierConfig(channels=train[view].observations.shape[2], environments=3, view=view)
+        )
         train_classifier(model, train[view], ClassifierTraining(iterations=args.iterations, seed=args.seed))
-        out[f"classifier_view{view}_held_out"] = [round(r["accuracy"], 3) for r in per_step_scores(model, test[view])[:SHOWN]]
-        out[f"classifier_view{view}_training"] = [round(r["accuracy"], 3) for r in per_step_scores(model, train[view])[:SHOWN]]
+        out[f"classifier_view{view}_held_out"] = [
+            round(r["accuracy"], 3) for r in per_step_scores(model, test[view])[:SHOWN]
+        ]
+        out[f"classifier_view{view}_training"] = [
+            round(r["accuracy"], 3) for r in per_step_scores(model, train[view])[:SHOWN]
+        ]
     # the classifier's step t has seen t transitions; the oracle's verdict t-1 comes after t transitions
     live = [[v[t - 1] for v in verdicts if v[t - 1] is not None] for t in range(1, SHOWN)]
     out["oracle_full_state_held_out"] = [round(1 / 3, 3)] + [round(float(np.mean(v)), 3) for v in live]
@@ -151,7 +178,9 @@ def teams(args: Args) -> dict:
     return out
 
 
-def mean_steps(model, domain: str, env_kwargs: dict, episodes: int = 64, seed: int = 123, cap: int = 200) -> float:
+def mean_steps(
+    model, domain: str, env_kwargs: dict, episodes: int = 64, seed: int = 123, cap: int = 200
+) -> float:
     """Mean steps to finish (cap for unfinished) over ``episodes`` with actions sampled from ``model``."""
     import torch
 
@@ -180,14 +209,27 @@ def mb(args: Args) -> dict:
 
     kwargs = {"tasks": (1,), "teams": ("tau1",)}
     config = PpoConfig(total_steps=args.steps, seed=args.seed, device="cpu")
-    settings = WorldModelTraining(seed=args.seed, policy_learning_rate=args.policy_learning_rate,
-                                  head_hidden=args.head_hidden, updates_per_rollout=args.updates_per_rollout)
-    out = {"what": "mb", "domain": args.domain, "seed": args.seed, "steps": args.steps,
-           "world_model": {k: getattr(settings, k) for k in ("policy_learning_rate", "head_hidden", "updates_per_rollout")}}
+    settings = WorldModelTraining(
+        seed=args.seed,
+        policy_learning_rate=args.policy_learning_rate,
+        head_hidden=args.head_hidden,
+        updates_per_rollout=args.updates_per_rollout,
+    )
+    out = {
+        "what": "mb",
+        "domain": args.domain,
+        "seed": args.seed,
+        "steps": args.steps,
+        "world_model": {
+            k: getattr(settings, k) for k in ("policy_learning_rate", "head_hidden", "updates_per_rollout")
+        },
+    }
     start = time.process_time()
     result = train_mb_policy(args.domain, kwargs, config, settings)[0]
-    out["atlpo_mb_steps"], out["mb_cpu_seconds"] = mean_steps(result.model, args.domain, kwargs), round(
-        time.process_time() - start, 1)
+    out["atlpo_mb_steps"], out["mb_cpu_seconds"] = (
+        mean_steps(result.model, args.domain, kwargs),
+        round(time.process_time() - start, 1),
+    )
     start = time.process_time()
     out["atlpo_mf_steps"] = mean_steps(train_ppo(args.domain, kwargs, config).model, args.domain, kwargs)
     out["mf_cpu_seconds"] = round(time.process_time() - start, 1)

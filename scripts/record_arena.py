@@ -43,13 +43,15 @@ class Args:
     """output folder"""
 
 
-def observation_picture(observation: np.ndarray, n_agents: int, boundary: int, cell_px: int = 12) -> np.ndarray:
+def observation_picture(
+    observation: np.ndarray, n_agents: int, boundary: int, cell_px: int = 12
+) -> np.ndarray:
     """The egocentric channels as one RGB picture: boundary grey, teammates blue, apples/prey green, self orange."""
     view = observation.shape[-1]
     picture = np.full((view, view, 3), 235, dtype=np.uint8)
     picture[observation[boundary] > 0] = 120
-    picture[observation[:n_agents - 1].max(axis=0) > 0] = (40, 90, 220)
-    picture[observation[n_agents - 1:boundary].max(axis=0) > 0] = (40, 180, 40)
+    picture[observation[: n_agents - 1].max(axis=0) > 0] = (40, 90, 220)
+    picture[observation[n_agents - 1 : boundary].max(axis=0) > 0] = (40, 180, 40)
     picture[view // 2, view // 2] = (240, 140, 20)
     return np.kron(picture, np.ones((cell_px, cell_px, 1), dtype=np.uint8))
 
@@ -62,8 +64,14 @@ def main(args: Args) -> None:
     from embodied_adhoc.record.video import VideoWriter
 
     env_id = {"foraging": "EmbodiedAdhoc/Foraging-v0", "pursuit": "EmbodiedAdhoc/Pursuit-v0"}[args.domain]
-    env = gymnasium.make(env_id, teams=(args.team,), tasks=(args.task,), obs_mode="image", image_size=max(16, args.size // 4),
-                         render_mode="rgb_array").unwrapped
+    env = gymnasium.make(
+        env_id,
+        teams=(args.team,),
+        tasks=(args.task,),
+        obs_mode="image",
+        image_size=max(16, args.size // 4),
+        render_mode="rgb_array",
+    ).unwrapped
     backend, core = env.core.backend, env.core
     args.out.mkdir(parents=True, exist_ok=True)
     stem = args.out / f"{args.domain}_{args.team}_task{args.task}"
@@ -72,13 +80,15 @@ def main(args: Args) -> None:
     n = core.config.n_agents
     boundary = n - 1 + core.config.n_targets  # index of the boundary channel
 
-    with VideoWriter(stem.with_suffix(".mp4"), args.size, args.size, fps=args.fps) as video, \
-            RerunRecorder(stem.with_suffix(".rrd"), recording_name=stem.name) as recorder:
+    with (
+        VideoWriter(stem.with_suffix(".mp4"), args.size, args.size, fps=args.fps) as video,
+        RerunRecorder(stem.with_suffix(".rrd"), recording_name=stem.name) as recorder,
+    ):
 
         def frame() -> None:
             top = backend.render_top(args.size).copy()
             inset = backend.egocentric_image(0)
-            top[8:8 + inset.shape[0], 8:8 + inset.shape[1]] = inset
+            top[8 : 8 + inset.shape[0], 8 : 8 + inset.shape[1]] = inset
             video.write(top)
 
         def on_tick(t: float) -> None:
@@ -95,8 +105,10 @@ def main(args: Args) -> None:
             recorder.log_camera("overhead", backend.render_top(args.size))
             recorder.log_camera("egocentric", backend.egocentric_image(0))
             recorder.log_camera("grid_observation", observation_picture(core.observe(0), n, boundary))
-            recorder.log_text("events", f"task {info['task']} ({info['task_name']}), team {info['team']}, "
-                                        f"state {info['state']}")
+            recorder.log_text(
+                "events",
+                f"task {info['task']} ({info['task_name']}), team {info['team']}, state {info['state']}",
+            )
             if step == args.max_steps or not core.episode.state.alive.any():
                 break
             action = int(core.scripted_actions([0])[0])
@@ -108,8 +120,10 @@ def main(args: Args) -> None:
         for _ in range(int(args.fps)):  # one still second at the end
             frame()
     env.close()
-    print(f"{stem.with_suffix('.mp4')}  {stem.with_suffix('.rrd')}  ({info['steps']} steps, "
-          f"{'solved' if not core.episode.state.alive.any() else 'not solved'})")
+    print(
+        f"{stem.with_suffix('.mp4')}  {stem.with_suffix('.rrd')}  ({info['steps']} steps, "
+        f"{'solved' if not core.episode.state.alive.any() else 'not solved'})"
+    )
 
 
 if __name__ == "__main__":

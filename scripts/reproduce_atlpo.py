@@ -30,14 +30,20 @@ from embodied_adhoc.experiments.script_args import parse_dataclass_args
 # results-to-reproduce.md, chapter 6: (set, domain) -> original, model-free RL, ATLPO-MF, random (the thesis's
 # model-free RL column "knows task/team": our ``known``, the library member of the true environment)
 THESIS = {
-    ("task", "foraging"): (6.72, 7.56, 13.02, 59.05), ("task", "pursuit"): (9.36, 11.22, 21.36, 50.66),
-    ("team", "foraging"): (9.2, 7.68, 8.85, 53.71), ("team", "pursuit"): (14.45, 10.19, 10.71, 58.21),
-    ("task+team", "foraging"): (7.89, 7.62, 11.96, 56.52), ("task+team", "pursuit"): (11.54, 10.71, 16.75, 54.21),
+    ("task", "foraging"): (6.72, 7.56, 13.02, 59.05),
+    ("task", "pursuit"): (9.36, 11.22, 21.36, 50.66),
+    ("team", "foraging"): (9.2, 7.68, 8.85, 53.71),
+    ("team", "pursuit"): (14.45, 10.19, 10.71, 58.21),
+    ("task+team", "foraging"): (7.89, 7.62, 11.96, 56.52),
+    ("task+team", "pursuit"): (11.54, 10.71, 16.75, 54.21),
 }
 # ... and (set, domain) -> model-based RL ("knows task/team"), ATLPO-MB
 THESIS_MB = {
-    ("task", "foraging"): (8.13, 15.35), ("task", "pursuit"): (9.79, 17.34), ("team", "foraging"): (7.31, 10.24),
-    ("team", "pursuit"): (10.11, 10.64), ("task+team", "foraging"): (7.73, 14.06),
+    ("task", "foraging"): (8.13, 15.35),
+    ("task", "pursuit"): (9.79, 17.34),
+    ("team", "foraging"): (7.31, 10.24),
+    ("team", "pursuit"): (10.11, 10.64),
+    ("task+team", "foraging"): (7.73, 14.06),
     ("task+team", "pursuit"): (9.95, 15.67),
 }
 TABLE_AGENTS = ("original", "known", "atlpo-mf", "random")
@@ -96,9 +102,15 @@ def train(args: Args, domain: str, seed: int) -> None:
             name = f"{domain}-{environment.name}.safetensors"
             if (union / name).exists() and not (folder / name).exists():
                 shutil.copy2(union / name, folder / name)
-        report = train_atlpo(AtlpoTraining(domain, set_name, str(folder), steps=args.steps, seed=seed,
-                                           threads=args.threads, quiet=True))
-        print(f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)", flush=True)
+        report = train_atlpo(
+            AtlpoTraining(
+                domain, set_name, str(folder), steps=args.steps, seed=seed, threads=args.threads, quiet=True
+            )
+        )
+        print(
+            f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)",
+            flush=True,
+        )
 
 
 def train_mb(args: Args, domain: str, seed: int) -> None:
@@ -121,9 +133,23 @@ def train_mb(args: Args, domain: str, seed: int) -> None:
             name = f"{domain}-mb-{environment.name}.safetensors"
             if (union / name).exists() and not (folder / name).exists():
                 shutil.copy2(union / name, folder / name)
-        report = train_atlpo(AtlpoTraining(domain, set_name, str(folder), steps=args.steps, seed=seed,
-                                           threads=args.threads, quiet=True, model="mb", generalist=True))
-        print(f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)", flush=True)
+        report = train_atlpo(
+            AtlpoTraining(
+                domain,
+                set_name,
+                str(folder),
+                steps=args.steps,
+                seed=seed,
+                threads=args.threads,
+                quiet=True,
+                model="mb",
+                generalist=True,
+            )
+        )
+        print(
+            f"{folder}: trained in {report['total_seconds']} s (policies {report['policy_seconds']} s)",
+            flush=True,
+        )
 
 
 def evaluate_cell(args: Args, domain: str, seed: int, set_name: str) -> dict:
@@ -148,7 +174,8 @@ def mb_cells(args: Args) -> list[tuple[str, int, str, Path]]:
         for seed in args.seeds:
             for set_name in SETS:
                 folder = library_folder(args.out, domain, seed, set_name).with_name(
-                    library_folder(args.out, domain, seed, set_name).name + "-mb")
+                    library_folder(args.out, domain, seed, set_name).name + "-mb"
+                )
                 if (folder / "training.json").exists():
                     found.append((domain, seed, set_name, folder))
     return found
@@ -166,8 +193,15 @@ def evaluate_mb_cell(args: Args, domain: str, seed: int, set_name: str, folder: 
     library, classifier = load_library(folder)
     baseline = generalist_path(folder, domain, set_name, "mb")
     generalist = load_policy(baseline) if baseline.exists() else None
-    results = evaluate(library, classifier, args.episodes, seed, args.max_steps, agents=("atlpo-mf", "mf-all"),
-                       generalist=generalist)
+    results = evaluate(
+        library,
+        classifier,
+        args.episodes,
+        seed,
+        args.max_steps,
+        agents=("atlpo-mf", "mf-all"),
+        generalist=generalist,
+    )
     results = {{"atlpo-mf": "atlpo-mb", "mf-all": "mb-all"}.get(k, k): v for k, v in results.items()}
     path.write_text(json.dumps(results) + "\n")
     return results
@@ -185,11 +219,14 @@ def mb_report(args: Args) -> tuple[list[str], dict]:
             evaluated.setdefault((set_name, domain), []).append((seed, json.loads(path.read_text())))
     if not evaluated:
         return [], {}
-    lines = ["ATLPO-MB and the model-based baseline (where trained; same episodes as the MF cell), pooled over the "
-             "seeds listed: mean steps [95 % bootstrap CI] (solved %) | thesis (ATLPO-MB; model-based RL, which "
-             "knows task and team)", "",
-             "| set | domain | seeds | atlpo-mb | mb-all |",
-             "|---|---|---|---|---|"]
+    lines = [
+        "ATLPO-MB and the model-based baseline (where trained; same episodes as the MF cell), pooled over the "
+        "seeds listed: mean steps [95 % bootstrap CI] (solved %) | thesis (ATLPO-MB; model-based RL, which "
+        "knows task and team)",
+        "",
+        "| set | domain | seeds | atlpo-mb | mb-all |",
+        "|---|---|---|---|---|",
+    ]
     table = {}
     for set_name in SETS:
         for domain in ("foraging", "pursuit"):
@@ -206,11 +243,18 @@ def mb_report(args: Args) -> tuple[list[str], dict]:
                 steps = np.concatenate([results[agent]["steps"] for results in cells]).astype(float)
                 solved = float(np.mean(np.concatenate([results[agent]["finished"] for results in cells])))
                 summary = summarise_sample(steps)
-                row.append(f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] ({100 * solved:.0f} %) "
-                           f"\\| {thesis}")
+                row.append(
+                    f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] ({100 * solved:.0f} %) "
+                    f"\\| {thesis}"
+                )
                 table.setdefault(f"{set_name}/{domain}", {"seeds": seeds})[agent] = {
-                    "mean": summary.mean, "ci": [summary.ci_low, summary.ci_high], "iqm": summary.iqm,
-                    "solved": solved, "n": summary.n, "thesis": thesis}
+                    "mean": summary.mean,
+                    "ci": [summary.ci_low, summary.ci_high],
+                    "iqm": summary.iqm,
+                    "solved": solved,
+                    "n": summary.n,
+                    "thesis": thesis,
+                }
             lines.append(f"| {set_name} | {domain} | {','.join(map(str, seeds))} | {row[0]} | {row[1]} |")
     return lines, table
 
@@ -225,8 +269,9 @@ def held_out_cell(args: Args, domain: str, seed: int) -> dict:
     if path.exists():
         return json.loads(path.read_text())
     library, classifier = load_library(folder)
-    results = evaluate_held_out(library, classifier, held_out_teams(domain, args.team or None), args.episodes,
-                                seed, args.max_steps)
+    results = evaluate_held_out(
+        library, classifier, held_out_teams(domain, args.team or None), args.episodes, seed, args.max_steps
+    )
     path.write_text(json.dumps(results) + "\n")
     return results
 
@@ -246,9 +291,12 @@ def classifier_accuracy(args: Args, domain: str, set_name: str) -> list[float]:
 def report(args: Args) -> str:
     from embodied_adhoc.experiments.stats import summarise_sample
 
-    lines = [f"Chapter-6 table: average steps to finish ({args.episodes} episodes per environment x seeds "
-             f"{list(args.seeds)}, cap {args.max_steps}; an unfinished episode counts the cap); mean [95 % "
-             "bootstrap CI] (solved %) | thesis", ""]
+    lines = [
+        f"Chapter-6 table: average steps to finish ({args.episodes} episodes per environment x seeds "
+        f"{list(args.seeds)}, cap {args.max_steps}; an unfinished episode counts the cap); mean [95 % "
+        "bootstrap CI] (solved %) | thesis",
+        "",
+    ]
     header = f"| set | domain | K | seeds | {' | '.join(TABLE_AGENTS)} | classifier accuracy after step 1/3/5/7/10 (mean over the trained seeds) |"
     lines += [header, "|" + "---|" * (header.count("|") - 1)]
     table = {}
@@ -256,7 +304,10 @@ def report(args: Args) -> str:
         for domain in ("foraging", "pursuit"):
             cells = []
             for seed in args.seeds:
-                path = library_folder(args.out, domain, seed, set_name) / f"evaluation-{args.episodes}x{args.max_steps}.json"
+                path = (
+                    library_folder(args.out, domain, seed, set_name)
+                    / f"evaluation-{args.episodes}x{args.max_steps}.json"
+                )
                 if path.exists():
                     cells.append(json.loads(path.read_text()))
             if not cells:
@@ -269,18 +320,26 @@ def report(args: Args) -> str:
                 solved = np.mean(np.concatenate([c[agent]["finished"] for c in cells]))
                 summary = summarise_sample(steps)
                 thesis = THESIS[(set_name, domain)][i]
-                row.append(f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] ({100 * solved:.0f} %) "
-                           f"\\| {thesis}")
-                table[f"{set_name}/{domain}"][agent] = {"mean": summary.mean, "ci": [summary.ci_low, summary.ci_high],
-                                                        "iqm": summary.iqm, "solved": float(solved), "n": summary.n,
-                                                        "thesis": thesis}
+                row.append(
+                    f"{summary.mean:.2f} [{summary.ci_low:.2f}, {summary.ci_high:.2f}] ({100 * solved:.0f} %) "
+                    f"\\| {thesis}"
+                )
+                table[f"{set_name}/{domain}"][agent] = {
+                    "mean": summary.mean,
+                    "ci": [summary.ci_low, summary.ci_high],
+                    "iqm": summary.iqm,
+                    "solved": float(solved),
+                    "n": summary.n,
+                    "thesis": thesis,
+                }
             accuracy = classifier_accuracy(args, domain, set_name)
             row.append("/".join(f"{accuracy[t]:.2f}" for t in (0, 2, 4, 6, 9) if t < len(accuracy)))
             lines.append("| " + " | ".join(row) + " |")
     held = held_out_report(args)
     mb, mb_table = mb_report(args)
-    (args.out / "table.json").write_text(json.dumps({"table": table, "held_out": held[1], "mb": mb_table},
-                                                    indent=1) + "\n")
+    (args.out / "table.json").write_text(
+        json.dumps({"table": table, "held_out": held[1], "mb": mb_table}, indent=1) + "\n"
+    )
     return "\n".join(lines + [""] + held[0] + ([""] + mb if mb else []))
 
 
@@ -293,23 +352,32 @@ def held_out_report(args: Args) -> tuple[list[str], dict]:
         cells = []
         for seed in args.seeds:
             folder = library_folder(args.out, domain, seed, "task+team")
-            cells += [json.loads(p.read_text()) for p in sorted(folder.glob(f"held-out-{args.episodes}x{args.max_steps}*.json"))]
+            cells += [
+                json.loads(p.read_text())
+                for p in sorted(folder.glob(f"held-out-{args.episodes}x{args.max_steps}*.json"))
+            ]
         if not cells:
             continue
         if not lines:
-            lines = ["Held-out teammates (task+team library; teams no member saw): normalised score "
-                     "(random 0, original teammate 1), IQM [95 % bootstrap CI] over episodes; mean steps (solved %)",
-                     "", "| domain | team | episodes | atlpo-mf | known-task | original steps | atlpo-mf steps "
-                     "| random steps |", "|---|---|---|---|---|---|---|---|"]
+            lines = [
+                "Held-out teammates (task+team library; teams no member saw): normalised score "
+                "(random 0, original teammate 1), IQM [95 % bootstrap CI] over episodes; mean steps (solved %)",
+                "",
+                "| domain | team | episodes | atlpo-mf | known-task | original steps | atlpo-mf steps "
+                "| random steps |",
+                "|---|---|---|---|---|---|---|---|",
+            ]
         for team, scores in normalised_scores(cells, summarise_sample).items():
             data[f"{domain}/{team}"] = scores
-            lines.append(f"| {domain} | {team} | {scores['episodes']} | {scores['atlpo-mf']['iqm']:.2f} "
-                         f"[{scores['atlpo-mf']['ci'][0]:.2f}, {scores['atlpo-mf']['ci'][1]:.2f}], mean "
-                         f"{scores['atlpo-mf']['mean']:.2f} | {scores['known-task']['iqm']:.2f}, mean "
-                         f"{scores['known-task']['mean']:.2f} | {scores['steps']['original']:.1f} "
-                         f"({100 * scores['solved']['original']:.0f} %) | {scores['steps']['atlpo-mf']:.1f} "
-                         f"({100 * scores['solved']['atlpo-mf']:.0f} %) | {scores['steps']['random']:.1f} "
-                         f"({100 * scores['solved']['random']:.0f} %) |")
+            lines.append(
+                f"| {domain} | {team} | {scores['episodes']} | {scores['atlpo-mf']['iqm']:.2f} "
+                f"[{scores['atlpo-mf']['ci'][0]:.2f}, {scores['atlpo-mf']['ci'][1]:.2f}], mean "
+                f"{scores['atlpo-mf']['mean']:.2f} | {scores['known-task']['iqm']:.2f}, mean "
+                f"{scores['known-task']['mean']:.2f} | {scores['steps']['original']:.1f} "
+                f"({100 * scores['solved']['original']:.0f} %) | {scores['steps']['atlpo-mf']:.1f} "
+                f"({100 * scores['solved']['atlpo-mf']:.0f} %) | {scores['steps']['random']:.1f} "
+                f"({100 * scores['solved']['random']:.0f} %) |"
+            )
     return lines, data
 
 

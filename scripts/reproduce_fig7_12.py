@@ -132,19 +132,29 @@ def plot(results: dict[str, SweepResult], path: Path) -> Path:
     series = {}
     for backend, result in results.items():
         agents = result.summary().agents
-        series[backend] = [(agents[a].steps.mean, agents[a].steps.ci_low, agents[a].steps.ci_high) for a in names]
+        series[backend] = [
+            (agents[a].steps.mean, agents[a].steps.ci_low, agents[a].steps.ci_high) for a in names
+        ]
     half = [1.96 * THESIS[a][1] / math.sqrt(THESIS_TRIALS) if a in THESIS else math.nan for a in names]
     ours = {a: thesis_in_our_count(a) for a in THESIS}
-    series["thesis (our count)"] = [(ours[a], ours[a] - h, ours[a] + h) if a in THESIS else (math.nan,) * 3
-                                    for a, h in zip(names, half, strict=True)]
+    series["thesis (our count)"] = [
+        (ours[a], ours[a] - h, ours[a] + h) if a in THESIS else (math.nan,) * 3
+        for a, h in zip(names, half, strict=True)
+    ]
     x = np.arange(len(names))
     width = 0.8 / len(series)
     figure, axes = plt.subplots(figsize=(11, 4.2))
     for index, (label, values) in enumerate(series.items()):
         values = np.array(values, dtype=float)
         errors = np.vstack([values[:, 0] - values[:, 1], values[:, 2] - values[:, 0]])
-        axes.bar(x + (index - (len(series) - 1) / 2) * width, values[:, 0], width, yerr=errors, capsize=3,
-                 label={"abstract": "grid twin", "mujoco": "MuJoCo arena"}.get(label, label))
+        axes.bar(
+            x + (index - (len(series) - 1) / 2) * width,
+            values[:, 0],
+            width,
+            yerr=errors,
+            capsize=3,
+            label={"abstract": "grid twin", "mujoco": "MuJoCo arena"}.get(label, label),
+        )
     axes.set_xticks(x, names)
     axes.set_yscale("log")
     axes.set_ylabel("steps to capture (mean, 95% CI; log)")
@@ -173,8 +183,10 @@ def main() -> None:
     for backend in backends:
         config = SweepConfig("pursuit", backend, pomdp_options(), agents, args.episodes, args.seed, CAP)
         results[backend] = run_sweep(config, out=args.out / backend, workers=args.workers, progress=True)
-    print(f"Fig. 7.12, two-predator pursuit (pursuit-task POMDP as the world): {args.episodes} episodes per agent, "
-          f"seed {args.seed}, cap {CAP}")
+    print(
+        f"Fig. 7.12, two-predator pursuit (pursuit-task POMDP as the world): {args.episodes} episodes per agent, "
+        f"seed {args.seed}, cap {CAP}"
+    )
     print()
     print(results_table(results, args.markdown))
     print()

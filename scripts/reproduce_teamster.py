@@ -41,8 +41,13 @@ from embodied_adhoc.experiments.tables import format_table
 from embodied_adhoc.experiments.teamster_protocol import make_world, play, play_episodes
 from embodied_adhoc.learning.teamster_agents import build_agent
 
-REFERENCE = {"teammate-aware": 64, "greedy": 32, "probabilistic-destinations": 35, "plastic-policy": 43,
-             "random": 11}
+REFERENCE = {
+    "teammate-aware": 64,
+    "greedy": 32,
+    "probabilistic-destinations": 35,
+    "plastic-policy": 43,
+    "random": 11,
+}
 
 
 def _cell(values) -> str:
@@ -71,10 +76,21 @@ def part_a(trials: int, seed: int) -> dict[str, list[int]]:
 # Tables 4.5-4.7 (mean over 8 trials; eval on tau1, tau2, tau3): Original Teammate, Random Policy, and
 # PLASTIC-Model after learning the three teams.
 THESIS_MAPS = {
-    "ntu": {"original": (98.0, 98.0, 97.83), "random": (79.58, 69.0, 69.12), "plastic-model": (98.0, 97.96, 97.67)},
-    "isr": {"original": (94.0, 94.0, 94.0), "random": (60.0, 69.17, 64.04), "plastic-model": (92.71, 92.62, 93.62)},
-    "pentagon": {"original": (91.67, 88.0, 91.83), "random": (66.17, 61.92, 80.79),
-                 "plastic-model": (91.54, 84.08, 91.21)},
+    "ntu": {
+        "original": (98.0, 98.0, 97.83),
+        "random": (79.58, 69.0, 69.12),
+        "plastic-model": (98.0, 97.96, 97.67),
+    },
+    "isr": {
+        "original": (94.0, 94.0, 94.0),
+        "random": (60.0, 69.17, 64.04),
+        "plastic-model": (92.71, 92.62, 93.62),
+    },
+    "pentagon": {
+        "original": (91.67, 88.0, 91.83),
+        "random": (66.17, 61.92, 80.79),
+        "plastic-model": (91.54, 84.08, 91.21),
+    },
 }
 
 
@@ -89,12 +105,22 @@ def part_c(map_name: str, episodes: int, seed: int) -> list[list[str]]:
         agent.start_team(np.random.default_rng([seed, 9]))
         agent.set_evaluation(True)
         for k, team in enumerate(world.teams):
-            returns = np.array(play_episodes(agent, world, ExactTeam(world, team), episodes,
-                                             np.random.default_rng([seed, k, 7])))
+            returns = np.array(
+                play_episodes(
+                    agent, world, ExactTeam(world, team), episodes, np.random.default_rng([seed, k, 7])
+                )
+            )
             ended = returns > -world.episode_cap
-            rows.append([name, team, _cell(returns), f"{ended.mean():.2f}",
-                         f"{returns[ended].mean():.2f}" if ended.any() else "-",
-                         f"{THESIS_MAPS.get(map_name, {}).get(name, ('-',) * 3)[k]}"])
+            rows.append(
+                [
+                    name,
+                    team,
+                    _cell(returns),
+                    f"{ended.mean():.2f}",
+                    f"{returns[ended].mean():.2f}" if ended.any() else "-",
+                    f"{THESIS_MAPS.get(map_name, {}).get(name, ('-',) * 3)[k]}",
+                ]
+            )
     return rows
 
 
@@ -112,28 +138,58 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--eval-steps", type=int, default=500)
     parser.add_argument("--points", type=int, default=10)
-    parser.add_argument("--changed", default="0", help="the changed phase: fail:P (or P) or mirror (default none)")
-    parser.add_argument("--changed-steps", type=int, default=None, help="its interaction steps (default --steps)")
-    parser.add_argument("--agents", default="teamster,plastic-model,learns-team,learns-environment,plastic-policy,"
-                                            "random,original")
+    parser.add_argument(
+        "--changed", default="0", help="the changed phase: fail:P (or P) or mirror (default none)"
+    )
+    parser.add_argument(
+        "--changed-steps", type=int, default=None, help="its interaction steps (default --steps)"
+    )
+    parser.add_argument(
+        "--agents",
+        default="teamster,plastic-model,learns-team,learns-environment,plastic-policy,random,original",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="runs/teamster-pursuit")
     parser.add_argument("--skip-protocol", action="store_true", help="part A only (part C only on the maps)")
-    parser.add_argument("--maps", default="", help="comma-separated navigation maps for part C (ntu,isr,pentagon)")
+    parser.add_argument(
+        "--maps", default="", help="comma-separated navigation maps for part C (ntu,isr,pentagon)"
+    )
     parser.add_argument("--episodes", type=int, default=40, help="part C: episodes per (agent, team)")
-    parser.add_argument("--eval-episodes", type=int, default=8, help="maps' protocol: episodes per evaluation")
+    parser.add_argument(
+        "--eval-episodes", type=int, default=8, help="maps' protocol: episodes per evaluation"
+    )
     parser.add_argument("--skip-pursuit", action="store_true", help="parts A and B left out")
     args = parser.parse_args()
 
     for map_name in [m for m in args.maps.split(",") if m]:
         print(f"Part C: {map_name}, {args.episodes} episodes per row (accumulated episode reward)")
-        print(format_table(["ad hoc agent", "team", "mean [95% CI]", "ended", "mean of ended", "thesis"],
-                           part_c(map_name, args.episodes, args.seed)))
+        print(
+            format_table(
+                ["ad hoc agent", "team", "mean [95% CI]", "ended", "mean of ended", "thesis"],
+                part_c(map_name, args.episodes, args.seed),
+            )
+        )
         if not args.skip_protocol:
             out = f"{args.out}-{map_name}"
-            command = ["teamster", map_name, "--agents", args.agents, "--steps", str(args.steps), "--trials",
-                       str(args.trials), "--eval-episodes", str(args.eval_episodes), "--points", str(args.points),
-                       "--seed", str(args.seed), "--out", out, "--quiet"]
+            command = [
+                "teamster",
+                map_name,
+                "--agents",
+                args.agents,
+                "--steps",
+                str(args.steps),
+                "--trials",
+                str(args.trials),
+                "--eval-episodes",
+                str(args.eval_episodes),
+                "--points",
+                str(args.points),
+                "--seed",
+                str(args.seed),
+                "--out",
+                out,
+                "--quiet",
+            ]
             command += _changed(args)
             if cli_main(command) != 0:
                 raise SystemExit(2)
@@ -143,15 +199,35 @@ def main() -> None:
 
     counts = part_a(args.trials, args.seed)
     rows = [[name, _cell(values), str(REFERENCE.get(name, "-"))] for name, values in counts.items()]
-    print(f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs, mean [95% CI])")
+    print(
+        f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs, mean [95% CI])"
+    )
     print(format_table(["ad hoc agent", "ours", "PLASTIC reference"], rows))
 
     if args.skip_protocol:
         return
-    print(f"\nPart B: sequential teams (T={args.steps}, {args.trials} trials, evaluations of {args.eval_steps} steps)")
-    command = ["teamster", "pursuit", "--agents", args.agents, "--steps", str(args.steps), "--trials",
-               str(args.trials), "--eval-steps", str(args.eval_steps), "--points", str(args.points), "--seed",
-               str(args.seed), "--out", args.out, "--quiet"]
+    print(
+        f"\nPart B: sequential teams (T={args.steps}, {args.trials} trials, evaluations of {args.eval_steps} steps)"
+    )
+    command = [
+        "teamster",
+        "pursuit",
+        "--agents",
+        args.agents,
+        "--steps",
+        str(args.steps),
+        "--trials",
+        str(args.trials),
+        "--eval-steps",
+        str(args.eval_steps),
+        "--points",
+        str(args.points),
+        "--seed",
+        str(args.seed),
+        "--out",
+        args.out,
+        "--quiet",
+    ]
     command += _changed(args)
     if cli_main(command) != 0:
         raise SystemExit(2)
@@ -161,8 +237,13 @@ def main() -> None:
     for agent in ("plastic-policy", "teamster", "plastic-model", "learns-team", "learns-environment"):
         if agent in summary:
             cell = summary[agent]["after"]["teammate-aware"]["teammate-aware"]["per_500"]
-            rows.append([agent, f"{cell['mean']:.1f} [{cell['ci'][0]:.1f}, {cell['ci'][1]:.1f}]",
-                         str(REFERENCE.get(agent, "-"))])
+            rows.append(
+                [
+                    agent,
+                    f"{cell['mean']:.1f} [{cell['ci'][0]:.1f}, {cell['ci'][1]:.1f}]",
+                    str(REFERENCE.get(agent, "-")),
+                ]
+            )
     print("After learning the teammate-aware team, evaluated on it (captures per 500 steps)")
     print(format_table(["ad hoc agent", "ours", "PLASTIC reference"], rows))
 

@@ -9,14 +9,17 @@ from embodied_adhoc import checks
 from embodied_adhoc.errors import ConfigError
 
 
-@pytest.mark.parametrize("value", [3, np.int8(3), np.uint64(3), np.int32(3), np.array(3), np.array(3, np.uint16)])
+@pytest.mark.parametrize(
+    "value", [3, np.int8(3), np.uint64(3), np.int32(3), np.array(3), np.array(3, np.uint16)]
+)
 def test_integers_of_any_width_are_accepted(value):
     result = checks.integer("k", value, 0, 4)
     assert result == 3 and type(result) is int
 
 
-@pytest.mark.parametrize("value", [3.0, 2.7, "3", None, True, np.bool_(True), np.array([3]), np.float64(3.0),
-                                   np.array(3.0), [3]])
+@pytest.mark.parametrize(
+    "value", [3.0, 2.7, "3", None, True, np.bool_(True), np.array([3]), np.float64(3.0), np.array(3.0), [3]]
+)
 def test_everything_else_is_refused_with_the_name(value):
     with pytest.raises(ConfigError, match=r"^k=.*must be an integer in 0\.\.4"):
         checks.integer("k", value, 0, 4)
@@ -48,7 +51,9 @@ def test_numbers_flags_choices():
 
 def test_unknown_names_get_a_suggestion():
     checks.refuse_unknown("env", {"rows": 5}, ("rows", "cols"))
-    with pytest.raises(ConfigError, match=r"env: unknown keyword 'rowz' \(did you mean 'rows'\?\); accepted: rows, cols"):
+    with pytest.raises(
+        ConfigError, match=r"env: unknown keyword 'rowz' \(did you mean 'rows'\?\); accepted: rows, cols"
+    ):
         checks.refuse_unknown("env", {"rowz": 5}, ("rows", "cols"))
     with pytest.raises(ConfigError, match="unknown options 'a', 'b'"):
         checks.refuse_unknown("reset options", {"b": 1, "a": 2}, ("task",), what="option")

@@ -91,7 +91,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="S",
         help="seconds the robot waits for an answer before it hears none (default 30)",
     )
-    toxic.add_argument("--max-steps", type=positive_int, default=100, metavar="N", help="step cap (default 100)")
+    toxic.add_argument(
+        "--max-steps", type=positive_int, default=100, metavar="N", help="step cap (default 100)"
+    )
     toxic.add_argument(
         "--stream-fps", type=POSITIVE, default=10.0, help="frames per second sent to the page (default 10)"
     )
@@ -136,7 +138,9 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     from embodied_adhoc.experiments.registry import agent_plugin
     from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
-    agent_plugin(DOMAIN, args.agent, "--agent")  # so does an unknown agent or a plug-in that cannot be imported
+    agent_plugin(
+        DOMAIN, args.agent, "--agent"
+    )  # so does an unknown agent or a plug-in that cannot be imported
     choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
     from embodied_adhoc.live.server import serve
     from embodied_adhoc.live.session import LiveSettings

@@ -146,14 +146,18 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         check_render_size(args.width, args.height)
     except ConfigError as error:
         raise ConfigError(f"--width {args.width} --height {args.height}: {error}") from None
-    if args.record is not None:  # the video writer opens after the world is built: its refusals come first here
+    if (
+        args.record is not None
+    ):  # the video writer opens after the world is built: its refusals come first here
         from embodied_adhoc.record.video import check_video_settings
 
         check_video_settings(args.width, args.height, args.video_fps)
     from embodied_adhoc.experiments.registry import agent_plugin
     from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
-    agent_plugin(DOMAIN, args.agent, "--agent")  # an unknown name or a broken plug-in stops here, before any model
+    agent_plugin(
+        DOMAIN, args.agent, "--agent"
+    )  # an unknown name or a broken plug-in stops here, before any model
     from embodied_adhoc.envs.lab_humans import human_option
 
     config = EpisodeConfig(

@@ -41,12 +41,20 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
         epilog=EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    pursuit.add_argument("--agent", default="hotspot", metavar="NAME|MODULE:CALLABLE",
-                         help=f"decision agent: {', '.join(PURSUIT_AGENTS)} (default hotspot), or a plug-in "
-                              "(docs/plugins.md)")
+    pursuit.add_argument(
+        "--agent",
+        default="hotspot",
+        metavar="NAME|MODULE:CALLABLE",
+        help=f"decision agent: {', '.join(PURSUIT_AGENTS)} (default hotspot), or a plug-in (docs/plugins.md)",
+    )
     pursuit.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
-    pursuit.add_argument("--task", type=int, default=None, metavar="K",
-                         help="true task 1..4 (N+S, W+E, SW+NE, NW+SE; default: drawn)")
+    pursuit.add_argument(
+        "--task",
+        type=int,
+        default=None,
+        metavar="K",
+        help="true task 1..4 (N+S, W+E, SW+NE, NW+SE; default: drawn)",
+    )
     pursuit.add_argument("--max-steps", type=int, default=150, help="step cap (default 150, Fig. 7.12's)")
     _recording_arguments(pursuit)
     pursuit.set_defaults(func=handle_pursuit)
@@ -63,16 +71,29 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
         epilog=FORAGING_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    foraging.add_argument("--agent", default="atlpo-mf", metavar="NAME|MODULE:CALLABLE",
-                          help=f"ad hoc agent: {', '.join(FORAGING_AGENTS)} (default atlpo-mf), or a plug-in "
-                               "(docs/plugins.md)")
+    foraging.add_argument(
+        "--agent",
+        default="atlpo-mf",
+        metavar="NAME|MODULE:CALLABLE",
+        help=f"ad hoc agent: {', '.join(FORAGING_AGENTS)} (default atlpo-mf), or a plug-in (docs/plugins.md)",
+    )
     foraging.add_argument("--seed", type=seed, default=0, help="seed of the episode, >= 0 (default 0)")
-    foraging.add_argument("--task", type=int, default=None, metavar="K", help="true task 1..4 (default: drawn)")
-    foraging.add_argument("--team", default="tau0,tau1,tau2", metavar="NAME[,NAME]",
-                          help="team type(s) the episode's team is drawn from (default tau0,tau1,tau2)")
-    foraging.add_argument("--library", default=None, metavar="DIR",
-                          help="atlpo-mf: a folder written by `embodied-adhoc train atlpo --domain foraging` "
-                               "(default: the pre-trained task+team library shipped with the package)")
+    foraging.add_argument(
+        "--task", type=int, default=None, metavar="K", help="true task 1..4 (default: drawn)"
+    )
+    foraging.add_argument(
+        "--team",
+        default="tau0,tau1,tau2",
+        metavar="NAME[,NAME]",
+        help="team type(s) the episode's team is drawn from (default tau0,tau1,tau2)",
+    )
+    foraging.add_argument(
+        "--library",
+        default=None,
+        metavar="DIR",
+        help="atlpo-mf: a folder written by `embodied-adhoc train atlpo --domain foraging` "
+        "(default: the pre-trained task+team library shipped with the package)",
+    )
     foraging.add_argument("--max-steps", type=int, default=200, help="step cap (default 200, the grid envs')")
     _recording_arguments(foraging)
     foraging.set_defaults(func=handle_foraging)
@@ -85,7 +106,9 @@ def _frame_size(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer; give an even size 2..{OFFSCREEN_SIZE}") from None
+        raise argparse.ArgumentTypeError(
+            f"{text!r} is not an integer; give an even size 2..{OFFSCREEN_SIZE}"
+        ) from None
     if not 2 <= value <= OFFSCREEN_SIZE or value % 2:
         raise argparse.ArgumentTypeError(
             f"{value}: give an even size 2..{OFFSCREEN_SIZE} (the arenas' offscreen framebuffer)"
@@ -95,12 +118,23 @@ def _frame_size(text: str) -> int:
 
 def _recording_arguments(parser: argparse.ArgumentParser) -> None:
     """The recording and output flags shared by ``run pursuit`` and ``run foraging``."""
-    parser.add_argument("--record", type=output_folder, default=None, metavar="DIR",
-                        help="write episode.mp4/.rrd, metrics.json")
+    parser.add_argument(
+        "--record",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="write episode.mp4/.rrd, metrics.json",
+    )
     parser.add_argument("--video-fps", type=float, default=12.0, help="frames per second of the video (12)")
-    parser.add_argument("--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)")
-    parser.add_argument("--size", type=_frame_size, default=480,
-                        help="video width and height in pixels, even, at most the arenas' 640 (480)")
+    parser.add_argument(
+        "--video-speed", type=float, default=2.0, help="simulated seconds per video second (2)"
+    )
+    parser.add_argument(
+        "--size",
+        type=_frame_size,
+        default=480,
+        help="video width and height in pixels, even, at most the arenas' 640 (480)",
+    )
     parser.add_argument("--no-overlay", action="store_true", help="no heads-up text on the video")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -139,11 +173,22 @@ def handle_pursuit(args: argparse.Namespace) -> int:
     from embodied_adhoc.experiments.recorded_pursuit import PursuitEpisodeConfig, run_pursuit_episode
 
     config = PursuitEpisodeConfig(
-        agent=args.agent, seed=args.seed, task=args.task, max_steps=args.max_steps, record_dir=args.record,
-        video_fps=args.video_fps, video_speed=args.video_speed, size=args.size, video_overlay=not args.no_overlay,
+        agent=args.agent,
+        seed=args.seed,
+        task=args.task,
+        max_steps=args.max_steps,
+        record_dir=args.record,
+        video_fps=args.video_fps,
+        video_speed=args.video_speed,
+        size=args.size,
+        video_overlay=not args.no_overlay,
     )
-    summary = _play(args, "pursuit", lambda progress: run_pursuit_episode(config, progress),
-                    lambda info: f"sim {info['sim_time']:.0f}s")
+    summary = _play(
+        args,
+        "pursuit",
+        lambda progress: run_pursuit_episode(config, progress),
+        lambda info: f"sim {info['sim_time']:.0f}s",
+    )
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
@@ -173,13 +218,24 @@ def handle_foraging(args: argparse.Namespace) -> int:
     from embodied_adhoc.experiments.recorded_foraging import ForagingEpisodeConfig, run_foraging_episode
 
     config = ForagingEpisodeConfig(
-        agent=args.agent, seed=args.seed, task=args.task, teams=tuple(t.strip() for t in args.team.split(",")),
-        library=None if args.library is None else Path(args.library), max_steps=args.max_steps,
-        record_dir=args.record, video_fps=args.video_fps, video_speed=args.video_speed, size=args.size,
+        agent=args.agent,
+        seed=args.seed,
+        task=args.task,
+        teams=tuple(t.strip() for t in args.team.split(",")),
+        library=None if args.library is None else Path(args.library),
+        max_steps=args.max_steps,
+        record_dir=args.record,
+        video_fps=args.video_fps,
+        video_speed=args.video_speed,
+        size=args.size,
         video_overlay=not args.no_overlay,
     )
-    summary = _play(args, "foraging", lambda progress: run_foraging_episode(config, progress),
-                    lambda info: f"apples left {info['remaining']}")
+    summary = _play(
+        args,
+        "foraging",
+        lambda progress: run_foraging_episode(config, progress),
+        lambda info: f"apples left {info['remaining']}",
+    )
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0

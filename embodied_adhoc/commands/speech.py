@@ -129,7 +129,9 @@ def register(subparsers) -> None:
         "with known words: by default every voice reading --phrases synthesised phrases (seed 2, held out "
         "from `speech eval`'s seed 0), or your own recordings with --recordings.",
     )
-    adapt.add_argument("--voices", default=None, metavar="V,V,...", help="espeak-ng voices (default: the six)")
+    adapt.add_argument(
+        "--voices", default=None, metavar="V,V,...", help="espeak-ng voices (default: the six)"
+    )
     adapt.add_argument("--phrases", type=int, default=60, help="synthesised phrases per voice (default 60)")
     adapt.add_argument("--seed", type=seed, default=2, help="seed of synthesised phrases, >= 0 (default 2)")
     adapt.add_argument(
@@ -350,7 +352,9 @@ def handle_adapt(args: argparse.Namespace) -> int:
     else:
         voices = _voices(args.voices, "--voices") or synthesis.DEFAULT_VOICES
         levels = _parse_list(args.snr, "snr") or (None,)
-        config = speech_eval.EvalConfig(voices=voices, snr_levels=levels, phrases=args.phrases, seed=args.seed)
+        config = speech_eval.EvalConfig(
+            voices=voices, snr_levels=levels, phrases=args.phrases, seed=args.seed
+        )
         phrases = speech_eval.phrase_list(config)
         utterances = (
             (speech_eval.utterance_audio(config, v, p, k, phrase)[1], phrase.reference)

@@ -36,8 +36,10 @@ def _agents(text: str, domain: str = "pursuit") -> list[str]:
 
     unknown = [name for name in names if name not in allowed and not names_plugin("agent", name)]
     if unknown or not names:
-        raise ConfigError(f"--agents {text!r}: unknown {', '.join(unknown) or '(none given)'} on {domain}; choose "
-                          f"from {', '.join(allowed)}, or a plug-in MODULE:CALLABLE (docs/plugins.md)")
+        raise ConfigError(
+            f"--agents {text!r}: unknown {', '.join(unknown) or '(none given)'} on {domain}; choose "
+            f"from {', '.join(allowed)}, or a plug-in MODULE:CALLABLE (docs/plugins.md)"
+        )
     for name in names:  # a plug-in that cannot be imported stops here, before any learning
         if name not in allowed:
             resolve("agent", name, builtin=allowed, flag="--agents")
@@ -49,7 +51,9 @@ def handle(args: argparse.Namespace) -> int:
     if args.steps % args.points:
         raise ConfigError(f"--steps {args.steps}: must be a multiple of --points {args.points}")
     if args.changed_steps is not None and args.changed_steps % args.points:
-        raise ConfigError(f"--changed-steps {args.changed_steps}: must be a multiple of --points {args.points}")
+        raise ConfigError(
+            f"--changed-steps {args.changed_steps}: must be a multiple of --points {args.points}"
+        )
     from embodied_adhoc.experiments.teamster import final_table, summarise, write_outputs
     from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, parse_change, run_trial
     from embodied_adhoc.learning.teamster_agents import TABLE_4_1
@@ -59,25 +63,41 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(f"--changed-steps {args.changed_steps}: only with a changed phase (--changed)")
 
     iterations, depth = TABLE_4_1[args.domain]
-    config = ProtocolConfig(steps=args.steps, eval_steps=args.eval_steps, points=args.points,
-                            changed=changed, changed_steps=args.changed_steps, seed=args.seed, iterations=args.iterations or iterations,
-                            depth=args.depth or depth, domain=args.domain, eval_episodes=args.eval_episodes)
+    config = ProtocolConfig(
+        steps=args.steps,
+        eval_steps=args.eval_steps,
+        points=args.points,
+        changed=changed,
+        changed_steps=args.changed_steps,
+        seed=args.seed,
+        iterations=args.iterations or iterations,
+        depth=args.depth or depth,
+        domain=args.domain,
+        eval_episodes=args.eval_episodes,
+    )
     out = args.out
     records = []
     jobs = [(agent, trial) for agent in agents for trial in range(args.trials)]
     from tqdm import tqdm
 
     phases = 3 + bool(config.changed)
-    bar = tqdm(total=len(jobs) * phases, desc="teamster", unit="team", disable=args.json or args.quiet,
-               file=sys.stderr)
+    bar = tqdm(
+        total=len(jobs) * phases,
+        desc="teamster",
+        unit="team",
+        disable=args.json or args.quiet,
+        file=sys.stderr,
+    )
     try:
         for agent, trial in jobs:
             path = Path(out, "runs", agent, f"trial-{trial}.json") if out else None
             if path is not None and path.is_file():
                 record = json.loads(path.read_text())
                 if record.get("config") != config.as_dict():
-                    raise ConfigError(f"{path}: written with other settings ({record.get('config')}); use another "
-                                      "--out or the same options")
+                    raise ConfigError(
+                        f"{path}: written with other settings ({record.get('config')}); use another "
+                        "--out or the same options"
+                    )
                 bar.update(phases)
             else:
                 bar.set_postfix_str(f"{agent} trial {trial}")
@@ -91,8 +111,12 @@ def handle(args: argparse.Namespace) -> int:
     if out is not None:
         write_outputs(summary, out)
     if args.json:
-        print(json.dumps({"domain": args.domain, "config": config.as_dict(), "trials": args.trials,
-                          "agents": summary}, indent=2))
+        print(
+            json.dumps(
+                {"domain": args.domain, "config": config.as_dict(), "trials": args.trials, "agents": summary},
+                indent=2,
+            )
+        )
     else:
         print(final_table(summary))
         if out is not None:
@@ -101,35 +125,76 @@ def handle(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("teamster", help="chapter 4: TEAMSTER, PLASTIC-Model/-Policy, sequential teams",
-                                   description=__doc__)
-    parser.add_argument("domain", choices=("pursuit", "ntu", "isr", "pentagon"),
-                        help="pursuit (5x5, 4 predators) or a navigation map (ntu, isr, pentagon)")
-    parser.add_argument("--agents", default=",".join(DEFAULT_AGENTS), metavar="A,B,...",
-                        help=f"comma-separated from {{{', '.join(AGENTS)}}} (default {','.join(DEFAULT_AGENTS)}), or "
-                             "plug-ins: factory(world, rng=, horizon=) -> a chapter-4 agent (docs/plugins.md)")
-    parser.add_argument("--steps", type=positive_int, default=5000,
-                        help="interaction steps per team, a multiple of --points (default 5000)")
+    parser = subparsers.add_parser(
+        "teamster", help="chapter 4: TEAMSTER, PLASTIC-Model/-Policy, sequential teams", description=__doc__
+    )
+    parser.add_argument(
+        "domain",
+        choices=("pursuit", "ntu", "isr", "pentagon"),
+        help="pursuit (5x5, 4 predators) or a navigation map (ntu, isr, pentagon)",
+    )
+    parser.add_argument(
+        "--agents",
+        default=",".join(DEFAULT_AGENTS),
+        metavar="A,B,...",
+        help=f"comma-separated from {{{', '.join(AGENTS)}}} (default {','.join(DEFAULT_AGENTS)}), or "
+        "plug-ins: factory(world, rng=, horizon=) -> a chapter-4 agent (docs/plugins.md)",
+    )
+    parser.add_argument(
+        "--steps",
+        type=positive_int,
+        default=5000,
+        help="interaction steps per team, a multiple of --points (default 5000)",
+    )
     parser.add_argument("--trials", type=positive_int, default=8, help="trials per agent (default 8)")
-    parser.add_argument("--eval-steps", type=positive_int, default=500,
-                        help="pursuit: steps per evaluation (default 500)")
-    parser.add_argument("--eval-episodes", type=positive_int, default=8,
-                        help="navigation: episodes (of at most 100 steps) per evaluation (default 8)")
-    parser.add_argument("--points", type=positive_int, default=10,
-                        help="evaluations per interaction (default 10: every 10 %%)")
-    parser.add_argument("--changed", default="0", metavar="fail:P|mirror",
-                        help="add the changed-environment phase: fail:P, predator moves fail with probability P "
-                             "(a bare P: the same); mirror, the ad hoc agent's moves mirrored (default none)")
-    parser.add_argument("--changed-steps", type=positive_int, default=None,
-                        help="interaction steps of the changed phase, a multiple of --points (default --steps)")
-    parser.add_argument("--iterations", type=positive_int, default=None,
-                        help="UCT iterations (default Table 4.1's: pursuit and ntu 100, isr and pentagon 300)")
-    parser.add_argument("--depth", type=positive_int, default=None,
-                        help="UCT rollout depth (default Table 4.1's: pursuit 5, ntu 10, isr 50, pentagon 25)")
+    parser.add_argument(
+        "--eval-steps", type=positive_int, default=500, help="pursuit: steps per evaluation (default 500)"
+    )
+    parser.add_argument(
+        "--eval-episodes",
+        type=positive_int,
+        default=8,
+        help="navigation: episodes (of at most 100 steps) per evaluation (default 8)",
+    )
+    parser.add_argument(
+        "--points",
+        type=positive_int,
+        default=10,
+        help="evaluations per interaction (default 10: every 10 %%)",
+    )
+    parser.add_argument(
+        "--changed",
+        default="0",
+        metavar="fail:P|mirror",
+        help="add the changed-environment phase: fail:P, predator moves fail with probability P "
+        "(a bare P: the same); mirror, the ad hoc agent's moves mirrored (default none)",
+    )
+    parser.add_argument(
+        "--changed-steps",
+        type=positive_int,
+        default=None,
+        help="interaction steps of the changed phase, a multiple of --points (default --steps)",
+    )
+    parser.add_argument(
+        "--iterations",
+        type=positive_int,
+        default=None,
+        help="UCT iterations (default Table 4.1's: pursuit and ntu 100, isr and pentagon 300)",
+    )
+    parser.add_argument(
+        "--depth",
+        type=positive_int,
+        default=None,
+        help="UCT rollout depth (default Table 4.1's: pursuit 5, ntu 10, isr 50, pentagon 25)",
+    )
     parser.add_argument("--seed", type=seed, default=0, help="seed, >= 0 (default 0)")
-    parser.add_argument("--out", type=output_folder, default=None, metavar="DIR",
-                        help="store (and resume) the trials in DIR, with summary.json, table.md, curves.png")
+    parser.add_argument(
+        "--out",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="store (and resume) the trials in DIR, with summary.json, table.md, curves.png",
+    )
     parser.add_argument("--json", action="store_true", help="print only the JSON summary on stdout")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.set_defaults(func=handle)
-

@@ -28,8 +28,10 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     values = {name: getattr(args, name) for name in AtlpoTraining.__dataclass_fields__}
     settings = AtlpoTraining(**{**values, "out": str(args.out)})
     report = train_atlpo(settings)
-    print(f"library of {len(report['members'])} in {args.out} ({report['total_seconds']} s, "
-          f"policies {report['policy_seconds']} s)")
+    print(
+        f"library of {len(report['members'])} in {args.out} ({report['total_seconds']} s, "
+        f"policies {report['policy_seconds']} s)"
+    )
     print("step  accuracy  p(true)  ECE")
     scores = report["per_step"]
     for row in scores[:: max(1, len(scores) // 10)]:
@@ -38,31 +40,61 @@ def handle_atlpo(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("train", help="train learned agents (ATLPO-MF library and classifier)",
-                                   description=__doc__.split("\n\n")[0])
+    parser = subparsers.add_parser(
+        "train",
+        help="train learned agents (ATLPO-MF library and classifier)",
+        description=__doc__.split("\n\n")[0],
+    )
     kinds = parser.add_subparsers(dest="kind", metavar="KIND")
     parser.set_defaults(_parser=parser)
-    atlpo = kinds.add_parser("atlpo", help="one PPO policy per task x team environment, then the classifier",
-                             description=__doc__)
+    atlpo = kinds.add_parser(
+        "atlpo", help="one PPO policy per task x team environment, then the classifier", description=__doc__
+    )
     atlpo.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
-    atlpo.add_argument("--set", dest="set_name", choices=("task", "team", "task+team"), required=True,
-                       help="task: tasks 1-4 with tau1; team: tau0-2 on task 1; task+team: both (K=6)")
-    atlpo.add_argument("--steps", type=int, default=30_000, help="env steps per policy (default 30000, the thesis's)")
+    atlpo.add_argument(
+        "--set",
+        dest="set_name",
+        choices=("task", "team", "task+team"),
+        required=True,
+        help="task: tasks 1-4 with tau1; team: tau0-2 on task 1; task+team: both (K=6)",
+    )
+    atlpo.add_argument(
+        "--steps", type=int, default=30_000, help="env steps per policy (default 30000, the thesis's)"
+    )
     atlpo.add_argument("--seed", type=int, default=0)
-    atlpo.add_argument("--envs", type=int, default=16, help="parallel sub-envs of the vector env (default 16)")
-    atlpo.add_argument("--episodes", type=int, default=256, help="classifier training episodes per environment")
+    atlpo.add_argument(
+        "--envs", type=int, default=16, help="parallel sub-envs of the vector env (default 16)"
+    )
+    atlpo.add_argument(
+        "--episodes", type=int, default=256, help="classifier training episodes per environment"
+    )
     atlpo.add_argument("--episode-steps", type=int, default=30, help="steps kept per classifier episode")
     atlpo.add_argument("--iterations", type=int, default=600, help="classifier training iterations")
-    atlpo.add_argument("--mixing", type=float, default=0.5,
-                       help="chance per step that a classifier episode takes a random member's action (default 0.5)")
+    atlpo.add_argument(
+        "--mixing",
+        type=float,
+        default=0.5,
+        help="chance per step that a classifier episode takes a random member's action (default 0.5)",
+    )
     atlpo.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     atlpo.add_argument("--threads", type=int, default=0, help="torch CPU threads (default: torch's choice)")
-    atlpo.add_argument("--generalist", action="store_true",
-                       help="also train the model-free baseline on all the set's environments together")
-    atlpo.add_argument("--model", choices=("mf", "mb"), default="mf",
-                       help="mf: ATLPO-MF (PPO end to end, Fig. 6.2); mb: ATLPO-MB (encoder, transition and reward "
-                            "predictors and decoder on replayed experience, then PPO on the latents, Fig. 6.3)")
+    atlpo.add_argument(
+        "--generalist",
+        action="store_true",
+        help="also train the model-free baseline on all the set's environments together",
+    )
+    atlpo.add_argument(
+        "--model",
+        choices=("mf", "mb"),
+        default="mf",
+        help="mf: ATLPO-MF (PPO end to end, Fig. 6.2); mb: ATLPO-MB (encoder, transition and reward "
+        "predictors and decoder on replayed experience, then PPO on the latents, Fig. 6.3)",
+    )
     atlpo.add_argument("--quiet", action="store_true", help="no progress bar")
-    atlpo.add_argument("--out", type=output_folder, required=True,
-                       help="folder for the weights, library.json and training.json (not an existing file)")
+    atlpo.add_argument(
+        "--out",
+        type=output_folder,
+        required=True,
+        help="folder for the weights, library.json and training.json (not an existing file)",
+    )
     atlpo.set_defaults(func=handle_atlpo)

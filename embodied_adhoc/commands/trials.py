@@ -159,7 +159,13 @@ def _note_single_task(domain_name: str, backend: str, options: dict) -> None:
     names = tuple(open_session(domain_name, backend, options).task_names)
     if len(names) == 1:
         hint = " (a map's tasks are the pairs of its 'G' cells: draw a third 'G' for three tasks)"
-        maps = dict(options.get("library") or {}).get("map") or domain_name in ("ntu", "isr", "mit", "pentagon", "cit")
+        maps = dict(options.get("library") or {}).get("map") or domain_name in (
+            "ntu",
+            "isr",
+            "mit",
+            "pentagon",
+            "cit",
+        )
         print(
             f"embodied-adhoc: note: {domain_name} has a single task ({names[0]}): nothing to identify, entropy.png "
             f"is not drawn{hint if maps else ''}",
@@ -175,7 +181,9 @@ def _privileged_agents(config) -> tuple[str, ...]:
     domain = get_trial_domain(config.domain)
     session = open_session(config.domain, config.backend, dict(config.options))
     spec = domain.episode_spec(dict(config.options), seeding.episode_rng(config.seed, 0))
-    return privileged_agents(domain, session, config.agents, spec, seeding.agent_seed(config.seed, 0, "check"))
+    return privileged_agents(
+        domain, session, config.agents, spec, seeding.agent_seed(config.seed, 0, "check")
+    )
 
 
 def _default_cap(domain_name: str, backend: str, options: dict) -> int:
@@ -199,7 +207,12 @@ def _run_one(args: argparse.Namespace, config, out):
     from embodied_adhoc.experiments.tables import comparison_table, summary_table
 
     result = run_sweep(
-        config, out=out, workers=args.workers, executor=args.executor, progress=not args.json, new_run=args.new_run
+        config,
+        out=out,
+        workers=args.workers,
+        executor=args.executor,
+        progress=not args.json,
+        new_run=args.new_run,
     )
     out = result.out  # the sibling that --new-run chose, if it chose one
     summary = result.summary()
@@ -234,7 +247,9 @@ def _run_one(args: argparse.Namespace, config, out):
     print(summary_table(summary))
     marked = _privileged_agents(config)
     if marked:  # the baselines defined by privileged access, apart from the ad hoc agents
-        print(f"privileged (observe the true state, through the env's privileged_state()): {', '.join(marked)}")
+        print(
+            f"privileged (observe the true state, through the env's privileged_state()): {', '.join(marked)}"
+        )
     from embodied_adhoc.experiments.summary import extras_table
 
     extras = extras_table(summary)

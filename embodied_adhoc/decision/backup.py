@@ -58,7 +58,9 @@ class RowProducts:
             raise SolverError(f"threads must be an integer >= 1, got {threads!r}")
         self.threads = threads
         # threads - 1 workers: the calling thread computes the first part itself.
-        self._pool = ThreadPoolExecutor(threads - 1, thread_name_prefix="row-products") if threads > 1 else None
+        self._pool = (
+            ThreadPoolExecutor(threads - 1, thread_name_prefix="row-products") if threads > 1 else None
+        )
 
     def __call__(
         self,
@@ -68,7 +70,9 @@ class RowProducts:
     ) -> np.ndarray:
         """``reduce(matrix @ dense)`` for a ``reduce`` that works row by row (e.g. an argmax over axis 1)."""
         reduce = reduce or _identity
-        if not sp.issparse(matrix):  # dense rows (beliefs) in CSR form: scipy's fixed summation order, never BLAS
+        if not sp.issparse(
+            matrix
+        ):  # dense rows (beliefs) in CSR form: scipy's fixed summation order, never BLAS
             matrix = sp.csr_matrix(matrix)
         if self._pool is None or matrix.nnz * dense.shape[-1] < _SPLIT_MIN_WORK:
             return reduce(dot(matrix, dense))
@@ -141,7 +145,8 @@ class BackupOperator:
         for matrix in self.observation_rows:
             matrix.sort_indices()
         self.sparse_observations = tuple(
-            matrix.nnz < _DENSE_DENSITY * pomdp.n_states * pomdp.n_observations for matrix in self.observation_rows
+            matrix.nnz < _DENSE_DENSITY * pomdp.n_states * pomdp.n_observations
+            for matrix in self.observation_rows
         )
 
     def close(self) -> None:
@@ -242,24 +247,31 @@ class BackupOperator:
         best = np.empty(len(branch_keys), dtype=np.int64)
         scored = np.ones(len(branch_keys), dtype=bool)  # branches left to the product
         single = np.bincount(rows, minlength=len(branch_keys)) == 1  # branches with one entry (one state)
-        if np.count_nonzero(single) * 8 >= self.pomdp.n_states:  # else the per-state maxima cost more than they save
+        if (
+            np.count_nonzero(single) * 8 >= self.pomdp.n_states
+        ):  # else the per-state maxima cost more than they save
             # Their best vector is the first one best at that state where that provably equals the product's argmax
             # (_state_best; the pursuit model: 63 % of a batch's branches); the others stay in the product.
             top, leader, clean = self._state_best(prepared)
             lone = single[rows]
             lone_rows, lone_states = rows[lone], states[lone]
-            exact = clean[lone_states] & (np.abs(weights32[lone].astype(np.float64) * top[lone_states]) >= 1e-30)
+            exact = clean[lone_states] & (
+                np.abs(weights32[lone].astype(np.float64) * top[lone_states]) >= 1e-30
+            )
             best[lone_rows[exact]] = leader[lone_states[exact]]
             scored[lone_rows[exact]] = False
         if scored.all():
-            weights = sp.csr_matrix((weights32, (rows, states)), shape=(len(branch_keys), self.pomdp.n_states))
+            weights = sp.csr_matrix(
+                (weights32, (rows, states)), shape=(len(branch_keys), self.pomdp.n_states)
+            )
             best = self.products(weights, prepared.alphas_t, _row_argmax)  # (branches,)
         elif scored.any():
             product_rows = np.flatnonzero(scored)
             renumber = np.cumsum(scored) - 1
             kept = scored[rows]
             weights = sp.csr_matrix(
-                (weights32[kept], (renumber[rows[kept]], states[kept])), shape=(len(product_rows), self.pomdp.n_states)
+                (weights32[kept], (renumber[rows[kept]], states[kept])),
+                shape=(len(product_rows), self.pomdp.n_states),
             )
             best[product_rows] = self.products(weights, prepared.alphas_t, _row_argmax)
         branch_beliefs = branch_keys // n_obs
@@ -318,7 +330,9 @@ class BackupOperator:
                 if impossible.any():
                     chosen[:] = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
             action_values[action] = immediate[action] + self.discount * continuation
-        best_actions = np.argmax(action_values, axis=0)  # the first of equal values, as a running maximum would
+        best_actions = np.argmax(
+            action_values, axis=0
+        )  # the first of equal values, as a running maximum would
         best_vectors = np.empty((n, n_states))
         best_values = np.empty(n)
         best_children = np.empty((n, n_obs), dtype=np.int64)
@@ -340,7 +354,9 @@ class BackupOperator:
         # continuation[s', i] = sum_z O(z|s',a) alpha_{chosen[z,i]}(s'), gathered per observation entry.
         per_entry = alphas[chosen[observations], end_states[:, None]] * probabilities[:, None]  # (nnz, n)
         continuation = from_entries @ per_entry  # (S', n)
-        return self.rewards_by_action[action][:, None] + self.discount * (self.transitions[action] @ continuation)
+        return self.rewards_by_action[action][:, None] + self.discount * (
+            self.transitions[action] @ continuation
+        )
 
 
 def _dense_choices(
@@ -383,11 +399,15 @@ def _dense_choices(
     chosen = first.T  # (Z, n)
     beliefs = np.tile(np.arange(n), n_obs)
     columns = (np.arange(n_obs)[:, None] * n_vectors + chosen).ravel()
-    continuation = np.add.reduce(_fixed_order_scores(predicted, projected, beliefs, columns).reshape(n_obs, n), axis=0)
+    continuation = np.add.reduce(
+        _fixed_order_scores(predicted, projected, beliefs, columns).reshape(n_obs, n), axis=0
+    )
     return chosen, continuation
 
 
-def _fixed_order_scores(predicted: np.ndarray, projected: np.ndarray, beliefs: np.ndarray, columns: np.ndarray):
+def _fixed_order_scores(
+    predicted: np.ndarray, projected: np.ndarray, beliefs: np.ndarray, columns: np.ndarray
+):
     """``predicted[:, beliefs[j]] . projected[:, columns[j]]`` for each ``j``, summed over ``s`` in increasing order."""
     return np.add.reduce(predicted[:, beliefs] * projected[:, columns], axis=0)
 

@@ -42,7 +42,9 @@ def sample_path(
         _, probabilities, posteriors = successors[int(np.argmax(q_upper))]
         if not len(probabilities):
             break
-        excess = probabilities * (upper.values(posteriors) - lower(posteriors) - precision / gamma ** (depth + 1))
+        excess = probabilities * (
+            upper.values(posteriors) - lower(posteriors) - precision / gamma ** (depth + 1)
+        )
         belief = posteriors[int(np.argmax(excess))]
     for belief, successors in reversed(path):
         upper.update(belief, successors)

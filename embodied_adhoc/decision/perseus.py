@@ -46,7 +46,10 @@ STOP_RULES = ("bound", "gain")
 UPDATES = ("gauss-seidel", "perseus")
 # Looked up in the time module at each reading, so that a patched time.perf_counter (tests simulating load) reaches
 # the solver.
-CLOCKS: dict[str, Callable[[], float]] = {"wall": lambda: time.perf_counter(), "cpu": lambda: time.process_time()}
+CLOCKS: dict[str, Callable[[], float]] = {
+    "wall": lambda: time.perf_counter(),
+    "cpu": lambda: time.process_time(),
+}
 _TRIAL_SHARE = 0.1  # with a time limit, trials from b0 take at most this share of the time spent
 _DOMINANCE_CANDIDATES = 4  # new vectors tested for dominating each vector a stage drops
 
@@ -194,7 +197,9 @@ def _infinite_horizon(
     def report(at_iteration: int, gain: float, n_beliefs: int | None = None) -> None:
         if progress is not None:
             seconds, count = clock() - start, len(beliefs) if n_beliefs is None else n_beliefs
-            progress(SolverProgress(at_iteration, seconds, bounds.lower, len(graph), gain, bounds.upper, count))
+            progress(
+                SolverProgress(at_iteration, seconds, bounds.lower, len(graph), gain, bounds.upper, count)
+            )
 
     report(0, np.inf)  # the bounds from the first instant: blind policies and the fast informed bound
     improvement, on_beliefs, iteration = np.inf, False, 0
@@ -209,7 +214,11 @@ def _infinite_horizon(
     old_rows = None  # per row of current: its values on B (None: not known)
     for iteration in range(1, config.max_iterations + 1):
         now = clock()
-        if config.expand and trial_wait <= 0 and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start)):
+        if (
+            config.expand
+            and trial_wait <= 0
+            and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start))
+        ):
             # A trial from b0 before a stage (for at most half the last stage's time, and a tenth of the time so
             # far, with a time limit). A trial that raises V(b0) by less than the tolerance, or by less than the
             # last stage did, doubles the number of stages until the next one: a trial before every stage
@@ -286,11 +295,15 @@ def _infinite_horizon(
         # many beliefs as B holds, from the trajectories B was collected from (PBVI-like breadth: the set grows
         # geometrically). The excess-gap beliefs themselves are not added: chosen greedily on a loose upper bound
         # they cost backups without raising the lower bound.
-        _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock)
+        _explore(
+            upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock
+        )
         new: list[np.ndarray] = []
         if config.expand:
             count = len(beliefs) // 2 + 1
-            new = _unknown(collect_beliefs(pomdp, count, rng, greedy_q=greedy_q, epsilon=config.epsilon), known)
+            new = _unknown(
+                collect_beliefs(pomdp, count, rng, greedy_q=greedy_q, epsilon=config.epsilon), known
+            )
         last_round, last_round_time = iteration, clock()
         bounds = _Bounds(bounds.lower, float(upper.values(b0)[0]))
         new = new[: max(0, max_beliefs - len(beliefs))]
@@ -302,7 +315,14 @@ def _infinite_horizon(
             # the deadline, else for at most a quarter of the time spent so far).
             last = deadline or clock() + max(1.0, 0.25 * (clock() - start))
             while bounds.gap > config.precision and clock() < last:
-                _explore(upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock)
+                _explore(
+                    upper,
+                    _lower_values(alphas),
+                    b0,
+                    config.precision,
+                    _time_budget(start, deadline, clock),
+                    clock,
+                )
                 moved = bounds.upper - float(upper.values(b0)[0])
                 bounds = _Bounds(bounds.lower, bounds.upper - moved)
                 report(iteration, improvement)
@@ -312,8 +332,10 @@ def _infinite_horizon(
         if on_beliefs:
             if not config.expand:
                 break
-            if deadline is None and round_start.lower + config.tolerance >= bounds.lower and (
-                round_start.upper - config.tolerance <= bounds.upper
+            if (
+                deadline is None
+                and round_start.lower + config.tolerance >= bounds.lower
+                and (round_start.upper - config.tolerance <= bounds.upper)
             ):
                 break  # a whole expansion round moved neither bound by more than the tolerance
             round_start = bounds
@@ -384,7 +406,9 @@ def _explore(
             break  # the gap at b0 is within precision
 
 
-def _max_depth(upper: SawtoothBound, lower: Callable[[np.ndarray], np.ndarray], b0: np.ndarray, precision: float) -> int:
+def _max_depth(
+    upper: SawtoothBound, lower: Callable[[np.ndarray], np.ndarray], b0: np.ndarray, precision: float
+) -> int:
     """Beyond this depth any gap at b0's scale is within precision / gamma^depth, so paths end there anyway."""
     gamma, scale = upper.pomdp.discount, float(upper.values(b0)[0] - lower(b0[None, :])[0])
     return int(np.clip(np.log(max(precision, 1e-9) / max(scale, 1e-9)) / np.log(gamma), 20, 1000))
@@ -413,7 +437,9 @@ def _lower_trial(
     path = sample_path(upper, lower, b0, precision / 2, depth, deadline, clock)
     for belief in reversed(path):
         alphas = graph.vectors[current]
-        vector, action, value, children = operator.backup(belief[None, :], alphas, with_children=True, project=False)
+        vector, action, value, children = operator.backup(
+            belief[None, :], alphas, with_children=True, project=False
+        )
         if value[0] > float(dot(belief, alphas.T).max()) + 1e-12:
             current = np.append(current, graph.add(vector, action, current[children]))
     return current
@@ -489,7 +515,7 @@ def _record(
             scores = np.stack([row[witnesses] for row in stage.score_rows], axis=1)  # (dropped, new)
         else:
             scores = np.asarray(rows[witnesses] @ stage.vectors.T)
-        candidates = np.argsort(-scores, axis=1)[:, : _DOMINANCE_CANDIDATES]
+        candidates = np.argsort(-scores, axis=1)[:, :_DOMINANCE_CANDIDATES]
         dominates = np.all(stage.vectors[candidates] >= old[:, None, :], axis=2)  # (dropped, candidates)
         found = dominates.any(axis=1)
         if found.any():
@@ -541,7 +567,10 @@ class _ScoredSet:
             self.prepared = self.operator.prepare_parts(
                 np.concatenate([self.alphas[old], self.new]),
                 np.concatenate([self.old_t[:, old], self.new_t], axis=1),
-                tuple(np.concatenate([o[:, old], m], axis=1) for o, m in zip(self.old_fallback, self.new_fallback, strict=True)),
+                tuple(
+                    np.concatenate([o[:, old], m], axis=1)
+                    for o, m in zip(self.old_fallback, self.new_fallback, strict=True)
+                ),
             )
         return self.prepared
 
@@ -549,7 +578,9 @@ class _ScoredSet:
         self.new = np.concatenate([self.new, vectors])
         self.new_t = np.concatenate([self.new_t, vectors.T.astype(np.float32)], axis=1)
         scores = self.operator.fallback_scores(vectors)
-        self.new_fallback = tuple(np.concatenate([m, f], axis=1) for m, f in zip(self.new_fallback, scores, strict=True))
+        self.new_fallback = tuple(
+            np.concatenate([m, f], axis=1) for m, f in zip(self.new_fallback, scores, strict=True)
+        )
 
 
 def _perseus_iteration(
@@ -577,7 +608,9 @@ def _perseus_iteration(
     new_values = np.full(n, -np.inf)
     kept_vectors: list[np.ndarray] = []
     kept_actions: list[int] = []
-    kept_origin: list[int] = []  # index in V_n of a vector kept as it is; -1 (Gauss-Seidel: extended) for a backup
+    kept_origin: list[
+        int
+    ] = []  # index in V_n of a vector kept as it is; -1 (Gauss-Seidel: extended) for a backup
     kept_children: list[np.ndarray] = []
     no_children = np.zeros(operator.n_observations, dtype=np.int64)
     kept_old = np.zeros(count, dtype=bool)
@@ -620,7 +653,9 @@ def _perseus_iteration(
         pending_beliefs = rows[pending]
         # (P, m): pending beliefs' values under the new vectors
         candidate_values = operator.products(pending_beliefs, vectors.T)
-        kept_here: list[int | np.ndarray] = []  # with `everywhere`: a new vector's column j, or an old one's values
+        kept_here: list[
+            int | np.ndarray
+        ] = []  # with `everywhere`: a new vector's column j, or an old one's values
         accepted: list[int] = []
         pending_new = new_values[pending]
         pending_old = values[pending]
@@ -647,15 +682,21 @@ def _perseus_iteration(
                     kept_children.append(no_children)
                     if everywhere:
                         known = None if seidel is None or seidel.old_rows is None else seidel.old_rows[old]
-                        kept_here.append(np.asarray(rows @ alphas[old][:, None]).ravel() if known is None else known)
+                        kept_here.append(
+                            np.asarray(rows @ alphas[old][:, None]).ravel() if known is None else known
+                        )
                         np.maximum(pending_new, kept_here[-1][pending], out=pending_new)
                     else:
-                        np.maximum(pending_new, (pending_beliefs @ alphas[old][:, None]).ravel(), out=pending_new)
+                        np.maximum(
+                            pending_new, (pending_beliefs @ alphas[old][:, None]).ravel(), out=pending_new
+                        )
                 # V_n(b) is kept exactly (guards against a last-bit difference between matvec and matmul).
                 pending_new[j] = max(pending_new[j], pending_old[j])
         new_values[pending] = pending_new
         if seidel is not None and accepted:
-            added = seidel.graph.add(vectors[accepted], vector_actions[accepted], extended[children[accepted]])
+            added = seidel.graph.add(
+                vectors[accepted], vector_actions[accepted], extended[children[accepted]]
+            )
             extended = np.concatenate([extended, added])
             new_witness.append(batch[accepted])
             scored.add(vectors[accepted])
@@ -666,7 +707,15 @@ def _perseus_iteration(
     if seidel is not None:
         seidel.extended = extended
         seidel.new_witness = np.concatenate(new_witness) if new_witness else np.zeros(0, dtype=np.int64)
-    stage = _stack(kept_vectors, kept_actions, kept_origin, kept_children, (beliefs.shape[1], operator.n_observations), new_values, timed_out)
+    stage = _stack(
+        kept_vectors,
+        kept_actions,
+        kept_origin,
+        kept_children,
+        (beliefs.shape[1], operator.n_observations),
+        new_values,
+        timed_out,
+    )
     if timed_out:
         return stage
     # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning

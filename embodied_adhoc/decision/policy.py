@@ -217,7 +217,9 @@ def _float32_below(alphas: np.ndarray, discount: float) -> tuple[np.ndarray, flo
     ``lowered``. Comparisons between float32 and float64 are exact, so the rounding direction is checked, not hoped.
     """
     scale = max(float(np.abs(alphas).max()), 1.0)
-    top = scale * (1.0 + 2.0**-20 / (1.0 - discount))  # above every |alpha - m| (m < 2**-20 scale / (1 - gamma))
+    top = scale * (
+        1.0 + 2.0**-20 / (1.0 - discount)
+    )  # above every |alpha - m| (m < 2**-20 scale / (1 - gamma))
     spacing = float(np.spacing(np.float32(top)))  # >= the float32 spacing at any |x| <= top
     # m (1 - gamma) >= gamma u, with slack for the float64 rounding of alpha - m (about 1e-16 scale)
     margin = 1.01 * (discount * spacing + 1e-12 * scale) / (1.0 - discount)

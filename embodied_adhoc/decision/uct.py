@@ -45,8 +45,10 @@ class UctConfig:
             if not isinstance(value, int) or value < 1:
                 raise ConfigError(f"UctConfig.{name}={value!r}: give a positive integer")
         if not (self.exploration >= 0 and 0 < self.discount <= 1):
-            raise ConfigError(f"UctConfig: exploration={self.exploration} must be >= 0 and discount="
-                              f"{self.discount} in (0, 1]")
+            raise ConfigError(
+                f"UctConfig: exploration={self.exploration} must be >= 0 and discount="
+                f"{self.discount} in (0, 1]"
+            )
 
 
 class _Node:
@@ -79,14 +81,19 @@ class _Node:
 
     def best(self) -> int:
         """The action of highest mean value (ties: the most visited, then the lowest index)."""
-        return max(range(len(self.counts)), key=lambda a: (self.values[a] if self.counts[a] else -math.inf,
-                                                           self.counts[a], -a))
+        return max(
+            range(len(self.counts)),
+            key=lambda a: (self.values[a] if self.counts[a] else -math.inf, self.counts[a], -a),
+        )
 
 
 def _codes(states: np.ndarray) -> list[int]:
     """Hashable keys of the rows of ``states`` (non-negative ints below 2**12 each)."""
-    return (states.astype(np.int64) @ (4096 ** np.arange(states.shape[1], dtype=np.int64))).tolist() \
-        if states.shape[1] <= 5 else [row.tobytes() for row in states]
+    return (
+        (states.astype(np.int64) @ (4096 ** np.arange(states.shape[1], dtype=np.int64))).tolist()
+        if states.shape[1] <= 5
+        else [row.tobytes() for row in states]
+    )
 
 
 class BatchedUct:
@@ -108,8 +115,9 @@ class BatchedUct:
         self.last_root = tree[root_key]
         return self.last_root.best()
 
-    def _wave(self, states: np.ndarray, root_key, tree: dict, simulate: Simulator,
-              rng: np.random.Generator) -> None:
+    def _wave(
+        self, states: np.ndarray, root_key, tree: dict, simulate: Simulator, rng: np.random.Generator
+    ) -> None:
         cfg = self.config
         width = states.shape[0]
         paths: list[list[tuple[_Node, int]]] = [[] for _ in range(width)]
@@ -191,8 +199,9 @@ class PlainUct:
         return tree[root_key].best()
 
 
-def update_team_belief(belief: np.ndarray, likelihoods: np.ndarray, eta: float = 0.1,
-                       rule: str = "plastic", floor: float = 1e-3) -> np.ndarray:
+def update_team_belief(
+    belief: np.ndarray, likelihoods: np.ndarray, eta: float = 0.1, rule: str = "plastic", floor: float = 1e-3
+) -> np.ndarray:
     """The team belief after observing the teammates' actions, given each model's ``pi(A | x)`` (the product
     of Eq. 4.2, computed by the caller).
 

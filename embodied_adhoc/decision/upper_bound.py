@@ -38,7 +38,10 @@ def fast_informed_bound(
     # Per action, only the possible (s, z) pairs: the sparse (pairs x S') matrix of T(s, a, s') O(z | s', a)
     # and the start state of each pair. Pairs with P(z | s, a) = 0 add max_a' 0 = 0 to the sum over z, so they
     # are left out (a dense (Z, S, A) array per action took 11.6 s on overcooked's 1,730 identity observations).
-    joined = [_joint_rows(transition, observation) for transition, observation in zip(pomdp.transitions, pomdp.observations, strict=True)]
+    joined = [
+        _joint_rows(transition, observation)
+        for transition, observation in zip(pomdp.transitions, pomdp.observations, strict=True)
+    ]
     gamma = pomdp.discount
     for _ in range(max_iterations):
         new = np.empty_like(q_values)
@@ -90,7 +93,9 @@ class SawtoothBound:
         self._starts = np.empty(0, dtype=np.int64)
         self._values = np.empty(0)
         self._excess: np.ndarray | None = None
-        self._indicator: sp.csr_matrix | None = None  # (P, S): 1 on each point's support; rebuilt when one is added
+        self._indicator: sp.csr_matrix | None = (
+            None  # (P, S): 1 on each point's support; rebuilt when one is added
+        )
         self._sizes = np.empty(0, dtype=np.int64)
 
     @property
@@ -104,12 +109,15 @@ class SawtoothBound:
         if not self.n_points:
             return bound
         if self._excess is None:
-            self._excess = self._values - np.add.reduceat(self._masses * self.corners[self._support], self._starts)
+            self._excess = self._values - np.add.reduceat(
+                self._masses * self.corners[self._support], self._starts
+            )
         if self._indicator is None:
             sizes = np.diff(np.append(self._starts, len(self._support)))
             indptr = np.append(self._starts, len(self._support))
             self._indicator = sp.csr_matrix(
-                (np.ones(len(self._support)), self._support, indptr), shape=(self.n_points, self.pomdp.n_states)
+                (np.ones(len(self._support)), self._support, indptr),
+                shape=(self.n_points, self.pomdp.n_states),
             )
             self._sizes = sizes
         # phi_i(b) > 0 only where b covers the whole support of b_i: find those (point, belief) pairs with one

@@ -92,7 +92,9 @@ def load_confusion(source: str | os.PathLike | None = None) -> ConfusionMatrix:
         )
     for key in ("nodes", "matrix"):
         if key not in document:
-            raise ConfigError(f"{path}: missing field '{key}' (see embodied_adhoc.domains.confusion for the schema)")
+            raise ConfigError(
+                f"{path}: missing field '{key}' (see embodied_adhoc.domains.confusion for the schema)"
+            )
     if not isinstance(document["nodes"], list) or not all(isinstance(n, str) for n in document["nodes"]):
         raise ConfigError(f"{path}: field 'nodes' must be a list of node names")
     nodes = tuple(document["nodes"])
@@ -104,7 +106,9 @@ def load_confusion(source: str | os.PathLike | None = None) -> ConfusionMatrix:
     sums = matrix.sum(axis=1)
     # Rows given to 3 decimals (as in the thesis) are exact up to rounding: normalise that rounding only.
     matrix = matrix / sums[:, None]
-    return ConfusionMatrix(nodes, matrix, float(document.get("smoothing_floor", 0.0)), dict(document.get("provenance", {})))
+    return ConfusionMatrix(
+        nodes, matrix, float(document.get("smoothing_floor", 0.0)), dict(document.get("provenance", {}))
+    )
 
 
 def save_confusion(confusion: ConfusionMatrix, path: str | os.PathLike) -> Path:

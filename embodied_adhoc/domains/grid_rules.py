@@ -32,8 +32,14 @@ ACTION_NAMES = ("up", "down", "left", "right", "interact")
 MOVES = np.array([[-1, 0], [1, 0], [0, -1], [0, 1], [0, 0]], dtype=np.int64)
 
 OFFSETS = {
-    "N": (-1, 0), "S": (1, 0), "W": (0, -1), "E": (0, 1),
-    "NE": (-1, 1), "NW": (-1, -1), "SE": (1, 1), "SW": (1, -1),
+    "N": (-1, 0),
+    "S": (1, 0),
+    "W": (0, -1),
+    "E": (0, 1),
+    "NE": (-1, 1),
+    "NW": (-1, -1),
+    "SE": (1, 1),
+    "SW": (1, -1),
 }
 
 
@@ -63,7 +69,9 @@ def rotation_tasks(n_agents: int = 4) -> tuple[Task, ...]:
 def pair_tasks() -> tuple[Task, ...]:
     """Fig. 7.12 / section 5.2.5 two-predator tasks: N+S, W+E, SW+NE, NW+SE, positions interchangeable."""
     pairs = (("N", "S"), ("W", "E"), ("SW", "NE"), ("NW", "SE"))
-    return tuple(Task(f"task{i + 1}:{a}+{b}", (OFFSETS[a], OFFSETS[b]), True) for i, (a, b) in enumerate(pairs))
+    return tuple(
+        Task(f"task{i + 1}:{a}+{b}", (OFFSETS[a], OFFSETS[b]), True) for i, (a, b) in enumerate(pairs)
+    )
 
 
 @dataclass(frozen=True)
@@ -91,15 +99,19 @@ class GridConfig:
             raise ConfigError(f"GridConfig {self.rows}x{self.cols}: use at least 3x3 cells")
         all_cells = np.stack(np.divmod(np.arange(self.rows * self.cols), self.cols), axis=-1)
         if GridRules(self).target_cells_valid(all_cells).sum() < self.n_targets:
-            raise ConfigError(f"GridConfig {self.rows}x{self.cols}: too few cells where {self.n_targets} targets can "
-                              "be surrounded (walled grids keep targets off the border and interior corners); "
-                              "use at least 5x5 or toroidal=True")
+            raise ConfigError(
+                f"GridConfig {self.rows}x{self.cols}: too few cells where {self.n_targets} targets can "
+                "be surrounded (walled grids keep targets off the border and interior corners); "
+                "use at least 5x5 or toroidal=True"
+            )
         if self.rows * self.cols < self.n_agents + self.n_targets:
             raise ConfigError(f"GridConfig {self.rows}x{self.cols}: too small for the agents and targets")
         if self.max_agent_level < 1:
             raise ConfigError(f"GridConfig.max_agent_level={self.max_agent_level}: must be >= 1")
         if not 0.0 <= self.prey_stay_probability <= 1.0:
-            raise ConfigError(f"GridConfig.prey_stay_probability={self.prey_stay_probability}: must be in [0, 1]")
+            raise ConfigError(
+                f"GridConfig.prey_stay_probability={self.prey_stay_probability}: must be in [0, 1]"
+            )
 
 
 @dataclass
@@ -117,13 +129,22 @@ class GridState:
             self.alive = np.ones(len(self.targets), dtype=bool)
 
     def copy(self) -> GridState:
-        return GridState(self.agents.copy(), self.agent_levels.copy(), self.targets.copy(),
-                         self.target_levels.copy(), self.alive.copy())
+        return GridState(
+            self.agents.copy(),
+            self.agent_levels.copy(),
+            self.targets.copy(),
+            self.target_levels.copy(),
+            self.alive.copy(),
+        )
 
     def as_dict(self) -> dict:
-        return {"agents": self.agents.tolist(), "agent_levels": self.agent_levels.tolist(),
-                "targets": self.targets.tolist(), "target_levels": self.target_levels.tolist(),
-                "alive": self.alive.tolist()}
+        return {
+            "agents": self.agents.tolist(),
+            "agent_levels": self.agent_levels.tolist(),
+            "targets": self.targets.tolist(),
+            "target_levels": self.target_levels.tolist(),
+            "alive": self.alive.tolist(),
+        }
 
 
 @dataclass
@@ -138,16 +159,29 @@ class GridBatch:
 
     @classmethod
     def stack(cls, states: list[GridState]) -> GridBatch:
-        return cls(*(np.stack([getattr(s, name) for s in states]) for name in
-                     ("agents", "agent_levels", "targets", "target_levels", "alive")))
+        return cls(
+            *(
+                np.stack([getattr(s, name) for s in states])
+                for name in ("agents", "agent_levels", "targets", "target_levels", "alive")
+            )
+        )
 
     def state(self, index: int) -> GridState:
-        return GridState(self.agents[index].copy(), self.agent_levels[index].copy(), self.targets[index].copy(),
-                         self.target_levels[index].copy(), self.alive[index].copy())
+        return GridState(
+            self.agents[index].copy(),
+            self.agent_levels[index].copy(),
+            self.targets[index].copy(),
+            self.target_levels[index].copy(),
+            self.alive[index].copy(),
+        )
 
     def put(self, index: int, state: GridState) -> None:
         self.agents[index], self.agent_levels[index] = state.agents, state.agent_levels
-        self.targets[index], self.target_levels[index], self.alive[index] = state.targets, state.target_levels, state.alive
+        self.targets[index], self.target_levels[index], self.alive[index] = (
+            state.targets,
+            state.target_levels,
+            state.alive,
+        )
 
 
 @dataclass(frozen=True)
@@ -219,8 +253,12 @@ class GridRules:
         else:
             agent_levels = np.ones(cfg.n_agents, dtype=np.int64)
             target_levels = np.ones(cfg.n_targets, dtype=np.int64)
-        return GridState(all_cells[agent_idx].copy(), agent_levels.astype(np.int64),
-                         all_cells[target_idx].copy(), target_levels.astype(np.int64))
+        return GridState(
+            all_cells[agent_idx].copy(),
+            agent_levels.astype(np.int64),
+            all_cells[target_idx].copy(),
+            target_levels.astype(np.int64),
+        )
 
     # -- one step (batched: one implementation for the single envs, B=1, and the vector env) ---------------
     def flat(self, cells: np.ndarray) -> np.ndarray:
@@ -236,8 +274,9 @@ class GridRules:
         grid[rows, self.flat(batch.targets[rows, slots])] = True
         return grid
 
-    def completed_targets(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool,
-                          actions: np.ndarray) -> np.ndarray:
+    def completed_targets(
+        self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, actions: np.ndarray
+    ) -> np.ndarray:
         """(B, M) targets foraged/captured by ``actions`` (B, N) (section 6.2.1): every agent stands at its
         task position ``offsets`` (B, N, 2) around the target, all execute Forage/Capture (unless
         ``interact_required`` is off) and, for LBF, their levels sum to at least the target's level."""
@@ -269,8 +308,14 @@ class GridRules:
         moving &= claims[key] == 1
         return np.where(moving, wanted, movers)
 
-    def plan_batch(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, actions: np.ndarray,
-                   prey_uniforms: np.ndarray | None = None) -> StepPlan:
+    def plan_batch(
+        self,
+        batch: GridBatch,
+        offsets: np.ndarray,
+        interchangeable: bool,
+        actions: np.ndarray,
+        prey_uniforms: np.ndarray | None = None,
+    ) -> StepPlan:
         """Decide one step of B envs: completions (checked first, on the current state), agent moves, then prey
         moves into cells free both before and after the agents move. Pursuit needs ``prey_uniforms`` (B, M, 2)
         in [0, 1): the first decides whether a prey stays, the second which of the 4 moves it tries."""
@@ -285,10 +330,14 @@ class GridRules:
         prey = self.flat(batch.targets)
         moves = np.where(stay | ~alive, INTERACT, direction)
         wanted = self.step_to[prey, moves]
-        moves = np.where((wanted >= 0) & self.target_cell_ok[np.maximum(wanted, 0)], moves, INTERACT)  # valid cells
+        moves = np.where(
+            (wanted >= 0) & self.target_cell_ok[np.maximum(wanted, 0)], moves, INTERACT
+        )  # valid cells
         blocked = blocked.copy()
         blocked[np.arange(len(agents))[:, None], agents] = True
-        return StepPlan(self.all_cells[agents], self.all_cells[self.resolve_moves(prey, moves, blocked)], completed)
+        return StepPlan(
+            self.all_cells[agents], self.all_cells[self.resolve_moves(prey, moves, blocked)], completed
+        )
 
     def prey_draws(self) -> int:
         """Uniforms one step of :meth:`plan` consumes (2 per prey in pursuit, none in LBF)."""
@@ -305,10 +354,17 @@ class GridRules:
             raise ConfigError(f"task {task.name} has {len(task.offsets)} positions for {n} agents")
         uniforms = rng.random((1, self.config.n_targets, 2)) if self.prey_draws() else None
         offsets = np.array(task.offsets, dtype=np.int64)[None]
-        plan = self.plan_batch(GridBatch.stack([state]), offsets, task.interchangeable, actions[None], uniforms)
+        plan = self.plan_batch(
+            GridBatch.stack([state]), offsets, task.interchangeable, actions[None], uniforms
+        )
         return StepPlan(plan.agents[0], plan.targets[0], plan.completed[0])
 
     def apply(self, state: GridState, plan: StepPlan) -> GridState:
         """The state after ``plan`` (the grid twin's transition)."""
-        return GridState(plan.agents.copy(), state.agent_levels.copy(), plan.targets.copy(),
-                         state.target_levels.copy(), state.alive & ~plan.completed)
+        return GridState(
+            plan.agents.copy(),
+            state.agent_levels.copy(),
+            plan.targets.copy(),
+            state.target_levels.copy(),
+            state.alive & ~plan.completed,
+        )

@@ -75,7 +75,9 @@ def _windows(rules: GridRules, view: int) -> np.ndarray:
         rows = _window_index(cfg.rows, view, cfg.toroidal)  # (R, view)
         cols = _window_index(cfg.cols, view, cfg.toroidal)  # (C, view)
         cell_rows, cell_cols = np.divmod(np.arange(cfg.rows * cfg.cols), cfg.cols)
-        plane = rows[cell_rows][:, :, None] * (cfg.cols + 1) + cols[cell_cols][:, None, :]  # (R*C, view, view)
+        plane = (
+            rows[cell_rows][:, :, None] * (cfg.cols + 1) + cols[cell_cols][:, None, :]
+        )  # (R*C, view, view)
         channels = observation_layers(rules) * ((cfg.rows + 1) * (cfg.cols + 1))  # (N, channels)
         tables[view] = channels[:, None, :, None, None] + plane[None, :, None, :, :]
     return tables[view]

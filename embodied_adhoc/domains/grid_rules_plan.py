@@ -30,7 +30,9 @@ class CellBits:
         cfg = rules.config
         self.rules, self.cols, self.cells = rules, cfg.cols, cfg.rows * cfg.cols
         self.dtype = np.uint64 if self.cells <= 64 else object
-        self.bit = np.array([self.as_int(1 << i) for i in range(self.cells)] + [self.as_int(0)], dtype=self.dtype)
+        self.bit = np.array(
+            [self.as_int(1 << i) for i in range(self.cells)] + [self.as_int(0)], dtype=self.dtype
+        )
         index = np.arange(self.cells)
         row, col = np.divmod(index, cfg.cols)
         self.full = self.mask(np.ones(self.cells, dtype=bool))
@@ -46,7 +48,9 @@ class CellBits:
         self.distance = rules.distance(xy[:, None], xy[None, :])  # (cells, cells) Manhattan (wrapping)
         gap = np.abs(rules.delta(xy[:, None], xy[None, :]))
         # the greedy walker's axis from cell to goal: 0 rows (larger row gap), 1 columns, 2 a tie
-        self.axis_preference = np.where(gap[..., 0] > gap[..., 1], 0, np.where(gap[..., 0] < gap[..., 1], 1, 2))
+        self.axis_preference = np.where(
+            gap[..., 0] > gap[..., 1], 0, np.where(gap[..., 0] < gap[..., 1], 1, 2)
+        )
 
     def as_int(self, value: int):
         return np.uint64(value) if self.dtype is np.uint64 else value
@@ -93,7 +97,7 @@ def _move_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     by_axis = np.full((16, 3), INTERACT, dtype=np.int64)
     for code in range(16):
         moves = [a for a in range(4) if code >> a & 1]
-        nth[code, :len(moves)] = moves
+        nth[code, : len(moves)] = moves
         for preference, order in enumerate(((0, 1, 2, 3), (2, 3, 0, 1), (0, 1, 2, 3))):
             by_axis[code, preference] = next((a for a in order if a in moves), INTERACT)
     return size, nth, by_axis
@@ -102,8 +106,9 @@ def _move_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 MOVE_COUNT, NTH_MOVE, AXIS_MOVE = _move_tables()
 
 
-def best_moves(cellbits: CellBits, neighbour_bits: np.ndarray, goal_bits: np.ndarray,
-               blocked: np.ndarray) -> np.ndarray:
+def best_moves(
+    cellbits: CellBits, neighbour_bits: np.ndarray, goal_bits: np.ndarray, blocked: np.ndarray
+) -> np.ndarray:
     """4-bit codes of the moves from a start (its neighbours' bits, (..., 4)) to a neighbour at least step
     count from the goal (bits) through cells not ``blocked`` (bitsets), by breadth-first search from the goal
     (which counts as reachable even if blocked); 0 where no neighbour reaches the goal. The searches grow layer
@@ -144,12 +149,16 @@ class MoveTable:
         distance = np.full((len(self.keys), cells, cells + 1), cells, dtype=np.uint8)
         for layer in range(cells):
             inside = (reach[..., None] & goal_bits) != cellbits.zero  # (sets, goals, cells)
-            distance[..., :cells] = np.where(inside & (distance[..., :cells] == cells), layer, distance[..., :cells])
+            distance[..., :cells] = np.where(
+                inside & (distance[..., :cells] == cells), layer, distance[..., :cells]
+            )
             grown = reach | (cellbits.expand(reach) & open_cells)
             if (grown == reach).all():
                 break
             reach = grown
-        around = distance[:, :, cellbits.neighbours]  # (sets, goals, starts, 4); a wall reads column -1: never
+        around = distance[
+            :, :, cellbits.neighbours
+        ]  # (sets, goals, starts, 4); a wall reads column -1: never
         nearest = around.min(axis=-1, keepdims=True)
         best = (around == nearest) & (nearest < cells)
         self.codes = best.astype(np.uint8) @ MOVE_WEIGHTS.astype(np.uint8)  # 4-bit codes as bytes
@@ -159,7 +168,7 @@ class MoveTable:
         if cellbits.dtype is not np.uint64:
             return False
         sets = sum(math.comb(cellbits.cells, k) for k in range(max_blocked + 1))
-        return sets * cellbits.cells ** 2 <= TABLE_MAX_ENTRIES
+        return sets * cellbits.cells**2 <= TABLE_MAX_ENTRIES
 
     def lookup(self, start: np.ndarray, goal: np.ndarray, blocked: np.ndarray) -> np.ndarray | None:
         """Codes of the moves from ``start`` to ``goal`` (flat cells) around ``blocked`` (bitsets); None if
@@ -178,7 +187,9 @@ def move_table(cellbits: CellBits, max_blocked: int) -> MoveTable | None:
     cfg = cellbits.rules.config
     key = (cfg.rows, cfg.cols, cfg.toroidal, max_blocked)
     if key not in _MOVE_TABLES:
-        _MOVE_TABLES[key] = MoveTable(cellbits, max_blocked) if MoveTable.fits(cellbits, max_blocked) else None
+        _MOVE_TABLES[key] = (
+            MoveTable(cellbits, max_blocked) if MoveTable.fits(cellbits, max_blocked) else None
+        )
     return _MOVE_TABLES[key]
 
 
@@ -195,8 +206,17 @@ def first_moves(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, blocked
     return best_moves(cellbits, cellbits.neighbour_bits[start], cellbits.of(goal), blocked)
 
 
-def navigate(cellbits: CellBits, start: np.ndarray, goal: np.ndarray, static: np.ndarray, obstacles: np.ndarray,
-             free: np.ndarray, greedy_axis: np.ndarray, uniforms: np.ndarray, unstick: float = 0.25) -> np.ndarray:
+def navigate(
+    cellbits: CellBits,
+    start: np.ndarray,
+    goal: np.ndarray,
+    static: np.ndarray,
+    obstacles: np.ndarray,
+    free: np.ndarray,
+    greedy_axis: np.ndarray,
+    uniforms: np.ndarray,
+    unstick: float = 0.25,
+) -> np.ndarray:
     """(B, N) first move of a shortest path from each member's flat cell ``start`` to its flat ``goal``
     (INTERACT once there) around the live targets (bitsets ``static``, (B,)) and the teammates in ``obstacles``
     (bitsets, (B, N)). If those wall the goal off, the path around targets only. A member waits while its next
@@ -238,8 +258,9 @@ def assign_slots(cost: np.ndarray, orders: np.ndarray) -> np.ndarray:
     return orders[best, np.arange(n)[None, :]]
 
 
-def ring_goal(rules: GridRules, agents: np.ndarray, targets: np.ndarray, offsets: np.ndarray,
-              radius: int = 2) -> np.ndarray:
+def ring_goal(
+    rules: GridRules, agents: np.ndarray, targets: np.ndarray, offsets: np.ndarray, radius: int = 2
+) -> np.ndarray:
     """Encircling plan (team tau2), (B, N, 2): off its own ray ``target + k * offset``, a member heads for the
     ray's cell at ``radius`` (the circle around the target, pulled inside the walls); on the ray at ``k``, it
     closes in to ``k - 1`` (at least 1, its task slot), so the circle tightens one step at a time."""
@@ -253,4 +274,3 @@ def ring_goal(rules: GridRules, agents: np.ndarray, targets: np.ndarray, offsets
         cell, inside = rules.normalise(targets + r * offsets)
         goal = np.where((inside & (r <= start))[..., None], cell, goal)
     return goal
-

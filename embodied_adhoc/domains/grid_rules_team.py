@@ -42,10 +42,12 @@ class TeamSpec:
     navigation: str = "path"
 
     def __post_init__(self) -> None:
-        for field_name, value, allowed in (("target", self.target, ("closest", "highest_level", "team_closest")),
-                                           ("slot", self.slot, ("closest", "assigned")),
-                                           ("goal", self.goal, ("slot", "ring")),
-                                           ("navigation", self.navigation, ("greedy", "path"))):
+        for field_name, value, allowed in (
+            ("target", self.target, ("closest", "highest_level", "team_closest")),
+            ("slot", self.slot, ("closest", "assigned")),
+            ("goal", self.goal, ("slot", "ring")),
+            ("navigation", self.navigation, ("greedy", "path")),
+        ):
             if value not in allowed:
                 raise ConfigError(f"TeamSpec {self.name}: {field_name}={value!r}, use one of {allowed}")
 
@@ -65,9 +67,12 @@ class TeamTable:
 
     @classmethod
     def of(cls, specs) -> TeamTable:
-        return cls(np.array([TARGET_RULES.index(s.target) for s in specs], dtype=np.int64),
-                   np.array([s.slot == "closest" for s in specs]), np.array([s.goal == "ring" for s in specs]),
-                   np.array([s.navigation == "greedy" for s in specs]))
+        return cls(
+            np.array([TARGET_RULES.index(s.target) for s in specs], dtype=np.int64),
+            np.array([s.slot == "closest" for s in specs]),
+            np.array([s.goal == "ring" for s in specs]),
+            np.array([s.navigation == "greedy" for s in specs]),
+        )
 
     def take(self, index: np.ndarray) -> TeamTable:
         return TeamTable(self.target[index], self.slot_closest[index], self.ring[index], self.greedy[index])
@@ -84,8 +89,9 @@ class TeamPlanner:
         self.others = ~np.eye(n, dtype=bool)
         # step_to[cell, action]: the cell an action aims at (its own cell for INTERACT and into walls)
         cells = np.arange(len(rules.neighbours))
-        self.step_to = np.concatenate([np.where(rules.neighbours >= 0, rules.neighbours, cells[:, None]),
-                                       cells[:, None]], axis=1)
+        self.step_to = np.concatenate(
+            [np.where(rules.neighbours >= 0, rules.neighbours, cells[:, None]), cells[:, None]], axis=1
+        )
         self.cells = np.stack(np.divmod(cells, rules.config.cols), axis=-1)
         # task offsets seen so far, as columns of the goal tables (filled on first use of an offset)
         rows, cols = rules.config.rows, rules.config.cols
@@ -105,14 +111,18 @@ class TeamPlanner:
             offset = np.array(divmod(value, 2 * cfg.cols + 1)) - [cfg.rows, cfg.cols]
             targets = np.broadcast_to(self.cells[:, None, :], (len(self.cells), len(self.cells), 2))
             members = np.broadcast_to(self.cells[None, :, :], targets.shape)
-            ring = self.rules.flat(ring_goal(self.rules, members, targets, np.broadcast_to(offset, targets.shape)))
+            ring = self.rules.flat(
+                ring_goal(self.rules, members, targets, np.broadcast_to(offset, targets.shape))
+            )
             slot = self.rules.flat(self.rules.normalise(self.cells + offset)[0])
             self.offset_index[value] = self.slot_cell.shape[1]
             self.slot_cell = np.concatenate([self.slot_cell, slot[:, None]], axis=1)
             self.ring_cell = np.concatenate([self.ring_cell, ring[..., None]], axis=2)
         return self.offset_index[code]
 
-    def goals(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable) -> np.ndarray:
+    def goals(
+        self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable
+    ) -> np.ndarray:
         """(B, N) flat cell each member heads for now: its task slot around its target, or its point on the
         ring (:func:`ring_goal`, tabulated). Every member computes the same target rule and slot assignment
         from the full state."""
@@ -122,10 +132,14 @@ class TeamPlanner:
         if targets_flat.shape[1] == 1:  # one apple/prey: every rule picks it
             target_flat = np.broadcast_to(targets_flat, start.shape)
         else:
-            distance = self.cellbits.distance[start[:, :, None], targets_flat[:, None, :]]  # (B, member, target)
+            distance = self.cellbits.distance[
+                start[:, :, None], targets_flat[:, None, :]
+            ]  # (B, member, target)
             cost = np.where(teams.target[:, None, None] == 0, distance, -batch.target_levels[:, None, :])
             cost = np.where(teams.target[:, None, None] == 2, distance.sum(axis=1, keepdims=True), cost)
-            target = np.argmin(np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1)  # (B, N)
+            target = np.argmin(
+                np.where(batch.alive[:, None, :], cost, np.iinfo(np.int64).max), axis=-1
+            )  # (B, N)
             target_flat = targets_flat[env, target]  # (B, N)
         columns = self._offset_columns(offsets)  # (B, slot)
         if interchangeable:
@@ -142,8 +156,14 @@ class TeamPlanner:
         ring = self.ring_cell[target_flat, start, column]
         return np.where(teams.ring[:, None], ring, self.slot_cell[target_flat, column])
 
-    def actions(self, batch: GridBatch, offsets: np.ndarray, interchangeable: bool, teams: TeamTable,
-                uniforms: np.ndarray) -> np.ndarray:
+    def actions(
+        self,
+        batch: GridBatch,
+        offsets: np.ndarray,
+        interchangeable: bool,
+        teams: TeamTable,
+        uniforms: np.ndarray,
+    ) -> np.ndarray:
         """(B, N) actions of every member of each env's team (``uniforms``: (B, N, TEAM_DRAWS) in [0, 1)).
 
         Every member computes the whole team's plan (assuming all follow the team policy) and members resolve
@@ -180,19 +200,27 @@ def planner_for(rules: GridRules) -> TeamPlanner:
     return _PLANNERS[rules]
 
 
-def team_actions(rules: GridRules, state: GridState, task: Task, spec: TeamSpec, rng: np.random.Generator,
-                 members: range | list[int] | None = None) -> np.ndarray:
+def team_actions(
+    rules: GridRules,
+    state: GridState,
+    task: Task,
+    spec: TeamSpec,
+    rng: np.random.Generator,
+    members: range | list[int] | None = None,
+) -> np.ndarray:
     """Actions of the listed members (default: everyone) of a team of type ``spec`` doing ``task`` in one env:
     :meth:`TeamPlanner.actions` with B=1 on ``rng.random((N, TEAM_DRAWS))`` (drawn every call)."""
     n = rules.config.n_agents
     uniforms = rng.random((1, n, TEAM_DRAWS))
     offsets = np.array(task.offsets, dtype=np.int64)[None]
-    intended = planner_for(rules).actions(GridBatch.stack([state]), offsets, task.interchangeable,
-                                          TeamTable.of([spec]), uniforms)[0]
+    intended = planner_for(rules).actions(
+        GridBatch.stack([state]), offsets, task.interchangeable, TeamTable.of([spec]), uniforms
+    )[0]
     return intended[list(range(n)) if members is None else list(members)]
 
 
-def team_action(rules: GridRules, state: GridState, task: Task, agent: int, spec: TeamSpec,
-                rng: np.random.Generator) -> int:
+def team_action(
+    rules: GridRules, state: GridState, task: Task, agent: int, spec: TeamSpec, rng: np.random.Generator
+) -> int:
     """The action of member ``agent`` (see :func:`team_actions`)."""
     return int(team_actions(rules, state, task, spec, rng, [agent])[0])

@@ -107,8 +107,12 @@ class LabConfig:
             raise ConfigError(f"reward={self.reward!r}: must be a domains.lab.LabReward")
         if not isinstance(self.confusion, (str, os.PathLike)):
             raise ConfigError(f"confusion={self.confusion!r}: use 'measured', 'thesis' or a JSON path")
-        if self.localisation_model is not None and not isinstance(self.localisation_model, (str, os.PathLike)):
-            raise ConfigError(f"localisation_model={self.localisation_model!r}: use None, 'measured' or a JSON path")
+        if self.localisation_model is not None and not isinstance(
+            self.localisation_model, (str, os.PathLike)
+        ):
+            raise ConfigError(
+                f"localisation_model={self.localisation_model!r}: use None, 'measured' or a JSON path"
+            )
         discount = checks.number("discount", self.discount, 0.0, 1.0)
         if discount >= 1.0:
             raise ConfigError(f"discount must lie in [0, 1), got {self.discount}")
@@ -119,7 +123,9 @@ class LabConfig:
             "confusion": os.fspath(self.confusion),
             "robot_node_accuracy": checks.number("robot_node_accuracy", self.robot_node_accuracy, 0.0, 1.0),
             "rfid_miss": checks.number("rfid_miss", self.rfid_miss, 0.0, 1.0),
-            "localisation_model": None if self.localisation_model is None else os.fspath(self.localisation_model),
+            "localisation_model": None
+            if self.localisation_model is None
+            else os.fspath(self.localisation_model),
             "discount": discount,
         }
         for name, value in normalised.items():
@@ -134,7 +140,11 @@ class LabConfig:
     @property
     def observation(self) -> ObservationConfig:
         return ObservationConfig(
-            self.communication, self.robot_node_accuracy, self.rfid_miss, self.confusion, self.localisation_model
+            self.communication,
+            self.robot_node_accuracy,
+            self.rfid_miss,
+            self.confusion,
+            self.localisation_model,
         )
 
 
@@ -212,7 +222,9 @@ class LabLibrary:
     def decode_observation(self, index: int) -> LabObservation:
         return LabObservation.decode(index, self.graph.n_nodes)
 
-    def state_index(self, robot_node: int, human_node: int, ball_status: Sequence[int], rfid_event: bool = False) -> int:
+    def state_index(
+        self, robot_node: int, human_node: int, ball_status: Sequence[int], rfid_event: bool = False
+    ) -> int:
         return self.states.index(robot_node, human_node, ball_status, rfid_event)
 
     def episode_start(
@@ -259,7 +271,9 @@ def library_from_config(config: LabConfig) -> LabLibrary:
     n_human_actions = humans[0].n_actions
     names = tuple(f"move to neighbour {k + 1}" for k in range(stay)) + ("stay",)
     names += ("locate human",) if config.observation.communication else ()
-    observation_model = ObservationModel(config.observation, graph.n_nodes, stay + 1 if config.observation.communication else None)
+    observation_model = ObservationModel(
+        config.observation, graph.n_nodes, stay + 1 if config.observation.communication else None
+    )
     observations = _observation_matrices(states, observation_model, n_robot_actions)
     rewards = np.repeat(config.reward.of(states.ball_status)[:, None], n_robot_actions, axis=1)
     initial = (states.ball_status == GROUND).all(axis=1) & ~states.rfid_event
@@ -269,13 +283,22 @@ def library_from_config(config: LabConfig) -> LabLibrary:
     for task, human in enumerate(humans):
         joint, policy = _task_transitions(states, task, human, n_robot_actions)
         joint_names = tuple(f"{a} & human {h}" for a in names for h in human.action_names)
-        mmdps.append(MDP(joint, np.repeat(rewards, n_human_actions, axis=1), config.discount, state_names, joint_names))
-        averaged = [average_over_teammate(joint[a * n_human_actions : (a + 1) * n_human_actions], policy) for a in range(n_robot_actions)]
+        mmdps.append(
+            MDP(joint, np.repeat(rewards, n_human_actions, axis=1), config.discount, state_names, joint_names)
+        )
+        averaged = [
+            average_over_teammate(joint[a * n_human_actions : (a + 1) * n_human_actions], policy)
+            for a in range(n_robot_actions)
+        ]
         mdps.append(MDP(averaged, rewards, config.discount, state_names, names))
         pomdps.append(
-            POMDP(averaged, rewards, config.discount, state_names, names, observations, initial_belief, z_names)
+            POMDP(
+                averaged, rewards, config.discount, state_names, names, observations, initial_belief, z_names
+            )
         )
-    return LabLibrary(config, states, humans, observation_model, tuple(mmdps), tuple(mdps), tuple(pomdps), names)
+    return LabLibrary(
+        config, states, humans, observation_model, tuple(mmdps), tuple(mdps), tuple(pomdps), names
+    )
 
 
 def _task_transitions(
@@ -303,14 +326,20 @@ def _task_transitions(
                 j = a * n_human + h
                 for outcome in outcomes:
                     nr, nh, ns, disposed = apply_step(graph, robot, human_node, status, a, outcome)
-                    rows[j].append(s), cols[j].append(states.fast_index(nr, nh, ns, disposed)), probs[j].append(outcome.probability)
+                    (
+                        rows[j].append(s),
+                        cols[j].append(states.fast_index(nr, nh, ns, disposed)),
+                        probs[j].append(outcome.probability),
+                    )
     joint = [
         sp.csr_matrix((probs[j], (rows[j], cols[j])), shape=(n_states, n_states)) for j in range(len(rows))
     ]  # duplicate (row, col) entries are summed
     return joint, policy
 
 
-def _observation_matrices(states: LabStateSpace, model: ObservationModel, n_actions: int) -> list[sp.csr_matrix]:
+def _observation_matrices(
+    states: LabStateSpace, model: ObservationModel, n_actions: int
+) -> list[sp.csr_matrix]:
     """``O[a][x', z]`` from the observation factors, one row per distinct (robot, human, event) of x'."""
     features = np.stack([states.robot_node, states.human_node, states.rfid_event.astype(np.int64)], axis=1)
     unique, inverse = np.unique(features, axis=0, return_inverse=True)

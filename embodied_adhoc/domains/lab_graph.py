@@ -50,11 +50,15 @@ class LabGraph:
         edges = tuple((int(a), int(b)) for a, b in self.edges)
         names = tuple(str(n) for n in self.names)
         if len(names) != self.n_nodes:
-            raise ConfigError(f"LabGraph.names has {len(names)} entries for {self.n_nodes} nodes; give one name per node")
+            raise ConfigError(
+                f"LabGraph.names has {len(names)} entries for {self.n_nodes} nodes; give one name per node"
+            )
         adjacency: list[set[int]] = [set() for _ in range(self.n_nodes)]
         for a, b in edges:
             if not (0 <= a < self.n_nodes and 0 <= b < self.n_nodes) or a == b:
-                raise ConfigError(f"LabGraph.edges: edge ({a}, {b}) must join two different nodes in 0..{self.n_nodes - 1}")
+                raise ConfigError(
+                    f"LabGraph.edges: edge ({a}, {b}) must join two different nodes in 0..{self.n_nodes - 1}"
+                )
             adjacency[a].add(b)
             adjacency[b].add(a)
         neighbours = tuple(tuple(sorted(s)) for s in adjacency)
@@ -102,23 +106,32 @@ def validate_tasks(graph: LabGraph, tasks: Sequence[Sequence[int]]) -> tuple[tup
     if isinstance(tasks, np.ndarray):
         tasks = tasks.tolist()
     placements = (Sequence, np.ndarray)
-    if not isinstance(tasks, Sequence) or isinstance(tasks, str) or not all(
-        isinstance(t, placements) and not isinstance(t, str) for t in tasks
+    if (
+        not isinstance(tasks, Sequence)
+        or isinstance(tasks, str)
+        or not all(isinstance(t, placements) and not isinstance(t, str) for t in tasks)
     ):
-        raise ConfigError(f"tasks={tasks!r}: give a list of ball placements (node lists), e.g. [[0, 1, 2], [1, 2, 3]]")
+        raise ConfigError(
+            f"tasks={tasks!r}: give a list of ball placements (node lists), e.g. [[0, 1, 2], [1, 2, 3]]"
+        )
     _check_sizes(graph, tasks)
     result = tuple(
-        tuple(checks.integer(f"tasks[{i}][{j}]", node) for j, node in enumerate(task)) for i, task in enumerate(tasks)
+        tuple(checks.integer(f"tasks[{i}][{j}]", node) for j, node in enumerate(task))
+        for i, task in enumerate(tasks)
     )
     if not result:
         raise ConfigError("tasks: give at least one ball placement, e.g. [[0, 1, 2], [1, 2, 3]]")
     sizes = {len(task) for task in result}
     if len(sizes) != 1 or 0 in sizes:
-        raise ConfigError(f"tasks: every task must place the same (non-zero) number of balls, got sizes {sorted(sizes)}")
+        raise ConfigError(
+            f"tasks: every task must place the same (non-zero) number of balls, got sizes {sorted(sizes)}"
+        )
     for index, task in enumerate(result):
         for node in task:
             if not 0 <= node < graph.n_nodes:
-                raise ConfigError(f"tasks[{index}] places a ball at node {node}, outside 0..{graph.n_nodes - 1}")
+                raise ConfigError(
+                    f"tasks[{index}] places a ball at node {node}, outside 0..{graph.n_nodes - 1}"
+                )
     return result
 
 

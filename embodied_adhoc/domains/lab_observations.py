@@ -92,8 +92,12 @@ class LabObservation:
     def from_vector(cls, vector, n_nodes: int = 5) -> LabObservation:
         robot, human, rfid = (int(v) for v in vector)
         if not (0 <= robot <= n_nodes and 0 <= human <= n_nodes and rfid in (0, 1)):
-            raise ConfigError(f"observation vector {list(vector)} outside MultiDiscrete([{n_nodes + 1}, {n_nodes + 1}, 2])")
-        return cls(None if robot == n_nodes else robot, None if human == n_nodes else human, bool(rfid), n_nodes)
+            raise ConfigError(
+                f"observation vector {list(vector)} outside MultiDiscrete([{n_nodes + 1}, {n_nodes + 1}, 2])"
+            )
+        return cls(
+            None if robot == n_nodes else robot, None if human == n_nodes else human, bool(rfid), n_nodes
+        )
 
     @classmethod
     def decode(cls, index: int, n_nodes: int = 5) -> LabObservation:
@@ -165,7 +169,9 @@ class ObservationModel:
         none[n_nodes] = 1.0
         self._none = none
         self._cumulative: dict[tuple[int, int, bool, int], list[float]] = {}
-        self._vectors = tuple(LabObservation.decode(z, n_nodes).to_vector() for z in range(2 * (n_nodes + 1) ** 2))
+        self._vectors = tuple(
+            LabObservation.decode(z, n_nodes).to_vector() for z in range(2 * (n_nodes + 1) ** 2)
+        )
 
     def robot(self, robot_node: int) -> np.ndarray:
         """P(robot reading | true robot node), length N + 1 (last: unknown)."""
@@ -188,11 +194,14 @@ class ObservationModel:
     def distribution(self, robot_node: int, human_node: int, disposed: bool, action: int) -> np.ndarray:
         """The full ``O(. | x', a)`` over flat indices (length ``2 (N + 1)^2``)."""
         joint = np.multiply.outer(
-            np.multiply.outer(self.robot(robot_node), self.human(robot_node, human_node, action)), self.rfid(disposed)
+            np.multiply.outer(self.robot(robot_node), self.human(robot_node, human_node, action)),
+            self.rfid(disposed),
         )
         return joint.ravel()
 
-    def sample_index(self, rng: np.random.Generator, robot_node: int, human_node: int, disposed: bool, action: int) -> int:
+    def sample_index(
+        self, rng: np.random.Generator, robot_node: int, human_node: int, disposed: bool, action: int
+    ) -> int:
         """Draw one flat observation index (one uniform draw from ``rng``; cumulative tables cached per case)."""
         key = (robot_node, human_node, bool(disposed), action)
         cumulative = self._cumulative.get(key)
@@ -206,6 +215,10 @@ class ObservationModel:
         """The MultiDiscrete vector of a flat index (a fresh array)."""
         return self._vectors[index].copy()
 
-    def sample(self, rng: np.random.Generator, robot_node: int, human_node: int, disposed: bool, action: int) -> LabObservation:
+    def sample(
+        self, rng: np.random.Generator, robot_node: int, human_node: int, disposed: bool, action: int
+    ) -> LabObservation:
         """Draw one observation as a :class:`LabObservation`."""
-        return LabObservation.decode(self.sample_index(rng, robot_node, human_node, disposed, action), self.n_nodes)
+        return LabObservation.decode(
+            self.sample_index(rng, robot_node, human_node, disposed, action), self.n_nodes
+        )

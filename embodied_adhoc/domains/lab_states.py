@@ -43,14 +43,18 @@ class LabStateSpace:
     @classmethod
     def build(cls, graph: LabGraph, tasks: Sequence[tuple[int, ...]]) -> LabStateSpace:
         n, k = graph.n_nodes, len(tasks[0])
-        grid = np.array(list(itertools.product(range(n), range(n), *([range(3)] * k), range(2))), dtype=np.int64)
+        grid = np.array(
+            list(itertools.product(range(n), range(n), *([range(3)] * k), range(2))), dtype=np.int64
+        )
         robot, human, status, event = grid[:, 0], grid[:, 1], grid[:, 2 : 2 + k], grid[:, 2 + k].astype(bool)
         held = status == HELD
         valid = []
         for balls in tasks:
             at_ball = human[:, None] == np.asarray(balls)[None, :]
             world_ok = (held.sum(axis=1) <= 1) & np.all(~held | at_ball, axis=1)
-            just_disposed = (robot == human) & ~held.any(axis=1) & np.any((status == DISPOSED) & at_ball, axis=1)
+            just_disposed = (
+                (robot == human) & ~held.any(axis=1) & np.any((status == DISPOSED) & at_ball, axis=1)
+            )
             valid.append(world_ok & (~event | just_disposed))
         valid = np.array(valid)
         keep = valid.any(axis=0)
@@ -69,7 +73,9 @@ class LabStateSpace:
         """Mask of the task's valid *world* states (rfid_event = 0): 260 per default task."""
         return self.valid[task] & ~self.rfid_event
 
-    def index(self, robot_node: int, human_node: int, ball_status: Sequence[int], rfid_event: bool = False) -> int:
+    def index(
+        self, robot_node: int, human_node: int, ball_status: Sequence[int], rfid_event: bool = False
+    ) -> int:
         """The shared index of a state; ConfigError if no task of the library allows it."""
         status = tuple(int(s) for s in ball_status)
         if len(status) != self.n_balls or any(s not in (GROUND, HELD, DISPOSED) for s in status):
@@ -84,7 +90,9 @@ class LabStateSpace:
             )
         return index
 
-    def fast_index(self, robot_node: int, human_node: int, ball_status: tuple[int, ...], rfid_event: bool) -> int:
+    def fast_index(
+        self, robot_node: int, human_node: int, ball_status: tuple[int, ...], rfid_event: bool
+    ) -> int:
         """:meth:`index` without validation (-1 for a state outside the union), for inner loops."""
         code = robot_node * self.n_nodes + human_node
         for s in ball_status:
@@ -104,5 +112,7 @@ class LabStateSpace:
         labels = {GROUND: "g", HELD: "h", DISPOSED: "d"}
         return tuple(
             f"r{r}h{h}{''.join(labels[int(s)] for s in w)}{'+' if e else ''}"
-            for r, h, w, e in zip(self.robot_node, self.human_node, self.ball_status, self.rfid_event, strict=True)
+            for r, h, w, e in zip(
+                self.robot_node, self.human_node, self.ball_status, self.rfid_event, strict=True
+            )
         )

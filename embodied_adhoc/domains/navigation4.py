@@ -77,8 +77,10 @@ class Navigation4:
         grid = _load(self.map_name)
         n = len(grid.goals)
         if len(grid.starts) < n:
-            raise ConfigError(f"map {self.map_name}: {n} exits 'G' need {n} agents but there are only "
-                              f"{len(grid.starts)} spawn cells 'S'; add spawn cells")
+            raise ConfigError(
+                f"map {self.map_name}: {n} exits 'G' need {n} agents but there are only "
+                f"{len(grid.starts)} spawn cells 'S'; add spawn cells"
+            )
         if n > 4:
             raise ConfigError(f"map {self.map_name}: {n} exits; chapter-4 navigation supports up to 4 agents")
         cells = np.arange(grid.n_cells)
@@ -86,11 +88,18 @@ class Navigation4:
         exit_mask[list(grid.goals)] = True
         exit_index = np.full(grid.n_cells, -1, dtype=np.int64)
         exit_index[list(grid.goals)] = np.arange(n)
-        for name, value in (("grid", grid), ("n_agents", n), ("cells", grid.n_cells), ("neighbours", grid.moves),
-                            ("exits", np.array(grid.goals, dtype=np.int64)), ("exit_mask", exit_mask),
-                            ("exit_index", exit_index), ("starts", np.array(grid.starts, dtype=np.int64)),
-                            ("assignments", np.array(list(itertools.permutations(range(n))), dtype=np.int64)),
-                            ("_cell_ids", cells)):
+        for name, value in (
+            ("grid", grid),
+            ("n_agents", n),
+            ("cells", grid.n_cells),
+            ("neighbours", grid.moves),
+            ("exits", np.array(grid.goals, dtype=np.int64)),
+            ("exit_mask", exit_mask),
+            ("exit_index", exit_index),
+            ("starts", np.array(grid.starts, dtype=np.int64)),
+            ("assignments", np.array(list(itertools.permutations(range(n))), dtype=np.int64)),
+            ("_cell_ids", cells),
+        ):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "_cache", {team: {} for team in TEAMS})
 
@@ -101,7 +110,7 @@ class Navigation4:
     # --- states -------------------------------------------------------------------------------------------
     def sample_states(self, rng: np.random.Generator, count: int) -> np.ndarray:
         """(count, N) the agents on N distinct spawn cells, uniformly."""
-        order = np.argsort(rng.random((count, self.starts.size)), axis=1)[:, :self.n_agents]
+        order = np.argsort(rng.random((count, self.starts.size)), axis=1)[:, : self.n_agents]
         return self.starts[order]
 
     def exited(self, states: np.ndarray) -> np.ndarray:
@@ -113,8 +122,9 @@ class Navigation4:
         return self.exited(states).all(-1)
 
     # --- the exact environment model ---------------------------------------------------------------------
-    def step(self, states: np.ndarray, actions: np.ndarray,
-             rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(
+        self, states: np.ndarray, actions: np.ndarray, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(next states, rewards, terminal): seat-order moves, collisions stay, exits absorb (module doc)."""
         actions = np.asarray(actions, dtype=np.int64)
         if self.mirror:
@@ -156,8 +166,12 @@ class Navigation4:
         """(B, N, E) ``d_m(g)`` as float (inf when walled off); an agent that has left: 0 to its exit, inf
         elsewhere."""
         count, n = states.shape
-        d = field[np.arange(count)[:, None, None], np.arange(n)[None, :, None],
-                  np.arange(self.exits.size)[None, None, :], states[:, :, None]].astype(float)
+        d = field[
+            np.arange(count)[:, None, None],
+            np.arange(n)[None, :, None],
+            np.arange(self.exits.size)[None, None, :],
+            states[:, :, None],
+        ].astype(float)
         d[d >= self.cells] = np.inf
         gone = self.exit_mask[states]
         own = self.exit_index[states][..., None] == np.arange(self.exits.size)
@@ -206,7 +220,9 @@ class Navigation4:
             cost = np.where(held, np.inf, d)
             best = cost.min(-1, keepdims=True)
             candidates = np.where(np.isinf(best), ~held, cost == best)
-            nearest = np.zeros(candidates.shape)  # the first candidate in exit order (the original's stable sort)
+            nearest = np.zeros(
+                candidates.shape
+            )  # the first candidate in exit order (the original's stable sort)
             np.put_along_axis(nearest, candidates.argmax(-1)[..., None], 1.0, axis=-1)
             return np.einsum("bne,bnea->bna", nearest, toward)
         perms = self.assignments  # (P, N): agent m -> exit perms[p, m]
@@ -215,8 +231,9 @@ class Navigation4:
         weight = (total == best).astype(float)  # ties (all infinite included)
         if team == "weighted-altruistic":
             finite = np.isfinite(total)
-            soft = np.where(finite, np.exp(-(np.where(finite, total, 0.0) - np.where(np.isfinite(best), best, 0.0))),
-                            0.0)
+            soft = np.where(
+                finite, np.exp(-(np.where(finite, total, 0.0) - np.where(np.isfinite(best), best, 0.0))), 0.0
+            )
             weight = np.where((finite.sum(-1) > 1)[:, None], soft, weight)
         weight /= weight.sum(-1, keepdims=True)
         # pi^n(a) = sum_p w_p toward[n, perms[p, n], a]

@@ -100,8 +100,9 @@ class Pursuit4:
         return hit.all(-1)
 
     # --- the exact environment model ---------------------------------------------------------------------
-    def step(self, states: np.ndarray, predator_actions: np.ndarray,
-             rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def step(
+        self, states: np.ndarray, predator_actions: np.ndarray, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(next states, rewards, terminal) of the true dynamics; draws the prey's move, the move order (and
         the slips, when ``slip`` > 0); with ``mirror`` the ad hoc agent's action ``a`` moves it as
         ``MIRRORED[a]``."""
@@ -180,7 +181,9 @@ class Pursuit4:
     def _probabilistic_destinations(self, states: np.ndarray) -> np.ndarray:
         count = states.shape[0]
         prey_d = self.distance[states[:, PREY]]  # (B, C)
-        weight = np.exp(-2.0 * prey_d.astype(float)) * np.where(prey_d == 1, 8.0, np.where(prey_d == 2, 2.0, 1.0))
+        weight = np.exp(-2.0 * prey_d.astype(float)) * np.where(
+            prey_d == 1, 8.0, np.where(prey_d == 2, 2.0, 1.0)
+        )
         weight[np.arange(count), states[:, PREY]] = 0.0
         out = np.empty((count, N_PREDATORS, N_ACTIONS))
         for p in range(N_PREDATORS):

@@ -61,11 +61,37 @@ class ForagingEnv(AdhocGridEnv):
     """
 
     @contract.keywords()
-    def __init__(self, tasks=None, teams=None, rows: int = 5, cols: int = 5, n_agents: int = 4, n_apples: int = 1,
-                 max_agent_level: int = 2, toroidal: bool = False, view: int = 5, backend: str = "abstract",
-                 obs_mode: str = "grid", image_size: int = 64, render_mode: str | None = None, physics=None):
-        sizes = grid_sizes(rows=rows, cols=cols, n_agents=n_agents, n_targets=n_apples,
-                           max_agent_level=max_agent_level)
+    def __init__(
+        self,
+        tasks=None,
+        teams=None,
+        rows: int = 5,
+        cols: int = 5,
+        n_agents: int = 4,
+        n_apples: int = 1,
+        max_agent_level: int = 2,
+        toroidal: bool = False,
+        view: int = 5,
+        backend: str = "abstract",
+        obs_mode: str = "grid",
+        image_size: int = 64,
+        render_mode: str | None = None,
+        physics=None,
+    ):
+        sizes = grid_sizes(
+            rows=rows, cols=cols, n_agents=n_agents, n_targets=n_apples, max_agent_level=max_agent_level
+        )
         config = foraging_config(toroidal=checks.flag("toroidal", toroidal), **sizes)
-        super().__init__(config, foraging_tasks(config.n_agents), FORAGING_TEAMS, tasks, teams, view, backend,
-                         obs_mode, image_size, render_mode, physics)
+        super().__init__(
+            config,
+            foraging_tasks(config.n_agents),
+            FORAGING_TEAMS,
+            tasks,
+            teams,
+            view,
+            backend,
+            obs_mode,
+            image_size,
+            render_mode,
+            physics,
+        )

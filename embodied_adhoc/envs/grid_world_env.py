@@ -86,9 +86,18 @@ class Episode:
 class GridWorldCore:
     """Rules, library of tasks/teams, backend and the current episode; steps with every agent's action."""
 
-    def __init__(self, config: GridConfig, tasks: tuple[Task, ...], teams: dict[str, TeamSpec],
-                 task_set=None, team_set=None, view: int = 5, backend: str = "abstract", image_size: int = 64,
-                 physics=None) -> None:
+    def __init__(
+        self,
+        config: GridConfig,
+        tasks: tuple[Task, ...],
+        teams: dict[str, TeamSpec],
+        task_set=None,
+        team_set=None,
+        view: int = 5,
+        backend: str = "abstract",
+        image_size: int = 64,
+        physics=None,
+    ) -> None:
         from embodied_adhoc.teammates.grid_plugins import with_plugin_teams
 
         self.config, self.rules = config, GridRules(config)
@@ -154,12 +163,19 @@ class GridWorldCore:
 
     def info(self) -> dict:
         ep = self.episode
-        return {"task": ep.task_number, "task_name": self.task.name, "team": ep.team,
-                "state": ep.state.as_dict(), "steps": ep.steps, "remaining": int(ep.state.alive.sum())}
+        return {
+            "task": ep.task_number,
+            "task_name": self.task.name,
+            "team": ep.team,
+            "state": ep.state.as_dict(),
+            "steps": ep.steps,
+            "remaining": int(ep.state.alive.sum()),
+        }
 
 
 def state_from_dict(data: dict, rules: GridRules) -> GridState:
     """A state given as in ``info['state']``, checked against the rules (cells on the grid, no overlaps)."""
+
     def array(key: str, kinds: str, dtype) -> np.ndarray:
         values = np.asarray(data[key])
         if values.dtype.kind not in kinds:  # no silent truncation of 1.5 or "1" to a cell index
@@ -169,11 +185,15 @@ def state_from_dict(data: dict, rules: GridRules) -> GridState:
     try:
         if not isinstance(data, dict):
             raise TypeError(f"a dict is needed, got {type(data).__name__}")
-        state = GridState(*(array(k, "iu", np.int64) for k in ("agents", "agent_levels", "targets", "target_levels")),
-                          array("alive", "b", np.bool_) if "alive" in data else np.ones(len(data["targets"]), bool))
+        state = GridState(
+            *(array(k, "iu", np.int64) for k in ("agents", "agent_levels", "targets", "target_levels")),
+            array("alive", "b", np.bool_) if "alive" in data else np.ones(len(data["targets"]), bool),
+        )
     except (KeyError, TypeError, ValueError) as error:
-        raise ConfigError(f"reset option 'state': {error!r}; give agents, agent_levels, targets, "
-                          "target_levels (and alive) as in info['state']") from None
+        raise ConfigError(
+            f"reset option 'state': {error!r}; give agents, agent_levels, targets, "
+            "target_levels (and alive) as in info['state']"
+        ) from None
     cfg = rules.config
     if state.agents.shape != (cfg.n_agents, 2) or state.targets.shape != (cfg.n_targets, 2):
         raise ConfigError(f"reset option 'state': need {cfg.n_agents} agent and {cfg.n_targets} target cells")
@@ -194,7 +214,7 @@ def draw_grid(rules: GridRules, state: GridState, cell_px: int = 32) -> np.ndarr
 
     def fill(cell, colour, margin):
         r, c = int(cell[0]) * cell_px, int(cell[1]) * cell_px
-        image[r + margin:r + cell_px - margin, c + margin:c + cell_px - margin] = colour
+        image[r + margin : r + cell_px - margin, c + margin : c + cell_px - margin] = colour
 
     top = max(1, int(state.target_levels.max()))
     for m in np.flatnonzero(state.alive):

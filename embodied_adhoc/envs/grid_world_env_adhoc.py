@@ -26,14 +26,27 @@ class AdhocGridEnv(gymnasium.Env):
 
     metadata = {"render_modes": list(contract.RENDER_MODES), "render_fps": 4}
 
-    def __init__(self, config: GridConfig, tasks: tuple[Task, ...], teams: dict[str, TeamSpec],
-                 task_set=None, team_set=None, view: int = 5, backend: str = "abstract", obs_mode: str = "grid",
-                 image_size: int = 64, render_mode: str | None = None, physics=None) -> None:
+    def __init__(
+        self,
+        config: GridConfig,
+        tasks: tuple[Task, ...],
+        teams: dict[str, TeamSpec],
+        task_set=None,
+        team_set=None,
+        view: int = 5,
+        backend: str = "abstract",
+        obs_mode: str = "grid",
+        image_size: int = 64,
+        render_mode: str | None = None,
+        physics=None,
+    ) -> None:
         obs_mode = checks.choice("obs_mode", obs_mode, OBS_MODES)
         if obs_mode == "image" and backend != "mujoco":
             raise ConfigError("obs_mode='image' renders the MuJoCo arena's camera: use backend='mujoco'")
         self.render_mode = contract.render_mode(render_mode)
-        self.core = GridWorldCore(config, tasks, teams, task_set, team_set, view, backend, image_size, physics)
+        self.core = GridWorldCore(
+            config, tasks, teams, task_set, team_set, view, backend, image_size, physics
+        )
         self.obs_mode = obs_mode
         self.action_space = gymnasium.spaces.Discrete(5)
         if obs_mode == "grid":

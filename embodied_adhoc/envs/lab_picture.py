@@ -23,7 +23,9 @@ class LabPicture:
     def __init__(self, graph: LabGraph, size: int = 256) -> None:
         self.graph, self.size = graph, size
         angles = 2 * np.pi * np.arange(graph.n_nodes) / graph.n_nodes
-        self.nodes = size / 2 + 0.36 * size * np.stack([-np.cos(angles), np.sin(angles)], axis=1)  # (row, col)
+        self.nodes = size / 2 + 0.36 * size * np.stack(
+            [-np.cos(angles), np.sin(angles)], axis=1
+        )  # (row, col)
         self.rows, self.cols = np.mgrid[0:size, 0:size]
         self.background = np.empty((size, size, 3), dtype=np.uint8)
         self.background[:] = BACKGROUND

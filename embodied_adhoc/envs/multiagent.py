@@ -57,8 +57,13 @@ class GridParallelEnv(ParallelEnv):
         "is_parallelizable": True,
     }
 
-    def __init__(self, domain: str = "foraging", max_cycles: int | None = None, render_mode: str | None = None,
-                 **kwargs):
+    def __init__(
+        self,
+        domain: str = "foraging",
+        max_cycles: int | None = None,
+        render_mode: str | None = None,
+        **kwargs,
+    ):
         if checks.choice("domain", domain, ("foraging", "pursuit")) == "foraging":
             from embodied_adhoc.envs.foraging import ForagingEnv as SingleEnv
         else:
@@ -137,8 +142,10 @@ class GridParallelEnv(ParallelEnv):
         missing = sorted(set(self.agents) - set(actions))
         if missing:
             raise ConfigError(f"step: no action for {missing}; give one per live agent")
-        joint = np.array([contract.action(actions[name], 5, f"{name}: {ACTION_MEANING}")
-                          for name in self.possible_agents], dtype=np.int64)
+        joint = np.array(
+            [contract.action(actions[name], 5, f"{name}: {ACTION_MEANING}") for name in self.possible_agents],
+            dtype=np.int64,
+        )
         self.core.step(joint)
         done = not self.core.episode.state.alive.any()
         truncated = not done and self.core.episode.steps >= self.max_cycles
@@ -147,8 +154,13 @@ class GridParallelEnv(ParallelEnv):
         observations = self._observations()
         names = self.agents
         self.agents = [] if done or truncated else names
-        return (observations, {n: reward for n in names}, {n: done for n in names},
-                {n: truncated for n in names}, {n: dict(info) for n in names})
+        return (
+            observations,
+            {n: reward for n in names},
+            {n: done for n in names},
+            {n: truncated for n in names},
+            {n: dict(info) for n in names},
+        )
 
     def render(self):
         if self.render_mode != "rgb_array":
@@ -162,8 +174,9 @@ class GridParallelEnv(ParallelEnv):
     def state(self) -> np.ndarray:
         """The global state (see ``state_space``)."""
         s = self.core.episode.state
-        return np.concatenate([s.agents.ravel(), s.agent_levels, s.targets.ravel(), s.target_levels,
-                               s.alive.astype(np.int64)]).astype(np.float32)
+        return np.concatenate(
+            [s.agents.ravel(), s.agent_levels, s.targets.ravel(), s.target_levels, s.alive.astype(np.int64)]
+        ).astype(np.float32)
 
     def close(self) -> None:
         self._single.close()

@@ -73,24 +73,56 @@ class PursuitEnv(AdhocGridEnv):
     """
 
     @contract.keywords()
-    def __init__(self, tasks=None, teams=None, rows: int = 5, cols: int = 5, n_agents: int | None = None,
-                 n_prey: int = 1, pairs: bool = False, toroidal: bool = False, prey_stay_probability: float = 0.2,
-                 view: int = 5, backend: str = "abstract", obs_mode: str = "grid", image_size: int = 64,
-                 render_mode: str | None = None, physics=None, observation_noise: float = 0.2):
+    def __init__(
+        self,
+        tasks=None,
+        teams=None,
+        rows: int = 5,
+        cols: int = 5,
+        n_agents: int | None = None,
+        n_prey: int = 1,
+        pairs: bool = False,
+        toroidal: bool = False,
+        prey_stay_probability: float = 0.2,
+        view: int = 5,
+        backend: str = "abstract",
+        obs_mode: str = "grid",
+        image_size: int = 64,
+        render_mode: str | None = None,
+        physics=None,
+        observation_noise: float = 0.2,
+    ):
         self.observation_noise = checks.number("observation_noise", observation_noise, 0.0, 1.0)
-        common = dict(toroidal=checks.flag("toroidal", toroidal),
-                      prey_stay_probability=checks.number("prey_stay_probability", prey_stay_probability, 0.0, 1.0),
-                      **grid_sizes(rows=rows, cols=cols, n_targets=n_prey))
+        common = dict(
+            toroidal=checks.flag("toroidal", toroidal),
+            prey_stay_probability=checks.number("prey_stay_probability", prey_stay_probability, 0.0, 1.0),
+            **grid_sizes(rows=rows, cols=cols, n_targets=n_prey),
+        )
         if checks.flag("pairs", pairs):
             if n_agents not in (None, 2):
                 raise ConfigError(f"n_agents={n_agents}: the pair variant (pairs=True) has two predators")
-            config, library, teams_lib = two_predator_config(**common), pursuit_tasks(pairs=True), TWO_PREDATOR_TEAMS
+            config, library, teams_lib = (
+                two_predator_config(**common),
+                pursuit_tasks(pairs=True),
+                TWO_PREDATOR_TEAMS,
+            )
         else:
             n_agents = 4 if n_agents is None else checks.integer("n_agents", n_agents, 1)
             config = pursuit_config(n_agents=n_agents, **common)
             library, teams_lib = pursuit_tasks(n_agents), FOUR_PREDATOR_TEAMS
-        super().__init__(config, library, teams_lib, tasks, teams, view, backend, obs_mode, image_size,
-                         render_mode, physics)
+        super().__init__(
+            config,
+            library,
+            teams_lib,
+            tasks,
+            teams,
+            view,
+            backend,
+            obs_mode,
+            image_size,
+            render_mode,
+            physics,
+        )
 
     @property
     def pairs(self) -> bool:

@@ -126,8 +126,14 @@ class PursuitPomdpEnv(gymnasium.Env):
     metadata = {"render_modes": list(contract.RENDER_MODES), "render_fps": 4}
 
     @contract.keywords()
-    def __init__(self, tasks=None, noise: float | None = None, backend: str = "abstract",
-                 render_mode: str | None = None, physics=None) -> None:
+    def __init__(
+        self,
+        tasks=None,
+        noise: float | None = None,
+        backend: str = "abstract",
+        render_mode: str | None = None,
+        physics=None,
+    ) -> None:
         self.noise = None if noise is None else checks.number("noise", noise, 0.0, 1.0)
         self.library = pursuit_pair_library(self.noise)
         n_tasks = self.library.n_models
@@ -162,8 +168,14 @@ class PursuitPomdpEnv(gymnasium.Env):
         return int(self.state)
 
     def _info(self) -> dict:
-        info = {"observation_index": self.observation, "state": self.state, "task": self.task,
-                "task_name": self.library.task_names[self.task], "cells": self.cells.tolist(), "steps": self.steps}
+        info = {
+            "observation_index": self.observation,
+            "state": self.state,
+            "task": self.task,
+            "task_name": self.library.task_names[self.task],
+            "cells": self.cells.tolist(),
+            "steps": self.steps,
+        }
         if self.arena is not None:
             info["sim_time"] = self.arena.sim_time
             info["poses"] = self.arena.poses().tolist()
@@ -183,10 +195,13 @@ class PursuitPomdpEnv(gymnasium.Env):
         if "start" in options:
             start = checks.integer("reset option start", options["start"], 0, pomdp.n_states - 1)
             if pomdp.initial_belief[start] <= 0.0:
-                raise ConfigError(f"reset option start={start}: not a start state of task {task} (capture or absorbing)")
+                raise ConfigError(
+                    f"reset option start={start}: not a start state of task {task} (capture or absorbing)"
+                )
         if "agent_cell" in options:
-            agent_cell = np.array([checks.integer("reset option agent_cell", v, 0, SIZE - 1)
-                                   for v in options["agent_cell"]])
+            agent_cell = np.array(
+                [checks.integer("reset option agent_cell", v, 0, SIZE - 1) for v in options["agent_cell"]]
+            )
         self.task, self.steps = int(task), 0
         self.cells = cells_of_state(start, agent_cell)
         if self.arena is not None:
@@ -233,8 +248,9 @@ def _move_of(before: np.ndarray, after: np.ndarray) -> int:
     return int(next(k for k, move in enumerate(MOVES) if offset_index(move) == delta))
 
 
-def draw_cells(cells: np.ndarray, cell_px: int = 32,
-               colours=((240, 140, 20), (40, 90, 220), (220, 40, 40))) -> np.ndarray:
+def draw_cells(
+    cells: np.ndarray, cell_px: int = 32, colours=((240, 140, 20), (40, 90, 220), (220, 40, 40))
+) -> np.ndarray:
     """Top-down RGB picture of the torus: agent orange, teammate blue, prey red (shared cells split); one colour
     per row of ``cells`` (chapter 4's pursuit passes five)."""
     image = np.full((SIZE * cell_px, SIZE * cell_px, 3), 235, dtype=np.uint8)
@@ -243,7 +259,7 @@ def draw_cells(cells: np.ndarray, cell_px: int = 32,
     for k, (cell, colour) in enumerate(zip(cells, colours, strict=True)):
         r, c = int(cell[0]) * cell_px, int(cell[1]) * cell_px
         margin = cell_px // 5 + 3 * k * (sum((cells == cell).all(axis=1)) > 1)
-        image[r + margin:r + cell_px - margin, c + margin:c + cell_px - margin] = colour
+        image[r + margin : r + cell_px - margin, c + margin : c + cell_px - margin] = colour
     return image
 
 

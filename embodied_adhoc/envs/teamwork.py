@@ -85,14 +85,23 @@ class TeamworkEnv(gymnasium.Env):
     metadata = {"render_modes": list(contract.RENDER_MODES), "render_fps": 4}
 
     @contract.keywords()
-    def __init__(self, teams=None, slip: float = 0.0, backend: str = "abstract", render_mode: str | None = None,
-                 physics=None, world=None) -> None:
+    def __init__(
+        self,
+        teams=None,
+        slip: float = 0.0,
+        backend: str = "abstract",
+        render_mode: str | None = None,
+        physics=None,
+        world=None,
+    ) -> None:
         slip = checks.number("slip", slip, 0.0, 1.0)
         if world is not None and slip:
             raise ConfigError("slip: give the world its slip (world=...) or use the default pursuit world")
         self.world = Pursuit4(5, slip=slip) if world is None else world  # Pursuit4 refuses slip 1
         if teams is not None and not isinstance(teams, (str, list, tuple)):
-            raise ConfigError(f"teams={teams!r}: give a team name or a list of them from {', '.join(self.world.teams)}")
+            raise ConfigError(
+                f"teams={teams!r}: give a team name or a list of them from {', '.join(self.world.teams)}"
+            )
         chosen = self.world.teams if teams is None else ((teams,) if isinstance(teams, str) else tuple(teams))
         self.teams = tuple(checks.choice("teams", team, self.world.teams) for team in chosen)
         if not self.teams:
@@ -105,8 +114,9 @@ class TeamworkEnv(gymnasium.Env):
         self.n_mates = self.models[self.teams[0]].probs(probe).shape[1]
         self.render_mode = contract.render_mode(render_mode)
         self.action_space = gymnasium.spaces.Discrete(N_ACTIONS)
-        self.observation_space = gymnasium.spaces.MultiDiscrete([self.world.cells] * self.n_agents
-                                                                + [N_ACTIONS + 1] * self.n_mates)
+        self.observation_space = gymnasium.spaces.MultiDiscrete(
+            [self.world.cells] * self.n_agents + [N_ACTIONS + 1] * self.n_mates
+        )
         self.arena = None
         if self.backend_name == "mujoco":
             if not (self.pursuit and self.world.size == 5):
@@ -123,7 +133,7 @@ class TeamworkEnv(gymnasium.Env):
 
     def observation_index(self, observation) -> int:
         """The state's :func:`state_code` (for the episode loop's trace), from the observation alone."""
-        return state_code(np.asarray(observation)[:self.n_agents], self.world.cells)
+        return state_code(np.asarray(observation)[: self.n_agents], self.world.cells)
 
     def privileged_state(self) -> np.ndarray:
         """The true state, as ``info["state"]`` holds it: the one channel through which the episode loop gives it to
@@ -160,12 +170,19 @@ class TeamworkEnv(gymnasium.Env):
         if "team" in options:
             self.team = checks.choice("reset option team", options["team"], self.world.teams)
         if "state" in options:
-            state = np.array([checks.integer("reset option state", c, 0, self.world.cells - 1)
-                              for c in options["state"]], dtype=np.int64)
-            if state.size != self.n_agents or np.unique(state).size != self.n_agents or (
-                    self.pursuit and self.world.captured(state[None])[0]):
-                raise ConfigError(f"reset option state={options['state']}: give {self.n_agents} distinct cells "
-                                  "(the ad hoc agent first) that do not end the episode")
+            state = np.array(
+                [checks.integer("reset option state", c, 0, self.world.cells - 1) for c in options["state"]],
+                dtype=np.int64,
+            )
+            if (
+                state.size != self.n_agents
+                or np.unique(state).size != self.n_agents
+                or (self.pursuit and self.world.captured(state[None])[0])
+            ):
+                raise ConfigError(
+                    f"reset option state={options['state']}: give {self.n_agents} distinct cells "
+                    "(the ad hoc agent first) that do not end the episode"
+                )
         self.state = state if self.arena is None else self._physical(state)
         self.mates = np.full(self.n_mates, NO_ACTION, dtype=np.int64)
         self.steps = 0

@@ -182,9 +182,13 @@ class ToxicWasteEnv(gymnasium.Env):
         self.width, self.height, self.render_quality = width, height, render_quality
         localisation = checks.flag("localisation", localisation)
         lidar_noise = None if lidar_noise is None else checks.number("lidar_noise", lidar_noise, 0.0)
-        lidar_dropout = None if lidar_dropout is None else checks.number("lidar_dropout", lidar_dropout, 0.0, 1.0)
+        lidar_dropout = (
+            None if lidar_dropout is None else checks.number("lidar_dropout", lidar_dropout, 0.0, 1.0)
+        )
         self.speech_failure = checks.number("speech_failure", speech_failure, 0.0, 1.0)
-        reader_miss = config.rfid_miss if reader_miss is None else checks.number("reader_miss", reader_miss, 0.0, 1.0)
+        reader_miss = (
+            config.rfid_miss if reader_miss is None else checks.number("reader_miss", reader_miss, 0.0, 1.0)
+        )
         self.world = make_world(
             encoder_noise,
             wheel_slip,
@@ -206,7 +210,9 @@ class ToxicWasteEnv(gymnasium.Env):
             raise ConfigError(
                 "the MuJoCo lab layout and the lab model's graph differ; they must be the same map"
             )
-        self.speech: SpeechTurn | None = make_speech(speech, config.confusion) if config.communication else None
+        self.speech: SpeechTurn | None = (
+            make_speech(speech, config.confusion) if config.communication else None
+        )
         n = self.library.graph.n_nodes
         self.action_space = spaces.Discrete(self.library.n_actions)
         self.observation_space = spaces.MultiDiscrete([n + 1, n + 1, 2])
@@ -254,7 +260,9 @@ class ToxicWasteEnv(gymnasium.Env):
 
     def step(self, action):
         self._episode.check()
-        action = contract.action(action, self.library.n_actions, "see the action table of the env's docstring")
+        action = contract.action(
+            action, self.library.n_actions, "see the action table of the env's docstring"
+        )
         lib = self.library
         reward = float(lib.config.reward.of(np.array(self._status)))
         before = self.world.ground_truth()
@@ -297,7 +305,12 @@ class ToxicWasteEnv(gymnasium.Env):
             counts["moves"] += 1
             counts["blocked_moves"] += bool(result.blocked)
         observation = self._observation(
-            result.robot_node_reading, truth.robot_node, truth.human_node, heard, bool(result.rfid_events), action
+            result.robot_node_reading,
+            truth.robot_node,
+            truth.human_node,
+            heard,
+            bool(result.rfid_events),
+            action,
         )
         self._steps += 1
         terminated = all(s == DISPOSED for s in self._status)
@@ -365,11 +378,15 @@ class ToxicWasteEnv(gymnasium.Env):
                 np.hypot(odometry_pose[0] - truth.robot_pose[0], odometry_pose[1] - truth.robot_pose[1])
             ),
             "estimated_pose": estimate,
-            "pose_error": float(np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])),
+            "pose_error": float(
+                np.hypot(estimate[0] - truth.robot_pose[0], estimate[1] - truth.robot_pose[1])
+            ),
             "localisation_mode": "off" if localiser is None else localiser.mode,
             "pose_covariance": None if localiser is None else localiser.covariance,
             "kidnaps": 0 if result is None else result.kidnaps,
-            "robot_node_reading": self.world.robot_node_reading() if result is None else result.robot_node_reading,
+            "robot_node_reading": self.world.robot_node_reading()
+            if result is None
+            else result.robot_node_reading,
             "blocked": False if result is None else result.blocked,
             "human_position": truth.human_pose[:2],
             "ball_positions": np.array(truth.ball_positions),

@@ -99,7 +99,9 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
 
     def step(self, action):
         self._episode.check()
-        action = contract.action(action, self.library.n_actions, "see the action table of the env's docstring")
+        action = contract.action(
+            action, self.library.n_actions, "see the action table of the env's docstring"
+        )
         reward = float(sum(self._reward_table[s] for s in self._status))
         human = self._humans[self._task].step(self.np_random, self._human, self._status)
         self._robot, self._human, self._status, disposed = apply_step(

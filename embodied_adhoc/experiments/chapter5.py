@@ -37,7 +37,14 @@ import numpy as np
 from embodied_adhoc.decision.agents.baselines import RandomPickerAgent
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "LibraryEnv", "RandomPickerAgent", "return_table", "timing_line"]
+__all__ = [
+    "CHAPTER5_AGENTS",
+    "Chapter5Domain",
+    "LibraryEnv",
+    "RandomPickerAgent",
+    "return_table",
+    "timing_line",
+]
 
 CHAPTER5_AGENTS = ("value-iteration", "perseus", "atpo", "random-picker", "bopa", "random")
 TABLE_5_2_HORIZON = {
@@ -96,7 +103,9 @@ class LibraryEnv:
 class Chapter5Session:
     """One library built and its policies solved (lazily, cached) per process; envs and agents made from it."""
 
-    blas_threads = 1  # trials (and the lazy solves inside them) run with one BLAS thread (executors.execute_job):
+    blas_threads = (
+        1  # trials (and the lazy solves inside them) run with one BLAS thread (executors.execute_job):
+    )
     # their products are small, and OpenBLAS's default pool spins on the cores the worker processes need
 
     def __init__(self, domain: str, options: dict) -> None:
@@ -137,7 +146,9 @@ class Chapter5Session:
             self.timing["solve_seconds"] += time.perf_counter() - start
             self.timing["policies_from_cache"] = sum(hit for _, hit in solved)
             self.timing["solver_settings"] = settings
-            blind = [name for name, (policy, _) in zip(self.task_names, solved, strict=True) if is_blind(policy)]
+            blind = [
+                name for name, (policy, _) in zip(self.task_names, solved, strict=True) if is_blind(policy)
+            ]
             if blind:
                 raise ConfigError(
                     f"{self.library.domain}: Perseus stopped at --solve-seconds {settings['time_limit']:g} before "
@@ -461,8 +472,14 @@ def return_table(summary, markdown: bool = False) -> str:
     from embodied_adhoc.experiments.tables import CI_HEADER, fmt, format_table, interval, mean_sd
 
     rows = [
-        [s.agent, str(s.trials), mean_sd(s.total_reward), interval(s.total_reward), fmt(s.total_reward.iqm),
-         fmt(s.success_rate)]  # fmt: skip
+        [
+            s.agent,
+            str(s.trials),
+            mean_sd(s.total_reward),
+            interval(s.total_reward),
+            fmt(s.total_reward.iqm),
+            fmt(s.success_rate),
+        ]  # fmt: skip
         for s in summary.agents.values()
     ]
     headers = ("agent", "trials", "return mean ± sd", f"return {CI_HEADER}", "return IQM", "success")

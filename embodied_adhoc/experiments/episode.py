@@ -152,7 +152,9 @@ def run_episode_loop(
         observation, reward, terminated, truncated, info = env.step(action)
         index = int(observation_index(observation))
         outcome = {"reward": float(reward), "terminated": bool(terminated)} if rewarded else {}
-        agent.observe(action, observation if raw else index, state=state_of() if privileged else None, **outcome)
+        agent.observe(
+            action, observation if raw else index, state=state_of() if privileged else None, **outcome
+        )
         posterior = _posterior(agent)
         trace.actions.append(action)
         trace.observations.append(index)

@@ -28,7 +28,10 @@ from embodied_adhoc.errors import ConfigError
 ENV_IDS = {
     "foraging": {"abstract": "EmbodiedAdhoc/ForagingGrid-v0", "mujoco": "EmbodiedAdhoc/Foraging-v0"},
     "pursuit": {"abstract": "EmbodiedAdhoc/PursuitGrid-v0", "mujoco": "EmbodiedAdhoc/Pursuit-v0"},
-    "pursuit-pairs": {"abstract": "EmbodiedAdhoc/PursuitPairGrid-v0", "mujoco": "EmbodiedAdhoc/PursuitPair-v0"},
+    "pursuit-pairs": {
+        "abstract": "EmbodiedAdhoc/PursuitPairGrid-v0",
+        "mujoco": "EmbodiedAdhoc/PursuitPair-v0",
+    },
 }
 
 
@@ -88,8 +91,9 @@ class GridTrialSession:
     def make_env(self, max_steps: int):
         import gymnasium
 
-        return gymnasium.make(self.env_id, max_episode_steps=int(max_steps), disable_env_checker=True,
-                              **self.env_kwargs)
+        return gymnasium.make(
+            self.env_id, max_episode_steps=int(max_steps), disable_env_checker=True, **self.env_kwargs
+        )
 
     def reset_options(self, spec: dict) -> dict:
         return {"task": int(spec["task"]) + 1, "team": spec["team"], "state": json.loads(spec["start"])}
@@ -116,14 +120,20 @@ def library_folder(domain: str, folder) -> str:
     from pathlib import Path
 
     if not (Path(folder) / "library.json").is_file():
-        raise ConfigError(f"--library {folder}: no library.json there; train one with `embodied-adhoc train atlpo "
-                          f"--domain {domain} --set task+team --out {folder}`")
+        raise ConfigError(
+            f"--library {folder}: no library.json there; train one with `embodied-adhoc train atlpo "
+            f"--domain {domain} --set task+team --out {folder}`"
+        )
     return str(Path(folder).resolve())
 
 
 def env_kwargs(options: dict) -> dict:
-    kwargs = {"rows": options["rows"], "cols": options["cols"], "toroidal": options["toroidal"],
-              "teams": options["teams"]}
+    kwargs = {
+        "rows": options["rows"],
+        "cols": options["cols"],
+        "toroidal": options["toroidal"],
+        "teams": options["teams"],
+    }
     if options["domain"] == "pursuit" and options["pairs"]:
         kwargs["pairs"] = True
     else:
@@ -151,22 +161,40 @@ class GridTrialDomain:
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group(f"{self.name} options")
-        group.add_argument("--team", default=None, metavar="NAME[,NAME]",
-                           help=f"team type(s) drawn per episode, from {', '.join(self.team_names)} "
-                                "(default: tau0,tau1,tau2), or a user team MODULE:CALLABLE (docs/plugins.md)")
-        group.add_argument("--task", type=int, default=None, metavar="K",
-                           help="fix the task to K in 1..4 (N/S/W/E assignment rotated K-1 times; default: uniform)")
+        group.add_argument(
+            "--team",
+            default=None,
+            metavar="NAME[,NAME]",
+            help=f"team type(s) drawn per episode, from {', '.join(self.team_names)} "
+            "(default: tau0,tau1,tau2), or a user team MODULE:CALLABLE (docs/plugins.md)",
+        )
+        group.add_argument(
+            "--task",
+            type=int,
+            default=None,
+            metavar="K",
+            help="fix the task to K in 1..4 (N/S/W/E assignment rotated K-1 times; default: uniform)",
+        )
         group.add_argument("--rows", type=int, default=5, help="grid rows (default 5)")
         group.add_argument("--cols", type=int, default=5, help="grid columns (default 5)")
-        group.add_argument("--n-agents", type=int, default=4, help="robots incl. the ad hoc one, 2-4 (default 4)")
+        group.add_argument(
+            "--n-agents", type=int, default=4, help="robots incl. the ad hoc one, 2-4 (default 4)"
+        )
         group.add_argument("--toroidal", action="store_true", help="wrap-around grid (abstract backend only)")
-        group.add_argument("--library", default=None, metavar="DIR",
-                           help="atlpo-mf: a library folder written by `embodied-adhoc train atlpo` (default: the "
-                                "pre-trained task+team library shipped with the package)")
+        group.add_argument(
+            "--library",
+            default=None,
+            metavar="DIR",
+            help="atlpo-mf: a library folder written by `embodied-adhoc train atlpo` (default: the "
+            "pre-trained task+team library shipped with the package)",
+        )
         if self.name == "pursuit":
-            group.add_argument("--pairs", action="store_true",
-                               help="Fig. 7.12 variant: 2 predators, capture pairs N+S, W+E, SW+NE, NW+SE, "
-                                    "teams greedy/aware")
+            group.add_argument(
+                "--pairs",
+                action="store_true",
+                help="Fig. 7.12 variant: 2 predators, capture pairs N+S, W+E, SW+NE, NW+SE, "
+                "teams greedy/aware",
+            )
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
         pairs = bool(getattr(args, "pairs", False))
@@ -176,8 +204,10 @@ class GridTrialDomain:
         from embodied_adhoc.plugins import names_plugin, resolve
 
         if any(t not in allowed and not names_plugin("teammate", t) for t in teams):
-            raise ConfigError(f"--team {args.team}: choose from {', '.join(allowed)}, or MODULE:CALLABLE (a user "
-                              "team: embodied_adhoc.teammates.grid_plugins)")
+            raise ConfigError(
+                f"--team {args.team}: choose from {', '.join(allowed)}, or MODULE:CALLABLE (a user "
+                "team: embodied_adhoc.teammates.grid_plugins)"
+            )
         for team in teams:  # a user team that cannot be imported stops here, before any work
             resolve("teammate", team, builtin=allowed, flag="--team")
         if args.task is not None and not 1 <= args.task <= 4:
@@ -185,9 +215,16 @@ class GridTrialDomain:
         library = getattr(args, "library", None)
         if library is not None:
             library = library_folder(self.name, library)
-        options = {"domain": self.name, "teams": list(teams), "task": args.task, "rows": args.rows,
-                   "cols": args.cols, "agents": 2 if pairs else args.n_agents, "toroidal": bool(args.toroidal),
-                   "pairs": pairs}
+        options = {
+            "domain": self.name,
+            "teams": list(teams),
+            "task": args.task,
+            "rows": args.rows,
+            "cols": args.cols,
+            "agents": 2 if pairs else args.n_agents,
+            "toroidal": bool(args.toroidal),
+            "pairs": pairs,
+        }
         if library is not None:  # only then: stored runs of the other agents keep their identity
             options["library"] = library
         return options
@@ -197,8 +234,13 @@ class GridTrialDomain:
 
         drawn_task = int(rng.integers(4))
         team = options["teams"][int(rng.integers(len(options["teams"])))]
-        config = GridConfig(domain=options["domain"], rows=options["rows"], cols=options["cols"],
-                            n_agents=options["agents"], toroidal=options["toroidal"])
+        config = GridConfig(
+            domain=options["domain"],
+            rows=options["rows"],
+            cols=options["cols"],
+            n_agents=options["agents"],
+            toroidal=options["toroidal"],
+        )
         start = GridRules(config).sample_state(rng)
         task = drawn_task if options.get("task") is None else int(options["task"]) - 1
         return {"task": task, "team": team, "start": json.dumps(start.as_dict())}
@@ -209,5 +251,8 @@ class GridTrialDomain:
         return GridTrialSession(self.name, backend, options)
 
 
-DOMAIN = GridTrialDomain("foraging", "Level-based foraging: 4 foragers, N/S/W/E forage positions, teams tau0-2 "
-                         "(thesis ch. 6)", ("tau0", "tau1", "tau2"))
+DOMAIN = GridTrialDomain(
+    "foraging",
+    "Level-based foraging: 4 foragers, N/S/W/E forage positions, teams tau0-2 (thesis ch. 6)",
+    ("tau0", "tau1", "tau2"),
+)

@@ -32,8 +32,14 @@ from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.foraging import GridTrialDomain
 
 __all__ = [
-    "DOMAIN", "POMDP_AGENTS", "THESIS_FIG_7_12", "THESIS_TRIALS", "PursuitPairsSession", "PursuitTrialDomain",
-    "pomdp_options", "thesis_in_our_count",
+    "DOMAIN",
+    "POMDP_AGENTS",
+    "THESIS_FIG_7_12",
+    "THESIS_TRIALS",
+    "PursuitPairsSession",
+    "PursuitTrialDomain",
+    "pomdp_options",
+    "thesis_in_our_count",
 ]
 
 POMDP_AGENTS = ("hotspot", "known-task", "oracle", "atpo", "bopa", "perseus")
@@ -42,7 +48,11 @@ AGENTS_GIVEN_THE_TASK = ("known-task", "oracle", "perseus")
 ENV_IDS = {"abstract": "EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "mujoco": "EmbodiedAdhoc/PursuitPairPomdp-v0"}
 THESIS_FIG_7_12 = {  # Fig. 7.12, 32 trials, cap 150: (mean, population sd, trials captured) of steps
     "oracle": (6.75, 4.55, 32),  # "optimal agent, full observability"
-    "known-task": (10.22, 6.12, 32),  # "knows the correct task and acts optimally under partial observability"
+    "known-task": (
+        10.22,
+        6.12,
+        32,
+    ),  # "knows the correct task and acts optimally under partial observability"
     "hotspot": (12.84, 7.29, 32),  # TEBOPA
     "random": (76.06, 52.65, 23),  # 9 trials at the cap
 }
@@ -94,8 +104,11 @@ class PursuitPairsSession:
         return gymnasium.make(self.env_id, max_episode_steps=int(max_steps), disable_env_checker=True)
 
     def reset_options(self, spec: dict) -> dict:
-        return {"task": int(spec["task"]), "start": int(spec["start"]),
-                "agent_cell": [int(spec["agent_row"]), int(spec["agent_col"])]}
+        return {
+            "task": int(spec["task"]),
+            "start": int(spec["start"]),
+            "agent_cell": [int(spec["agent_row"]), int(spec["agent_col"])],
+        }
 
     def atpo_policies(self) -> tuple:
         """ATPO's Perseus policies of the four tasks (:data:`ATPO_SOLVER`; cached on disk)."""
@@ -113,7 +126,9 @@ class PursuitPairsSession:
 
         if name in ("atpo", "perseus"):
             prior = np.eye(self.library.n_models)[int(spec["task"])] if name == "perseus" else None
-            agent = AtpoAgent(hotspot_plan(self.library).kernels, self.atpo_policies(), prior=prior, name=name)
+            agent = AtpoAgent(
+                hotspot_plan(self.library).kernels, self.atpo_policies(), prior=prior, name=name
+            )
             agent.rng = np.random.default_rng(seed)
             return agent
         true_task = int(spec["task"]) if name in AGENTS_GIVEN_THE_TASK else None
@@ -128,7 +143,12 @@ def pomdp_options(task: int | None = None, cache: bool = True) -> dict:
     stores them."""
     if task is not None and not 1 <= int(task) <= 4:
         raise ConfigError(f"--task {task}: the task library is 1..4 (N+S, W+E, SW+NE, NW+SE)")
-    options = {"domain": "pursuit", "pairs": True, "rules": "pomdp", "task": None if task is None else int(task)}
+    options = {
+        "domain": "pursuit",
+        "pairs": True,
+        "rules": "pomdp",
+        "task": None if task is None else int(task),
+    }
     if not cache:
         options["cache"] = False
     return options
@@ -153,12 +173,18 @@ class PursuitTrialDomain(GridTrialDomain):
         super().add_arguments(parser)
         group = parser.add_argument_group("Fig. 7.12 (--pairs) with the decision layer")
         group.add_argument(
-            "--rules", choices=("auto", "pomdp", "grid"), default="auto",
+            "--rules",
+            choices=("auto", "pomdp", "grid"),
+            default="auto",
             help="--pairs only: 'pomdp' runs the pursuit-task POMDP as the world (torus, no collisions, greedy "
-                 "teammate; agents hotspot, known-task, oracle, atpo, bopa, perseus, random); 'grid' the arena's own rules "
-                 "(agents original, random); 'auto' (default) picks pomdp when a decision-layer agent is asked for")
-        group.add_argument("--no-cache", action="store_true",
-                           help="--rules pomdp: solve ATPO's policies again (do not read or write the policy cache)")
+            "teammate; agents hotspot, known-task, oracle, atpo, bopa, perseus, random); 'grid' the arena's own rules "
+            "(agents original, random); 'auto' (default) picks pomdp when a decision-layer agent is asked for",
+        )
+        group.add_argument(
+            "--no-cache",
+            action="store_true",
+            help="--rules pomdp: solve ATPO's policies again (do not read or write the policy cache)",
+        )
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
         agents = tuple(a.strip() for a in str(getattr(args, "agents", "") or "").split(",") if a.strip())
@@ -167,21 +193,33 @@ class PursuitTrialDomain(GridTrialDomain):
             rules = "pomdp" if any(a in POMDP_AGENTS for a in agents) else "grid"
         wanted_pomdp = [a for a in agents if a in POMDP_AGENTS]
         if rules == "grid" and wanted_pomdp:
-            raise ConfigError(f"--agents {','.join(wanted_pomdp)}: these plan with the pursuit POMDP; use --pairs "
-                              "(with --rules pomdp or auto)")
+            raise ConfigError(
+                f"--agents {','.join(wanted_pomdp)}: these plan with the pursuit POMDP; use --pairs "
+                "(with --rules pomdp or auto)"
+            )
         if rules == "pomdp":
             if not getattr(args, "pairs", False):
-                raise ConfigError("--rules pomdp / --agents hotspot,...: the pursuit POMDP is Fig. 7.12's "
-                                  "two-predator variant; add --pairs")
+                raise ConfigError(
+                    "--rules pomdp / --agents hotspot,...: the pursuit POMDP is Fig. 7.12's "
+                    "two-predator variant; add --pairs"
+                )
             if "original" in agents:
-                raise ConfigError("--agents original: the arena team's policy has no place in the pursuit POMDP "
-                                  "(its teammate is the library's greedy one); use oracle for the full-information "
-                                  "baseline")
-            for flag, value, default in (("--team", args.team, None), ("--rows", args.rows, 5),
-                                         ("--cols", args.cols, 5), ("--toroidal", args.toroidal, False)):
+                raise ConfigError(
+                    "--agents original: the arena team's policy has no place in the pursuit POMDP "
+                    "(its teammate is the library's greedy one); use oracle for the full-information "
+                    "baseline"
+                )
+            for flag, value, default in (
+                ("--team", args.team, None),
+                ("--rows", args.rows, 5),
+                ("--cols", args.cols, 5),
+                ("--toroidal", args.toroidal, False),
+            ):
                 if value != default:
-                    raise ConfigError(f"{flag} {value}: the pursuit POMDP is fixed (5x5 torus, greedy teammate); "
-                                      f"drop {flag} or use --rules grid")
+                    raise ConfigError(
+                        f"{flag} {value}: the pursuit POMDP is fixed (5x5 torus, greedy teammate); "
+                        f"drop {flag} or use --rules grid"
+                    )
             return pomdp_options(args.task, cache=not getattr(args, "no_cache", False))
         return super().options_from_args(args)
 

@@ -469,7 +469,9 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
     from embodied_adhoc.experiments.registry import build_agent
     from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
-    agent = build_agent(DOMAIN, session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
+    agent = build_agent(
+        DOMAIN, session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)
+    )
     human = {"human": config.env_kwargs["human"]} if "human" in config.env_kwargs else {}  # a plug-in human
     metrics = episode_metrics(config, setup, "run toxic-waste", **human)
     recording = config.record_dir is not None

@@ -44,8 +44,16 @@ class ForagingEpisodeConfig(ArenaVideoConfig):
 
     def options(self) -> dict:
         """The ``trials foraging`` options of this episode (the grid twin's defaults: 5x5 walled, 4 robots)."""
-        options = {"domain": "foraging", "teams": list(self.teams), "task": self.task, "rows": 5, "cols": 5,
-                   "agents": 4, "toroidal": False, "pairs": False}
+        options = {
+            "domain": "foraging",
+            "teams": list(self.teams),
+            "task": self.task,
+            "rows": 5,
+            "cols": 5,
+            "agents": 4,
+            "toroidal": False,
+            "pairs": False,
+        }
         if self.library is not None:
             from embodied_adhoc.experiments.foraging import library_folder
 
@@ -70,18 +78,26 @@ class _Metrics(MetricsObserver):
         self.agent, self.backend = agent, backend
 
     def step_finished(self, record: StepRecord) -> None:
-        self.metrics.end_step(record.action, f"egocentric view, fingerprint {record.observation_index:08x}",
-                              record.reward, float(self.backend.data.time), record.task_posterior,
-                              _entropy(record.task_posterior))
+        self.metrics.end_step(
+            record.action,
+            f"egocentric view, fingerprint {record.observation_index:08x}",
+            record.reward,
+            float(self.backend.data.time),
+            record.task_posterior,
+            _entropy(record.task_posterior),
+        )
         library = _library_posterior(self.agent)
         self.metrics.per_step[-1].update(
-            cells=record.info["state"]["agents"], apples_left=int(record.info["remaining"]),
-            library_posterior=None if library is None else [round(float(p), 6) for p in library])
+            cells=record.info["state"]["agents"],
+            apples_left=int(record.info["remaining"]),
+            library_posterior=None if library is None else [round(float(p), 6) for p in library],
+        )
 
 
 class _Recording(ArenaRecording):
     """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the foraging HUD
     and the library posterior."""
+
     outcomes = ("apple foraged", "not foraged")
 
     hud_keys = ("action", "truth", "posterior", "posterior more")
@@ -90,8 +106,16 @@ class _Recording(ArenaRecording):
         backend = env.unwrapped.core.backend
         labels = ["ad hoc"] + [f"teammate {i}" for i in range(1, len(backend.robots))]
         self.agent = agent
-        super().__init__(config, backend, backend, lambda: float(backend.data.time), labels,
-                         ROBOT_COLOURS[: len(labels)], f"foraging {config.agent} seed {config.seed}", files)
+        super().__init__(
+            config,
+            backend,
+            backend,
+            lambda: float(backend.data.time),
+            labels,
+            ROBOT_COLOURS[: len(labels)],
+            f"foraging {config.agent} seed {config.seed}",
+            files,
+        )
 
     @property
     def sim_time(self) -> float:
@@ -103,7 +127,10 @@ class _Recording(ArenaRecording):
             self.hud.pop("posterior", None)
             self.hud.pop("posterior more", None)
             return
-        cells = [f"{e.task}/{e.team} {p:.2f}" for e, p in zip(self.agent.library.environments, posterior, strict=True)]
+        cells = [
+            f"{e.task}/{e.team} {p:.2f}"
+            for e, p in zip(self.agent.library.environments, posterior, strict=True)
+        ]
         self.hud["posterior"] = "P(task/team): " + " ".join(cells[:4])  # four per line fit the video's width
         self.hud["posterior more"] = " ".join(cells[4:])
         self.rerun.log_belief(posterior, _entropy(posterior))
@@ -111,13 +138,21 @@ class _Recording(ArenaRecording):
     def episode_started(self, info: dict, task_posterior) -> None:
         self.rerun.set_time(0, self.sim_time)
         self.hud["action"] = f"{self.config.agent} | step 0"
-        self.hud["truth"] = f"true task {info['task']} ({info['task_name'].split(':')[-1]}), team {info['team']}"
+        self.hud["truth"] = (
+            f"true task {info['task']} ({info['task_name'].split(':')[-1]}), team {info['team']}"
+        )
         self._posterior()
         library = getattr(self.agent, "library", None)
-        environments = "" if library is None else ", library posterior over " + ", ".join(
-            e.name for e in library.environments)
-        self.rerun.log_text("events", f"start: robots at {info['state']['agents']}, apple at "
-                                      f"{info['state']['targets']}, {self.hud['truth']}{environments}")
+        environments = (
+            ""
+            if library is None
+            else ", library posterior over " + ", ".join(e.name for e in library.environments)
+        )
+        self.rerun.log_text(
+            "events",
+            f"start: robots at {info['state']['agents']}, apple at "
+            f"{info['state']['targets']}, {self.hud['truth']}{environments}",
+        )
         self._frame(force=True)
 
     def action_chosen(self, step: int, action: int) -> None:
@@ -128,16 +163,18 @@ class _Recording(ArenaRecording):
 
     def step_finished(self, record: StepRecord) -> None:
         self.rerun.set_time(record.step, self.sim_time)
-        self.rerun.log_text("observations", f"step {record.step}: robots at {record.info['state']['agents']}, "
-                                            f"teammates {record.info['teammate_actions']}")
+        self.rerun.log_text(
+            "observations",
+            f"step {record.step}: robots at {record.info['state']['agents']}, "
+            f"teammates {record.info['teammate_actions']}",
+        )
         self._posterior()
         self._frame(force=True)
 
 
-
-
-def run_foraging_episode(config: ForagingEpisodeConfig,
-                         progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+def run_foraging_episode(
+    config: ForagingEpisodeConfig, progress: Callable[[int, dict], None] | None = None
+) -> EpisodeOutcome:
     """Run (and, with ``config.record_dir``, record) one physics episode; ``progress(step, info)`` per step."""
     import gymnasium
 
@@ -155,7 +192,9 @@ def run_foraging_episode(config: ForagingEpisodeConfig,
         raise ConfigError(f"--task {config.task}: the task library is 1..4")
     from embodied_adhoc.plugins import names_plugin
 
-    unknown = [team for team in config.teams if team not in DOMAIN.team_names and not names_plugin("teammate", team)]
+    unknown = [
+        team for team in config.teams if team not in DOMAIN.team_names and not names_plugin("teammate", team)
+    ]
     if unknown or not config.teams:
         raise ConfigError(f"--team {','.join(config.teams)}: choose from {', '.join(DOMAIN.team_names)}")
     check_video_options(config)
@@ -164,18 +203,37 @@ def run_foraging_episode(config: ForagingEpisodeConfig,
     session = DOMAIN.open_session("mujoco", options)
     agent = build_agent(DOMAIN, session, config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
     recording = config.record_dir is not None
-    env = gymnasium.make(session.env_id, max_episode_steps=int(config.max_steps), disable_env_checker=True,
-                         render_mode="rgb_array" if recording else None, **session.env_kwargs)
+    env = gymnasium.make(
+        session.env_id,
+        max_episode_steps=int(config.max_steps),
+        disable_env_checker=True,
+        render_mode="rgb_array" if recording else None,
+        **session.env_kwargs,
+    )
     metrics = EpisodeMetrics(
-        config={"command": "run foraging", "agent": config.agent, "seed": config.seed, "spec": spec,
-                "options": options, "max_steps": config.max_steps, "env": session.env_id,
-                "library": [e.name for e in agent.library.environments] if hasattr(agent, "library") else None},
+        config={
+            "command": "run foraging",
+            "agent": config.agent,
+            "seed": config.seed,
+            "spec": spec,
+            "options": options,
+            "max_steps": config.max_steps,
+            "env": session.env_id,
+            "library": [e.name for e in agent.library.environments] if hasattr(agent, "library") else None,
+        },
         true_task=int(spec["task"]),
         identify=identify_step,
     )
     outcome = play_recorded_episode(
-        env, agent, session, spec, config, metrics, [_Metrics(metrics, agent, env.unwrapped.core.backend)],
-        (lambda files: _Recording(config, env, agent, files)) if recording else None, progress,
+        env,
+        agent,
+        session,
+        spec,
+        config,
+        metrics,
+        [_Metrics(metrics, agent, env.unwrapped.core.backend)],
+        (lambda files: _Recording(config, env, agent, files)) if recording else None,
+        progress,
     )
     outcome.metrics["true_team"] = spec["team"]
     return outcome

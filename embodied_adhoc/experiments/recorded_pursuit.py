@@ -55,22 +55,40 @@ class _Metrics(MetricsObserver):
 
         posterior = record.task_posterior
         entropy = None if posterior is None else max(0.0, float(normalised_entropy(posterior)))
-        self.metrics.end_step(record.action, describe_pursuit_observation(record.observation_index), record.reward,
-                              record.info["sim_time"], posterior, entropy)
-        self.metrics.per_step[-1].update(cells=record.info["cells"], state=int(record.info["state"]),
-                                         intended_state=int(record.info["intended_state"]))
+        self.metrics.end_step(
+            record.action,
+            describe_pursuit_observation(record.observation_index),
+            record.reward,
+            record.info["sim_time"],
+            posterior,
+            entropy,
+        )
+        self.metrics.per_step[-1].update(
+            cells=record.info["cells"],
+            state=int(record.info["state"]),
+            intended_state=int(record.info["intended_state"]),
+        )
 
 
 class _Recording(ArenaRecording):
     """Video and rerun (:class:`~embodied_adhoc.experiments.arena_recording.ArenaRecording`) with the pursuit HUD."""
+
     outcomes = ("captured", "not captured")
 
     hud_keys = ("action", "observed", "posterior")
 
     def __init__(self, config: PursuitEpisodeConfig, env, task_names, files: dict[str, Path]):
         self.arena, self.task_names = env.unwrapped.arena, task_names
-        super().__init__(config, self.arena, self.arena.backend, lambda: self.arena.sim_time, ROBOT_LABELS,
-                         ROBOT_COLOURS, f"pursuit {config.agent} seed {config.seed}", files)
+        super().__init__(
+            config,
+            self.arena,
+            self.arena.backend,
+            lambda: self.arena.sim_time,
+            ROBOT_LABELS,
+            ROBOT_COLOURS,
+            f"pursuit {config.agent} seed {config.seed}",
+            files,
+        )
 
     def _posterior(self, posterior, info: dict) -> None:
         from embodied_adhoc.decision.agents.task_beliefs import normalised_entropy
@@ -79,15 +97,20 @@ class _Recording(ArenaRecording):
             self.hud.pop("posterior", None)
             return
         names = [name.split(":")[-1] for name in self.task_names]
-        self.hud["posterior"] = "P(task): " + "  ".join(f"{n} {p:.2f}" for n, p in zip(names, posterior, strict=True))
+        self.hud["posterior"] = "P(task): " + "  ".join(
+            f"{n} {p:.2f}" for n, p in zip(names, posterior, strict=True)
+        )
         self.rerun.log_belief(posterior, max(0.0, float(normalised_entropy(posterior))))
 
     def episode_started(self, info: dict, task_posterior) -> None:
         self.rerun.set_time(0, info["sim_time"])
         self.hud["action"] = f"{self.config.agent} | true task {info['task_name'].split(':')[-1]} | step 0"
         self._posterior(task_posterior, info)
-        self.rerun.log_text("events", f"start: cells (ad hoc, teammate, prey) {info['cells']}, true task "
-                                      f"{info['task_name']}, library {', '.join(self.task_names)}")
+        self.rerun.log_text(
+            "events",
+            f"start: cells (ad hoc, teammate, prey) {info['cells']}, true task "
+            f"{info['task_name']}, library {', '.join(self.task_names)}",
+        )
         self._frame(force=True)
 
     def action_chosen(self, step: int, action: int) -> None:
@@ -99,20 +122,24 @@ class _Recording(ArenaRecording):
     def step_finished(self, record: StepRecord) -> None:
         description = describe_pursuit_observation(record.observation_index)
         self.rerun.set_time(record.step, record.info["sim_time"])
-        self.rerun.log_text("observations", f"step {record.step}: z={record.observation_index} ({description})")
+        self.rerun.log_text(
+            "observations", f"step {record.step}: z={record.observation_index} ({description})"
+        )
         if record.info["state"] != record.info["intended_state"]:
-            self.rerun.log_text("events", f"step {record.step}: physics did not execute the drawn move "
-                                          f"(state {record.info['state']}, drawn {record.info['intended_state']})",
-                                level="WARN")
+            self.rerun.log_text(
+                "events",
+                f"step {record.step}: physics did not execute the drawn move "
+                f"(state {record.info['state']}, drawn {record.info['intended_state']})",
+                level="WARN",
+            )
         self.hud["observed"] = f"observed z={record.observation_index}: {description}"
         self._posterior(record.task_posterior, record.info)
         self._frame(force=True)
 
 
-
-
-def run_pursuit_episode(config: PursuitEpisodeConfig,
-                        progress: Callable[[int, dict], None] | None = None) -> EpisodeOutcome:
+def run_pursuit_episode(
+    config: PursuitEpisodeConfig, progress: Callable[[int, dict], None] | None = None
+) -> EpisodeOutcome:
     """Run (and, with ``config.record_dir``, record) one physics episode; ``progress(step, info)`` per step."""
     import gymnasium
 
@@ -128,7 +155,10 @@ def run_pursuit_episode(config: PursuitEpisodeConfig,
     from embodied_adhoc.record.metrics import EpisodeMetrics
 
     domain = get_trial_domain("pursuit")
-    if config.agent not in POMDP_AGENTS + ("random",) and agent_plugin(domain, config.agent, "--agent").builtin:
+    if (
+        config.agent not in POMDP_AGENTS + ("random",)
+        and agent_plugin(domain, config.agent, "--agent").builtin
+    ):
         raise ConfigError(f"--agent {config.agent}: choose from {', '.join(POMDP_AGENTS + ('random',))}")
     if config.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {config.max_steps}")
@@ -137,18 +167,36 @@ def run_pursuit_episode(config: PursuitEpisodeConfig,
     spec = get_trial_domain("pursuit").episode_spec(options, seeding.episode_rng(config.seed, 0))
     session = PursuitPairsSession("mujoco", options)
     recording = config.record_dir is not None
-    env = gymnasium.make(ENV_IDS["mujoco"], max_episode_steps=int(config.max_steps), disable_env_checker=True,
-                         render_mode="rgb_array" if recording else None)
+    env = gymnasium.make(
+        ENV_IDS["mujoco"],
+        max_episode_steps=int(config.max_steps),
+        disable_env_checker=True,
+        render_mode="rgb_array" if recording else None,
+    )
     agent = build_agent(domain, session, config.agent, spec, seeding.agent_seed(config.seed, 0, config.agent))
     metrics = EpisodeMetrics(
-        config={"command": "run pursuit", "agent": config.agent, "seed": config.seed, "spec": spec,
-                "options": options, "max_steps": config.max_steps, "env": ENV_IDS["mujoco"]},
+        config={
+            "command": "run pursuit",
+            "agent": config.agent,
+            "seed": config.seed,
+            "spec": spec,
+            "options": options,
+            "max_steps": config.max_steps,
+            "env": ENV_IDS["mujoco"],
+        },
         true_task=int(spec["task"]),
         identify=identify_step,
     )
     outcome = play_recorded_episode(
-        env, agent, session, spec, config, metrics, [_Metrics(metrics)],
-        (lambda files: _Recording(config, env, session.task_names, files)) if recording else None, progress,
+        env,
+        agent,
+        session,
+        spec,
+        config,
+        metrics,
+        [_Metrics(metrics)],
+        (lambda files: _Recording(config, env, session.task_names, files)) if recording else None,
+        progress,
     )
     outcome.metrics["physics_mismatches"] = sum(r["state"] != r["intended_state"] for r in metrics.per_step)
     return outcome

@@ -137,7 +137,9 @@ def build_agent(domain: TrialDomain, session: TrialSession, spec: str, episode_s
     return agent
 
 
-def privileged_agents(domain: TrialDomain, session: TrialSession, agents, episode_spec: dict, seed: int) -> tuple:
+def privileged_agents(
+    domain: TrialDomain, session: TrialSession, agents, episode_spec: dict, seed: int
+) -> tuple:
     """Those of ``agents`` that observe the true state (``observes_state``), which the tables mark: a built-in
     name when the domain lists it in ``privileged_agents``, a plug-in when the agent it builds declares it."""
     declared = set(getattr(domain, "privileged_agents", ()))
@@ -196,6 +198,19 @@ register_trial_domain("foraging", "embodied_adhoc.experiments.foraging:DOMAIN")
 register_trial_domain("pursuit", "embodied_adhoc.experiments.pursuit:DOMAIN")
 register_trial_domain("pursuit4", "embodied_adhoc.experiments.teamster_trials:DOMAIN")  # chapter 4
 # Chapter 5: one plug-in per library of embodied_adhoc.domains.chapter5
-for _name in ("panic-buttons", "gridworld", "pursuit-task", "pursuit-teammate", "pursuit-both", "power-plant", "ntu",
-              "isr", "mit", "pentagon", "cit", "overcooked", "map"):
+for _name in (
+    "panic-buttons",
+    "gridworld",
+    "pursuit-task",
+    "pursuit-teammate",
+    "pursuit-both",
+    "power-plant",
+    "ntu",
+    "isr",
+    "mit",
+    "pentagon",
+    "cit",
+    "overcooked",
+    "map",
+):
     register_trial_domain(_name, f"embodied_adhoc.experiments.chapter5:DOMAIN_{_name.replace('-', '_')}")

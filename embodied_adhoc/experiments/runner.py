@@ -98,8 +98,12 @@ def _validate(config: SweepConfig, domain) -> None:
             f"domain '{config.domain}' has no backend '{config.backend}'; choose one of {', '.join(domain.backends)}"
         )
     if not config.agents:
-        raise ConfigError(f"no agent given for '{config.domain}'; choose from {', '.join(domain.agent_names)}")
-    for name in config.agents:  # a built-in name or a plug-in spec (embodied_adhoc.plugins); refused here if neither
+        raise ConfigError(
+            f"no agent given for '{config.domain}'; choose from {', '.join(domain.agent_names)}"
+        )
+    for (
+        name
+    ) in config.agents:  # a built-in name or a plug-in spec (embodied_adhoc.plugins); refused here if neither
         agent_plugin(domain, name)
     if len(set(config.agents)) != len(config.agents):
         raise ConfigError(f"agents listed twice in {list(config.agents)}")
@@ -139,7 +143,9 @@ def run_sweep(
         )
     session = open_session(config.domain, config.backend, options)
     task_names = tuple(session.task_names)
-    for name in config.agents:  # a plug-in agent is built once here, so a broken one stops the sweep before any trial
+    for name in (
+        config.agents
+    ):  # a plug-in agent is built once here, so a broken one stops the sweep before any trial
         if not agent_plugin(domain, name).builtin:
             build_agent(domain, session, name, specs[0], seeding.agent_seed(config.seed, 0, name))
 

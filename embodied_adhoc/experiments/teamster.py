@@ -33,8 +33,9 @@ def load_records(folder: str | Path) -> list[dict]:
         try:
             records.append(json.loads(path.read_text()))
         except json.JSONDecodeError as error:
-            raise ConfigError(f"{path}:{error.lineno}: not a trial record ({error.msg}); delete it to rerun "
-                              "that trial") from None
+            raise ConfigError(
+                f"{path}:{error.lineno}: not a trial record ({error.msg}); delete it to rerun that trial"
+            ) from None
     return records
 
 
@@ -54,25 +55,43 @@ def summarise(records: list[dict]) -> dict:
                 return {"reward": _cell(values, 1.0)}
             return {"captures": _cell(values, 1.0), "per_500": _cell(values, scale)}
 
-        entry: dict = {"trials": len(mine), "eval_steps": eval_steps, "curves": {}, "after": {},
-                       "metric": "reward" if navigation else "per_500"}
+        entry: dict = {
+            "trials": len(mine),
+            "eval_steps": eval_steps,
+            "curves": {},
+            "after": {},
+            "metric": "reward" if navigation else "per_500",
+        }
         for team in mine[0]["curves"]:
             points = np.array([[c for _, c in r["curves"][team]] for r in mine])
             steps = [s for s, _ in mine[0]["curves"][team]]
             entry["curves"][team] = [{"step": s, **cells(points[:, i])} for i, s in enumerate(steps)]
         for learned in mine[0]["after"]:
-            entry["after"][learned] = {team: cells([r["after"][learned][team] for r in mine])
-                                       for team in mine[0]["after"][learned]}
+            entry["after"][learned] = {
+                team: cells([r["after"][learned][team] for r in mine]) for team in mine[0]["after"][learned]
+            }
         if "changed" in mine[0]:
             points = np.array([[c for _, c in r["changed"]] for r in mine])
-            entry["changed"] = [{"step": s, entry["metric"]: cells(points[:, i])[entry["metric"]]}
-                                for i, (s, _) in enumerate(mine[0]["changed"])]
+            entry["changed"] = [
+                {"step": s, entry["metric"]: cells(points[:, i])[entry["metric"]]}
+                for i, (s, _) in enumerate(mine[0]["changed"])
+            ]
             # the robustness measure: each trial's mean over the evaluations after learning began (not step 0)
             entry["changed_after"] = (points[:, 1:].mean(axis=1) * (1.0 if navigation else scale)).tolist()
-        if all("changed_fit" in r for r in mine):  # a learned model's fit to the changed rules (agent 0's move)
-            fit = np.array([r["changed_fit"] for r in mine], dtype=float)  # (trials, points, [step, share, P])
-            entry["changed_fit"] = [{"step": int(fit[0, i, 0]), "share": _cell(fit[:, i, 1], 1.0),
-                                     "probability": _cell(fit[:, i, 2], 1.0)} for i in range(fit.shape[1])]
+        if all(
+            "changed_fit" in r for r in mine
+        ):  # a learned model's fit to the changed rules (agent 0's move)
+            fit = np.array(
+                [r["changed_fit"] for r in mine], dtype=float
+            )  # (trials, points, [step, share, P])
+            entry["changed_fit"] = [
+                {
+                    "step": int(fit[0, i, 0]),
+                    "share": _cell(fit[:, i, 1], 1.0),
+                    "probability": _cell(fit[:, i, 2], 1.0),
+                }
+                for i in range(fit.shape[1])
+            ]
         entry["seconds"] = float(np.mean([r.get("seconds", np.nan) for r in mine]))
         out[agent] = entry
     return out
@@ -104,9 +123,13 @@ def after_table(summary: dict, markdown: bool = False) -> str:
 def final_table(summary: dict, markdown: bool = False) -> str:
     """One row per agent: captures per 500 steps at the end of each team's interaction."""
     teams = next(iter(summary.values()))["curves"]
-    rows = [[agent] + [_fmt(entry["curves"][t][-1][_metric(entry)]) for t in teams]
-            + ([_fmt(entry["changed"][-1][_metric(entry)])] if "changed" in entry else [])
-            + [f"{entry['seconds']:.0f}"] for agent, entry in summary.items()]
+    rows = [
+        [agent]
+        + [_fmt(entry["curves"][t][-1][_metric(entry)]) for t in teams]
+        + ([_fmt(entry["changed"][-1][_metric(entry)])] if "changed" in entry else [])
+        + [f"{entry['seconds']:.0f}"]
+        for agent, entry in summary.items()
+    ]
     changed = ["changed env"] if any("changed" in e for e in summary.values()) else []
     return format_table(["agent"] + [f"end of {t}" for t in teams] + changed + ["s/trial"], rows, markdown)
 
@@ -130,7 +153,9 @@ def plot_curves(summary: dict, path: str | Path) -> Path:
         axis.set_title(team)
         axis.set_xlabel("interaction steps")
     navigation = _metric(next(iter(summary.values()))) == "reward"
-    np.atleast_1d(axes)[0].set_ylabel("accumulated episode reward" if navigation else "prey captures per 500 steps")
+    np.atleast_1d(axes)[0].set_ylabel(
+        "accumulated episode reward" if navigation else "prey captures per 500 steps"
+    )
     np.atleast_1d(axes)[-1].legend(fontsize=7)
     return _save(figure, Path(path))
 
@@ -144,11 +169,21 @@ def changed_table(summary: dict, markdown: bool = False) -> str:
     if not changed:
         return ""
     rows = [[agent, str(len(v)), _fmt(_cell(v, 1.0))] for agent, v in changed.items()]
-    pairs = [[f"{c.first} vs {c.second}", f"{c.statistic:.2f}", f"{c.p_value:.3g}",
-              "yes" if c.significant() else "no", f"{c.improvement:.2f}"]
-             for c in compare_pairs(changed, "changed", lower_is_better=False)]
-    return (format_table(["agent", "trials", "changed env, after learning began"], rows, markdown) + "\n\n"
-            + format_table(["a vs b", "Welch t", "p", "p < 0.05", "P(a scores more)"], pairs, markdown))
+    pairs = [
+        [
+            f"{c.first} vs {c.second}",
+            f"{c.statistic:.2f}",
+            f"{c.p_value:.3g}",
+            "yes" if c.significant() else "no",
+            f"{c.improvement:.2f}",
+        ]
+        for c in compare_pairs(changed, "changed", lower_is_better=False)
+    ]
+    return (
+        format_table(["agent", "trials", "changed env, after learning began"], rows, markdown)
+        + "\n\n"
+        + format_table(["a vs b", "Welch t", "p", "p < 0.05", "P(a scores more)"], pairs, markdown)
+    )
 
 
 def plot_changed(summary: dict, path: str | Path) -> Path:
@@ -184,11 +219,19 @@ def plot_changed(summary: dict, path: str | Path) -> Path:
 def write_outputs(summary: dict, folder: str | Path) -> list[Path]:
     folder = Path(folder)
     changed = changed_table(summary, True)
-    paths = [atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n"),
-             atomic_write_text(folder / "table.md", "## After learning each team\n\n" + after_table(summary, True)
-                               + "\n\n## End of each interaction\n\n" + final_table(summary, True) + "\n"
-                               + (f"\n## Changed environment\n\n{changed}\n" if changed else "")),
-             plot_curves(summary, folder / "curves.png")]
+    paths = [
+        atomic_write_text(folder / "summary.json", json.dumps(summary, indent=2) + "\n"),
+        atomic_write_text(
+            folder / "table.md",
+            "## After learning each team\n\n"
+            + after_table(summary, True)
+            + "\n\n## End of each interaction\n\n"
+            + final_table(summary, True)
+            + "\n"
+            + (f"\n## Changed environment\n\n{changed}\n" if changed else ""),
+        ),
+        plot_curves(summary, folder / "curves.png"),
+    ]
     if any("changed" in entry for entry in summary.values()):
         paths.append(plot_changed(summary, folder / "changed.png"))
     return paths

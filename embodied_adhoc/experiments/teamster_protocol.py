@@ -58,7 +58,9 @@ class ProtocolConfig:
     eval_steps: int = 500
     points: int = 10  # evaluations during an interaction (every 100/points %)
     size: int = 5
-    changed: float | str = 0.0  # > 0: the changed phase with this move-failure probability; "mirror" (see above)
+    changed: float | str = (
+        0.0  # > 0: the changed phase with this move-failure probability; "mirror" (see above)
+    )
     seed: int = 0
     iterations: int = 100
     depth: int = 5
@@ -76,10 +78,15 @@ class ProtocolConfig:
         if self.steps % self.points:
             raise ConfigError(f"teamster steps={self.steps}: must be a multiple of points={self.points}")
         object.__setattr__(self, "changed", parse_change(self.changed, "teamster changed"))
-        if self.changed_steps is not None and (not isinstance(self.changed_steps, int) or self.changed_steps < 1
-                                               or self.changed_steps % self.points):
-            raise ConfigError(f"teamster changed_steps={self.changed_steps!r}: give a positive multiple of "
-                              f"points={self.points}")
+        if self.changed_steps is not None and (
+            not isinstance(self.changed_steps, int)
+            or self.changed_steps < 1
+            or self.changed_steps % self.points
+        ):
+            raise ConfigError(
+                f"teamster changed_steps={self.changed_steps!r}: give a positive multiple of "
+                f"points={self.points}"
+            )
 
     @property
     def phase_steps(self) -> int:
@@ -108,14 +115,16 @@ def parse_change(value, label: str = "--changed") -> float | str:
     text = str(value).strip()
     if text == "mirror":
         return "mirror"
-    number = text[len("fail:"):] if text.startswith("fail:") else text
+    number = text[len("fail:") :] if text.startswith("fail:") else text
     try:
         probability = float(number)
     except ValueError:
         probability = None
     if probability is None or not 0.0 <= probability < 1.0 or isinstance(value, bool):
-        raise ConfigError(f"{label} {value!r}: give fail:P (moves fail with probability P in [0, 1)), a bare P, "
-                          "or mirror (the ad hoc agent's moves mirrored)")
+        raise ConfigError(
+            f"{label} {value!r}: give fail:P (moves fail with probability P in [0, 1)), a bare P, "
+            "or mirror (the ad hoc agent's moves mirrored)"
+        )
     return probability
 
 
@@ -139,8 +148,14 @@ def _stream(config: ProtocolConfig, trial: int, *words: int | str) -> np.random.
     return np.random.default_rng(np.random.SeedSequence(keys))
 
 
-def _episodes(agent, world, team: ExactTeam, rng: np.random.Generator, steps: int | None = None,
-              episodes: int | None = None) -> list:
+def _episodes(
+    agent,
+    world,
+    team: ExactTeam,
+    rng: np.random.Generator,
+    steps: int | None = None,
+    episodes: int | None = None,
+) -> list:
     """The agent with ``team`` in ``world`` as :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv` episodes through
     the one episode loop (:func:`~embodied_adhoc.experiments.episode.run_episode_loop`, the agent seated by
     :class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`): episode after episode, each from a random
@@ -158,8 +173,15 @@ def _episodes(agent, world, team: ExactTeam, rng: np.random.Generator, steps: in
     traces, left = [], steps
     while (left is None or left > 0) and (episodes is None or len(traces) < episodes):
         limit = cap if left is None else (left if cap is None else min(cap, left))
-        trace = run_episode_loop(env, seat, env_seed=None, agent_rng=agent.rng, reset_options=None,
-                                 max_steps=limit, observation_index=env.observation_index)
+        trace = run_episode_loop(
+            env,
+            seat,
+            env_seed=None,
+            agent_rng=agent.rng,
+            reset_options=None,
+            max_steps=limit,
+            observation_index=env.observation_index,
+        )
         traces.append(trace)
         left = None if left is None else left - trace.steps
     return traces
@@ -206,12 +228,15 @@ def model_fit(agent, world, rng: np.random.Generator, count: int = 256) -> list[
     actions = rng.integers(0, N_ACTIONS, size=(count, environment.features.n_actors))
     moved = environment.features.move_of[states[:, 0], world.step(states, actions, rng)[0][:, 0]]
     probs = environment.transition_probs(states, actions)[:, 0]
-    return [round(float((probs.argmax(-1) == moved).mean()), 4),
-            round(float(probs[np.arange(count), moved].mean()), 4)]
+    return [
+        round(float((probs.argmax(-1) == moved).mean()), 4),
+        round(float(probs[np.arange(count), moved].mean()), 4),
+    ]
 
 
-def _interact(agent, world, team, config, trial, phase: str, steps: int,
-              fit: list | None = None) -> list[list[int]]:
+def _interact(
+    agent, world, team, config, trial, phase: str, steps: int, fit: list | None = None
+) -> list[list[int]]:
     """Steps 1-3 over ``steps`` steps: the learning curve [[step, captures in the evaluation], ...] (points + 1
     entries)."""
     rng = _stream(config, trial, agent.name, phase)
@@ -223,13 +248,15 @@ def _interact(agent, world, team, config, trial, phase: str, steps: int,
             play(agent, world, team, chunk, rng)
             curve.append([point * chunk, _evaluate(agent, world, team, config, trial, phase, point)])
         if fit is not None:  # the model's fit to these rules, on probes of their own stream
-            fit.append([point * chunk] + (model_fit(agent, world, _stream(config, trial, "fit", phase, point))
-                                          or []))
+            fit.append(
+                [point * chunk] + (model_fit(agent, world, _stream(config, trial, "fit", phase, point)) or [])
+            )
     return curve
 
 
-def run_trial(agent_name: str, trial: int, config: ProtocolConfig,
-              tick: Callable[[], None] | None = None) -> dict:
+def run_trial(
+    agent_name: str, trial: int, config: ProtocolConfig, tick: Callable[[], None] | None = None
+) -> dict:
     """The whole protocol for one agent and one trial (see the module docstring); ``tick`` after each phase. Runs
     on one torch thread and one BLAS thread: the networks' products are small, and a multi-threaded OpenBLAS only
     spins, costing many times the CPU of the trial itself."""
@@ -250,15 +277,25 @@ def _run_trial(agent_name: str, trial: int, config: ProtocolConfig, tick: Callab
     for i, name in enumerate(world.teams):
         record["curves"][name] = _interact(agent, world, teams[name], config, trial, name, config.steps)
         agent.finish_team(name)
-        record["after"][name] = {other: _evaluate(agent, world, teams[other], config, trial, "after", i, other)
-                                 for other in world.teams}
+        record["after"][name] = {
+            other: _evaluate(agent, world, teams[other], config, trial, "after", i, other)
+            for other in world.teams
+        }
         if tick is not None:
             tick()
     if config.changed:
         changed = changed_world(config)
         fit = [] if _learned_environment(agent) is not None else None
-        record["changed"] = _interact(agent, changed, ExactTeam(changed, changed.teams[0]), config, trial,
-                                      "changed", config.phase_steps, fit)
+        record["changed"] = _interact(
+            agent,
+            changed,
+            ExactTeam(changed, changed.teams[0]),
+            config,
+            trial,
+            "changed",
+            config.phase_steps,
+            fit,
+        )
         if fit is not None:  # [step, agent 0's move predicted (share), P(its move)] at each evaluation point
             record["changed_fit"] = fit
         if tick is not None:

@@ -28,7 +28,15 @@ from embodied_adhoc.errors import ConfigError
 
 __all__ = ["DOMAIN", "Pursuit4Session", "Pursuit4TrialDomain"]
 
-AGENTS = ("plastic-model", "teamster", "learns-team", "learns-environment", "plastic-policy", "random", "original")
+AGENTS = (
+    "plastic-model",
+    "teamster",
+    "learns-team",
+    "learns-environment",
+    "plastic-policy",
+    "random",
+    "original",
+)
 ENV_IDS = {"abstract": "EmbodiedAdhoc/Pursuit4Grid-v0", "mujoco": "EmbodiedAdhoc/Pursuit4-v0"}
 N_AGENTS = 5
 _LEARNED: dict = {}  # (agent, learn_steps, learn_seed) -> the agent after learning, shared by both backends' sessions
@@ -37,7 +45,9 @@ _LEARNED: dict = {}  # (agent, learn_steps, learn_seed) -> the agent after learn
 class Pursuit4Session:
     """The learned agents (built once per process), the env of one backend."""
 
-    blas_threads = 1  # trials run with one BLAS thread (executors.execute_job): the networks' products are small
+    blas_threads = (
+        1  # trials run with one BLAS thread (executors.execute_job): the networks' products are small
+    )
 
     def __init__(self, backend: str, options: dict) -> None:
         import gymnasium
@@ -72,8 +82,9 @@ class Pursuit4Session:
             one_thread()
 
             world, steps = Pursuit4(), int(self.options["learn_steps"])
-            rng = np.random.default_rng(np.random.SeedSequence([int(self.options["learn_seed"]), N_AGENTS,
-                                                                AGENTS.index(name)]))
+            rng = np.random.default_rng(
+                np.random.SeedSequence([int(self.options["learn_seed"]), N_AGENTS, AGENTS.index(name)])
+            )
             agent = build_agent(name, world, rng, max(steps, 1))
             for team in TEAMS:
                 agent.start_team(rng)
@@ -101,8 +112,10 @@ class Pursuit4Session:
 
 class Pursuit4TrialDomain:
     name = "pursuit4"
-    description = ("Chapter-4 pursuit (5x5 torus, 4 predators, teams teammate-aware/greedy/probabilistic "
-                   "destinations): TEAMSTER, PLASTIC-Model, ... after learning each team")
+    description = (
+        "Chapter-4 pursuit (5x5 torus, 4 predators, teams teammate-aware/greedy/probabilistic "
+        "destinations): TEAMSTER, PLASTIC-Model, ... after learning each team"
+    )
     backends = ("abstract", "mujoco")
     agent_names = AGENTS
     default_agents = ("plastic-model", "random", "original")
@@ -110,18 +123,29 @@ class Pursuit4TrialDomain:
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         group = parser.add_argument_group(f"{self.name} options")
-        group.add_argument("--team", default=None, metavar="NAME[,NAME]",
-                           help=f"team(s) drawn per episode, from {', '.join(TEAMS)} (default: all three)")
-        group.add_argument("--learn-steps", type=int, default=500, metavar="T",
-                           help="steps of learning interaction with each team before the episodes (section "
-                                "4.1.4's T; default 500; 0: libraries of untrained models, exact for plastic-model)")
+        group.add_argument(
+            "--team",
+            default=None,
+            metavar="NAME[,NAME]",
+            help=f"team(s) drawn per episode, from {', '.join(TEAMS)} (default: all three)",
+        )
+        group.add_argument(
+            "--learn-steps",
+            type=int,
+            default=500,
+            metavar="T",
+            help="steps of learning interaction with each team before the episodes (section "
+            "4.1.4's T; default 500; 0: libraries of untrained models, exact for plastic-model)",
+        )
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
         teams = tuple(t.strip() for t in args.team.split(",")) if args.team else TEAMS
         unknown = [t for t in teams if t not in TEAMS]
         if unknown or not teams:
-            raise ConfigError(f"--team {args.team!r}: unknown {', '.join(unknown) or '(none)'}; choose from "
-                              f"{', '.join(TEAMS)}")
+            raise ConfigError(
+                f"--team {args.team!r}: unknown {', '.join(unknown) or '(none)'}; choose from "
+                f"{', '.join(TEAMS)}"
+            )
         if args.learn_steps < 0:
             raise ConfigError(f"--learn-steps {args.learn_steps}: give a number of steps >= 0")
         return {"teams": list(teams), "learn_steps": int(args.learn_steps), "learn_seed": int(args.seed)}

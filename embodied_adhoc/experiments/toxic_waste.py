@@ -41,7 +41,11 @@ FAULTS = {
     ),
     "lidar_noise": ("lidar_noise", None, "lidar range noise std in metres (default 0.015)"),
     "lidar_dropout": ("lidar_dropout", 1.0, "probability that a lidar beam returns nothing (1 = dead lidar)"),
-    "speech_failure": ("speech_failure", 1.0, "probability that the human's reply is lost (the model is not told)"),
+    "speech_failure": (
+        "speech_failure",
+        1.0,
+        "probability that the human's reply is lost (the model is not told)",
+    ),
 }
 """Sensor and actuator faults of the physics lab (``--wheel-slip`` ...). The agents' model is told only the RFID miss
 rate: it is the lab parameter ``rfid_miss`` of their observation model (``--model-rfid-miss`` sets it apart)."""
@@ -301,7 +305,9 @@ class ToxicWasteDomain:
         files = {"--confusion": paths.asset(named[confusion]) if confusion in named else confusion}
         model = options.get("localisation_model")
         if model is not None:
-            files["--localisation-model"] = paths.asset(MEASURED_LOCALISATION) if model == "measured" else model
+            files["--localisation-model"] = (
+                paths.asset(MEASURED_LOCALISATION) if model == "measured" else model
+            )
         files["--human"] = plugin_source("human", options.get("human"), "--human")
         return files
 

@@ -86,7 +86,9 @@ class _LastInfo(EpisodeObserver):
 def run_trial(session, env, job: TrialJob) -> TrialResult:
     """Run one episode of ``job.agent`` in ``env`` (an env made by ``session``) and return its record."""
     domain = get_trial_domain(job.domain)
-    agent = build_agent(domain, session, job.agent, job.spec, seeding.agent_seed(job.seed, job.episode, job.agent))
+    agent = build_agent(
+        domain, session, job.agent, job.spec, seeding.agent_seed(job.seed, job.episode, job.agent)
+    )
     extras = getattr(session, "trial_extras", None)
     last = _LastInfo()
     trace = run_episode_loop(

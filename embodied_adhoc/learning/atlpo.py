@@ -67,8 +67,10 @@ def member_seed(seed: int, environment: LibraryEnvironment) -> int:
 
 
 SHIPPED_FOLDER = "atlpo"
-SHIPPED_COMMAND = ("embodied-adhoc train atlpo --domain {domain} --set task+team --seed 0 --threads 1 "
-                   "--out assets/atlpo/{domain}")
+SHIPPED_COMMAND = (
+    "embodied-adhoc train atlpo --domain {domain} --set task+team --seed 0 --threads 1 "
+    "--out assets/atlpo/{domain}"
+)
 
 
 def shipped_library(domain: str) -> Path:
@@ -76,8 +78,10 @@ def shipped_library(domain: str) -> Path:
     made by :data:`SHIPPED_COMMAND`."""
     folder = assets_dir() / SHIPPED_FOLDER / domain
     if not (folder / "library.json").is_file():
-        raise ConfigError(f"no pre-trained ATLPO library for {domain!r} in {folder.parent}; train one with "
-                          f"`{SHIPPED_COMMAND.format(domain=domain)}` or pass --library DIR")
+        raise ConfigError(
+            f"no pre-trained ATLPO library for {domain!r} in {folder.parent}; train one with "
+            f"`{SHIPPED_COMMAND.format(domain=domain)}` or pass --library DIR"
+        )
     return folder
 
 
@@ -87,7 +91,9 @@ class PolicyLibrary:
     environments: tuple[LibraryEnvironment, ...]
     policies: list[ActorCritic]
     env_kwargs: dict
-    model: str = "mf"  # "mf": ATLPO-MF members (PPO end to end); "mb": ATLPO-MB (PPO on a world model's latents)
+    model: str = (
+        "mf"  # "mf": ATLPO-MF members (PPO end to end); "mb": ATLPO-MB (PPO on a world model's latents)
+    )
 
     def env_for(self, k: int, **kwargs) -> dict:
         environment = self.environments[k]
@@ -101,8 +107,9 @@ def _member_path(folder: Path, domain: str, environment: LibraryEnvironment, mod
     return folder / f"{domain}-{'mb-' if model == 'mb' else ''}{environment.name}.safetensors"
 
 
-def _train_policy(domain: str, kwargs: dict, config: PpoConfig, model: str, path: Path, report,
-                  world_model=None) -> ActorCritic:
+def _train_policy(
+    domain: str, kwargs: dict, config: PpoConfig, model: str, path: Path, report, world_model=None
+) -> ActorCritic:
     """One policy, saved to ``path``: PPO end to end (``mf``) or PPO on the latents of a world model trained on
     replayed experience first (``mb``, :func:`~embodied_adhoc.learning.world_model.train_mb_policy`)."""
     if model not in MODELS:
@@ -120,16 +127,26 @@ def _train_policy(domain: str, kwargs: dict, config: PpoConfig, model: str, path
 
     settings = replace(world_model or WorldModelTraining(), seed=config.seed)
     result, _, history = train_mb_policy(domain, kwargs, config, settings, report)
-    metadata = {**training_metadata(domain, kwargs, mb_policy_config(config, settings), result,
-                                    kind="atlpo-mb-policy"),
-                **mb_metadata(settings, history)}
+    metadata = {
+        **training_metadata(
+            domain, kwargs, mb_policy_config(config, settings), result, kind="atlpo-mb-policy"
+        ),
+        **mb_metadata(settings, history),
+    }
     save_weights(path, result.model, metadata)
     return result.model
 
 
-def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | Path, env_kwargs: dict | None = None,
-                  progress: Callable[[str, int, dict], None] | None = None, model: str = "mf",
-                  world_model=None) -> PolicyLibrary:
+def train_library(
+    domain: str,
+    set_name: str,
+    config: PpoConfig,
+    folder: str | Path,
+    env_kwargs: dict | None = None,
+    progress: Callable[[str, int, dict], None] | None = None,
+    model: str = "mf",
+    world_model=None,
+) -> PolicyLibrary:
     """Train (or, where its weights exist, load) one policy per environment of ``set_name``; each member gets
     the seed :func:`member_seed` of ``config.seed``. ``model``: ``mf`` (ATLPO-MF) or ``mb`` (ATLPO-MB, with the
     world-model settings ``world_model``, a ``WorldModelTraining``)."""
@@ -143,7 +160,11 @@ def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | P
             policies.append(load_policy(path))
             continue
         member_config = replace(config, seed=member_seed(config.seed, environment))
-        report = None if progress is None else (lambda steps, row, name=environment.name: progress(name, steps, row))
+        report = (
+            None
+            if progress is None
+            else (lambda steps, row, name=environment.name: progress(name, steps, row))
+        )
         policies.append(_train_policy(domain, kwargs, member_config, model, path, report, world_model))
     library = PolicyLibrary(domain, environments, policies, env_kwargs, model)
     write_manifest(folder, library, classifier=None)
@@ -151,12 +172,22 @@ def train_library(domain: str, set_name: str, config: PpoConfig, folder: str | P
 
 
 def generalist_path(folder: str | Path, domain: str, set_name: str, model: str = "mf") -> Path:
-    return Path(folder) / f"{domain}-{'mb-' if model == 'mb' else ''}all-{set_name.replace('+', '-')}.safetensors"
+    return (
+        Path(folder)
+        / f"{domain}-{'mb-' if model == 'mb' else ''}all-{set_name.replace('+', '-')}.safetensors"
+    )
 
 
-def train_generalist(domain: str, set_name: str, config: PpoConfig, folder: str | Path,
-                     env_kwargs: dict | None = None, progress: Callable[[int, dict], None] | None = None,
-                     model: str = "mf", world_model=None) -> ActorCritic:
+def train_generalist(
+    domain: str,
+    set_name: str,
+    config: PpoConfig,
+    folder: str | Path,
+    env_kwargs: dict | None = None,
+    progress: Callable[[int, dict], None] | None = None,
+    model: str = "mf",
+    world_model=None,
+) -> ActorCritic:
     """The model-free (``mf``) or model-based (``mb``) RL baseline trained on all environments of ``set_name``
     together (each episode draws one uniformly), with ``config.seed + 100``; loaded instead if its weights
     exist."""
@@ -164,7 +195,9 @@ def train_generalist(domain: str, set_name: str, config: PpoConfig, folder: str 
     if path.exists():
         return load_policy(path)
     kwargs = {**(env_kwargs or {}), "environments": [(e.task, e.team) for e in library_set(set_name)]}
-    return _train_policy(domain, kwargs, replace(config, seed=config.seed + 100), model, path, progress, world_model)
+    return _train_policy(
+        domain, kwargs, replace(config, seed=config.seed + 100), model, path, progress, world_model
+    )
 
 
 def load_policy(path: str | Path) -> ActorCritic:
@@ -176,11 +209,22 @@ def load_policy(path: str | Path) -> ActorCritic:
     return model.eval()
 
 
-def write_manifest(folder: Path, library: PolicyLibrary, classifier: RecurrentBayesianClassifier | None) -> None:
-    manifest = {"domain": library.domain, "env_kwargs": library.env_kwargs, "model": library.model,
-                "members": [{"task": e.task, "team": e.team,
-                             "weights": _member_path(folder, library.domain, e, library.model).name}
-                            for e in library.environments]}
+def write_manifest(
+    folder: Path, library: PolicyLibrary, classifier: RecurrentBayesianClassifier | None
+) -> None:
+    manifest = {
+        "domain": library.domain,
+        "env_kwargs": library.env_kwargs,
+        "model": library.model,
+        "members": [
+            {
+                "task": e.task,
+                "team": e.team,
+                "weights": _member_path(folder, library.domain, e, library.model).name,
+            }
+            for e in library.environments
+        ],
+    }
     previous = folder / "library.json"
     if classifier is None and previous.exists():  # keep a classifier trained on the same members
         try:
@@ -190,8 +234,11 @@ def write_manifest(folder: Path, library: PolicyLibrary, classifier: RecurrentBa
         if earlier.get("members") == manifest["members"] and earlier.get("classifier"):
             manifest["classifier"] = earlier["classifier"]
     if classifier is not None:
-        path = save_weights(folder / f"{library.domain}-classifier.safetensors", classifier,
-                            {"kind": "atlpo-classifier", "config": classifier.config.as_dict()})
+        path = save_weights(
+            folder / f"{library.domain}-classifier.safetensors",
+            classifier,
+            {"kind": "atlpo-classifier", "config": classifier.config.as_dict()},
+        )
         manifest["classifier"] = path.name
     atomic_write_text(folder / "library.json", json.dumps(manifest, indent=1, sort_keys=True) + "\n")
 
@@ -204,11 +251,18 @@ def load_library(folder: str | Path) -> tuple[PolicyLibrary, RecurrentBayesianCl
         members = manifest["members"]
         environments = tuple(LibraryEnvironment(int(m["task"]), str(m["team"])) for m in members)
     except (OSError, ValueError, KeyError, TypeError) as error:
-        raise ConfigError(f"{folder / 'library.json'}: not an ATLPO library manifest ({error!r}); "
-                          "train one with train_library") from None
+        raise ConfigError(
+            f"{folder / 'library.json'}: not an ATLPO library manifest ({error!r}); "
+            "train one with train_library"
+        ) from None
     policies = [load_policy(folder / m["weights"]) for m in members]
-    library = PolicyLibrary(manifest["domain"], environments, policies, dict(manifest.get("env_kwargs", {})),
-                            str(manifest.get("model", "mf")))
+    library = PolicyLibrary(
+        manifest["domain"],
+        environments,
+        policies,
+        dict(manifest.get("env_kwargs", {})),
+        str(manifest.get("model", "mf")),
+    )
     classifier = None
     if manifest.get("classifier"):
         _, metadata = load_weights(folder / manifest["classifier"])
@@ -219,8 +273,9 @@ def load_library(folder: str | Path) -> tuple[PolicyLibrary, RecurrentBayesianCl
 
 
 @torch.no_grad()
-def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, seed: int,
-                         mixing: float = 0.0) -> Trajectories:
+def collect_trajectories(
+    library: PolicyLibrary, episodes: int, max_steps: int, seed: int, mixing: float = 0.0
+) -> Trajectories:
     """``episodes`` episodes of each library environment ``k`` played by its own policy (sampled actions), cut at
     ``max_steps``: the classifier's training data, labelled ``k``. With ``mixing`` > 0, each step's action comes
     with that probability from a library member drawn uniformly instead, so that the data also covers the
@@ -245,8 +300,12 @@ def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, 
             action = torch.distributions.Categorical(logits=policy(batch)[0]).sample().numpy()
             if mixing > 0.0:
                 member = rng.integers(len(library.policies), size=episodes)
-                other = np.stack([torch.distributions.Categorical(logits=p(batch)[0]).sample().numpy()
-                                  for p in library.policies])
+                other = np.stack(
+                    [
+                        torch.distributions.Categorical(logits=p(batch)[0]).sample().numpy()
+                        for p in library.policies
+                    ]
+                )
                 action = np.where(rng.random(episodes) < mixing, other[member, np.arange(episodes)], action)
             if t + 1 < max_steps:
                 acts[live, t + 1] = action[live]
@@ -259,8 +318,12 @@ def collect_trajectories(library: PolicyLibrary, episodes: int, max_steps: int, 
         previous.append(acts)
         labels.append(np.full(episodes, k))
         lengths.append(length)
-    return Trajectories(np.concatenate(observations), np.concatenate(previous), np.concatenate(labels),
-                        np.concatenate(lengths))
+    return Trajectories(
+        np.concatenate(observations),
+        np.concatenate(previous),
+        np.concatenate(labels),
+        np.concatenate(lengths),
+    )
 
 
 class AtlpoAgent(AgentBase):
@@ -283,17 +346,34 @@ class AtlpoAgent(AgentBase):
     observes_state = False
     observes_raw = True
 
-    def __init__(self, library: PolicyLibrary, classifier: RecurrentBayesianClassifier, greedy: bool = False,
-                 name: str = "atlpo-mf", known: int | None = None, tasks: int = 4) -> None:
+    def __init__(
+        self,
+        library: PolicyLibrary,
+        classifier: RecurrentBayesianClassifier,
+        greedy: bool = False,
+        name: str = "atlpo-mf",
+        known: int | None = None,
+        tasks: int = 4,
+    ) -> None:
         if classifier.config.environments != len(library.policies):
-            raise ConfigError(f"classifier over {classifier.config.environments} environments for a library of "
-                              f"{len(library.policies)}: train the classifier on this library")
+            raise ConfigError(
+                f"classifier over {classifier.config.environments} environments for a library of "
+                f"{len(library.policies)}: train the classifier on this library"
+            )
         if known is not None and not 0 <= known < len(library.policies):
             raise ConfigError(f"known={known}: the library has environments 0..{len(library.policies) - 1}")
-        self.library, self.classifier, self.greedy, self.name, self.known = library, classifier, greedy, name, known
+        self.library, self.classifier, self.greedy, self.name, self.known = (
+            library,
+            classifier,
+            greedy,
+            name,
+            known,
+        )
         task_of = np.array([e.task - 1 for e in library.environments])
         if task_of.max() >= tasks:
-            raise ConfigError(f"library environment of task {task_of.max() + 1} for a domain of {tasks} tasks")
+            raise ConfigError(
+                f"library environment of task {task_of.max() + 1} for a domain of {tasks} tasks"
+            )
         # (K, tasks) 0/1 matrix: library posterior @ it = task marginal; None when the library has one task
         self._task_marginal = np.eye(tasks)[task_of] if len(set(task_of.tolist())) > 1 else None
         self.rng = np.random.default_rng(0)
@@ -308,7 +388,9 @@ class AtlpoAgent(AgentBase):
     def _update(self, observation, action: int | None) -> None:
         self._observation = self._checked(observation)
         if self.known is None:
-            self._posterior, self._history = self.classifier.posterior_step(self._observation, action, self._history)
+            self._posterior, self._history = self.classifier.posterior_step(
+                self._observation, action, self._history
+            )
 
     def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
         self.rng, self._history, self._observation = rng, None, None
@@ -323,9 +405,11 @@ class AtlpoAgent(AgentBase):
         config = self.library.policies[0].config
         expected = (config.channels, config.view, config.view)
         if np.shape(observation) != expected:
-            raise ConfigError(f"ATLPO observation of shape {np.shape(observation)}: the library was trained on the "
-                              f"egocentric {expected} arrays of its grid env (not observation indices, nor another "
-                              "grid's agent or apple count)")
+            raise ConfigError(
+                f"ATLPO observation of shape {np.shape(observation)}: the library was trained on the "
+                f"egocentric {expected} arrays of its grid env (not observation indices, nor another "
+                "grid's agent or apple count)"
+            )
         return np.asarray(observation, dtype=np.float32)
 
     @torch.no_grad()
@@ -336,7 +420,9 @@ class AtlpoAgent(AgentBase):
         distribution = np.zeros(self.library.policies[0].config.actions)
         for k, policy in enumerate(self.library.policies):
             if self._posterior[k] > 0.0:
-                distribution += self._posterior[k] * policy.action_distribution(observation)[0].double().numpy()
+                distribution += (
+                    self._posterior[k] * policy.action_distribution(observation)[0].double().numpy()
+                )
         return distribution
 
     def act(self) -> int:
@@ -358,8 +444,9 @@ _LOADED: dict[tuple[str, float], tuple[PolicyLibrary, RecurrentBayesianClassifie
 _GRID_FIELDS = ("rows", "cols", "n_agents", "n_targets", "toroidal", "max_agent_level")
 
 
-def library_agent(domain: str, folder: str | Path | None, grid, name: str = "atlpo-mf",
-                  known: int | None = None) -> AtlpoAgent:
+def library_agent(
+    domain: str, folder: str | Path | None, grid, name: str = "atlpo-mf", known: int | None = None
+) -> AtlpoAgent:
     """The ATLPO agent of the library in ``folder`` (None: the shipped one, :func:`shipped_library`) for an
     episode on the grid ``grid`` (a ``GridConfig``): the library must be of ``domain``, have its classifier and
     have been trained on the same grid (size, agents, targets, walls, levels), else one line saying which.
@@ -376,16 +463,24 @@ def library_agent(domain: str, folder: str | Path | None, grid, name: str = "atl
         _LOADED[key] = load_library(folder)
     library, classifier = _LOADED[key]
     if library.domain != domain:
-        raise ConfigError(f"{manifest}: a {library.domain} library; {domain} needs one trained with "
-                          f"--domain {domain}")
+        raise ConfigError(
+            f"{manifest}: a {library.domain} library; {domain} needs one trained with --domain {domain}"
+        )
     if classifier is None:
-        raise ConfigError(f"{manifest}: the library has no classifier yet; rerun `embodied-adhoc train atlpo` on it")
+        raise ConfigError(
+            f"{manifest}: the library has no classifier yet; rerun `embodied-adhoc train atlpo` on it"
+        )
     probe = gymnasium.make(GRID_IDS[domain], **library.env_kwargs)
     trained = probe.unwrapped.core.rules.config
     probe.close()
-    differ = [f"{field} {getattr(grid, field)} (library {getattr(trained, field)})" for field in _GRID_FIELDS
-              if getattr(grid, field) != getattr(trained, field)]
+    differ = [
+        f"{field} {getattr(grid, field)} (library {getattr(trained, field)})"
+        for field in _GRID_FIELDS
+        if getattr(grid, field) != getattr(trained, field)
+    ]
     if differ:
-        raise ConfigError(f"{manifest}: trained on another grid: {', '.join(differ)}; use the library's grid or "
-                          "train a library on this one (train_library's env_kwargs)")
+        raise ConfigError(
+            f"{manifest}: trained on another grid: {', '.join(differ)}; use the library's grid or "
+            "train a library on this one (train_library's env_kwargs)"
+        )
     return AtlpoAgent(library, classifier, name=name, known=known)

@@ -24,8 +24,15 @@ from embodied_adhoc.learning.vector_grid import GRID_IDS
 AGENTS = ("original", "known", "mf-all", "atlpo-mf", "random")
 
 
-def play(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, agent: str, k: int, seed: int,
-         max_steps: int, generalist: ActorCritic | None = None) -> tuple[int, bool, list[float]]:
+def play(
+    library: PolicyLibrary,
+    classifier: RecurrentBayesianClassifier,
+    agent: str,
+    k: int,
+    seed: int,
+    max_steps: int,
+    generalist: ActorCritic | None = None,
+) -> tuple[int, bool, list[float]]:
     """One episode of ``agent`` in library environment ``k``: (steps, finished, posterior of the true
     environment after each step, for ATLPO)."""
     import embodied_adhoc.envs  # noqa: F401  (registers the ids)
@@ -64,8 +71,15 @@ def play(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, agent:
     return max_steps, False, beliefs
 
 
-def evaluate(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, episodes: int, seed: int,
-             max_steps: int = 200, agents: tuple[str, ...] = AGENTS, generalist: ActorCritic | None = None) -> dict:
+def evaluate(
+    library: PolicyLibrary,
+    classifier: RecurrentBayesianClassifier,
+    episodes: int,
+    seed: int,
+    max_steps: int = 200,
+    agents: tuple[str, ...] = AGENTS,
+    generalist: ActorCritic | None = None,
+) -> dict:
     """Per agent: steps of every episode (environment-major), finished flags; for ATLPO the true environment's
     posterior per step (mean over episodes that reach the step)."""
     agents = tuple(name for name in agents if name != "mf-all" or generalist is not None)
@@ -75,12 +89,15 @@ def evaluate(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, ep
         for episode in range(episodes):
             episode_seed = seed * 1_000_003 + k * 10_007 + episode
             for name in agents:
-                steps, finished, trace = play(library, classifier, name, k, episode_seed, max_steps, generalist)
+                steps, finished, trace = play(
+                    library, classifier, name, k, episode_seed, max_steps, generalist
+                )
                 results[name]["steps"].append(steps)
                 results[name]["finished"].append(finished)
                 if name == "atlpo-mf":
                     beliefs.append(trace)
     longest = max((len(b) for b in beliefs), default=0)
-    results["true_posterior_per_step"] = [float(np.mean([b[t] for b in beliefs if len(b) > t]))
-                                          for t in range(longest)]
+    results["true_posterior_per_step"] = [
+        float(np.mean([b[t] for b in beliefs if len(b) > t])) for t in range(longest)
+    ]
     return results

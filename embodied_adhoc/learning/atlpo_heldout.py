@@ -35,7 +35,10 @@ from embodied_adhoc.learning.vector_grid import GRID_IDS
 
 AGENTS = ("original", "known-task", "atlpo-mf", "random")
 NOISE = 0.2
-MIXED = (("tau1", "tau0", "tau1", "tau2"), ("tau2", "tau2", "tau0", "tau0"))  # agent 0's type, then teammates'
+MIXED = (
+    ("tau1", "tau0", "tau1", "tau2"),
+    ("tau2", "tau2", "tau0", "tau0"),
+)  # agent 0's type, then teammates'
 
 Team = Callable[..., np.ndarray]
 
@@ -54,8 +57,10 @@ def thesis_team(specs: dict, types: tuple[str, ...], noise: float = 0.0) -> Team
 
     def act(rules, state, task, rng, members) -> np.ndarray:
         members = list(members)
-        actions = np.array([team_actions(rules, state, task, specs[types[i % len(types)]], rng, [i])[0]
-                            for i in members], dtype=np.int64)
+        actions = np.array(
+            [team_actions(rules, state, task, specs[types[i % len(types)]], rng, [i])[0] for i in members],
+            dtype=np.int64,
+        )
         random_actions = rng.integers(5, size=len(members))
         return np.where(rng.random(len(members)) < noise, random_actions, actions)
 
@@ -83,7 +88,10 @@ def held_out_teams(domain: str, user: str | None = None) -> tuple[HeldOutTeam, .
     probe = gymnasium.make(GRID_IDS[domain])
     specs = probe.unwrapped.core.teams
     probe.close()
-    teams = [HeldOutTeam(f"{tau}+noise{NOISE}", thesis_team(specs, (tau,), NOISE)) for tau in ("tau0", "tau1", "tau2")]
+    teams = [
+        HeldOutTeam(f"{tau}+noise{NOISE}", thesis_team(specs, (tau,), NOISE))
+        for tau in ("tau0", "tau1", "tau2")
+    ]
     teams += [HeldOutTeam("mixed-" + "/".join(types[1:]), thesis_team(specs, types)) for types in MIXED]
     if user:
         teams.append(user_team(user))
@@ -92,15 +100,27 @@ def held_out_teams(domain: str, user: str | None = None) -> tuple[HeldOutTeam, .
 
 def _checked(team: HeldOutTeam, actions, members: list[int]) -> np.ndarray:
     actions = np.asarray(actions)
-    if actions.shape != (len(members),) or not np.issubdtype(actions.dtype, np.integer) or (
-            len(actions) and (actions.min() < 0 or actions.max() > 4)):
-        raise ConfigError(f"team {team.name}: returned {actions!r} for members {members}; it must return one "
-                          "action in 0..4 per listed member")
+    if (
+        actions.shape != (len(members),)
+        or not np.issubdtype(actions.dtype, np.integer)
+        or (len(actions) and (actions.min() < 0 or actions.max() > 4))
+    ):
+        raise ConfigError(
+            f"team {team.name}: returned {actions!r} for members {members}; it must return one "
+            "action in 0..4 per listed member"
+        )
     return actions.astype(np.int64)
 
 
-def play(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, team: HeldOutTeam, agent: str, task: int,
-         seed: int, max_steps: int) -> tuple[int, bool]:
+def play(
+    library: PolicyLibrary,
+    classifier: RecurrentBayesianClassifier,
+    team: HeldOutTeam,
+    agent: str,
+    task: int,
+    seed: int,
+    max_steps: int,
+) -> tuple[int, bool]:
     """One episode of ``agent`` with ``team`` on ``task`` (1-based): (steps, finished)."""
     import embodied_adhoc.envs  # noqa: F401
 
@@ -111,7 +131,9 @@ def play(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, team: 
     teammates = list(range(1, core.config.n_agents))
     learned = None
     if agent in ("known-task", "atlpo-mf"):
-        known = library.environments.index(LibraryEnvironment(task, "tau1")) if agent == "known-task" else None
+        known = (
+            library.environments.index(LibraryEnvironment(task, "tau1")) if agent == "known-task" else None
+        )
         learned = AtlpoAgent(library, classifier, known=known)
         learned.reset(rng)
         learned.start(observation)
@@ -136,8 +158,14 @@ def play(library: PolicyLibrary, classifier: RecurrentBayesianClassifier, team: 
         env.close()
 
 
-def evaluate_held_out(library: PolicyLibrary, classifier: RecurrentBayesianClassifier,
-                      teams: tuple[HeldOutTeam, ...], episodes: int, seed: int, max_steps: int = 200) -> dict:
+def evaluate_held_out(
+    library: PolicyLibrary,
+    classifier: RecurrentBayesianClassifier,
+    teams: tuple[HeldOutTeam, ...],
+    episodes: int,
+    seed: int,
+    max_steps: int = 200,
+) -> dict:
     """Per team and agent: steps and finished flags of ``episodes`` episodes (task ``1 + e % 4``), the same
     episodes (seeds) for every agent."""
     results = {}
@@ -146,7 +174,9 @@ def evaluate_held_out(library: PolicyLibrary, classifier: RecurrentBayesianClass
         for episode in range(episodes):
             episode_seed = seed * 1_000_003 + 50_021 * (t + 1) + episode
             for name in AGENTS:
-                steps, finished = play(library, classifier, team, name, 1 + episode % 4, episode_seed, max_steps)
+                steps, finished = play(
+                    library, classifier, team, name, 1 + episode % 4, episode_seed, max_steps
+                )
                 rows[name]["steps"].append(steps)
                 rows[name]["finished"].append(finished)
         results[team.name] = rows
@@ -161,19 +191,30 @@ def normalised_scores(cells: list[dict], summarise: Callable) -> dict:
     and mean with percentile-bootstrap intervals."""
     scores = {}
     for team in dict.fromkeys(name for cell in cells for name in cell):
-        pooled = {agent: np.concatenate([np.asarray(c[team][agent]["steps"], float) for c in cells if team in c])
-                  for agent in AGENTS}
-        solved = {agent: float(np.mean(np.concatenate([c[team][agent]["finished"] for c in cells if team in c])))
-                  for agent in AGENTS}
+        pooled = {
+            agent: np.concatenate([np.asarray(c[team][agent]["steps"], float) for c in cells if team in c])
+            for agent in AGENTS
+        }
+        solved = {
+            agent: float(np.mean(np.concatenate([c[team][agent]["finished"] for c in cells if team in c])))
+            for agent in AGENTS
+        }
         random_mean, original_mean = pooled["random"].mean(), pooled["original"].mean()
         span = random_mean - original_mean
-        row = {"episodes": int(pooled["random"].size), "steps": {a: float(v.mean()) for a, v in pooled.items()},
-               "solved": solved}
+        row = {
+            "episodes": int(pooled["random"].size),
+            "steps": {a: float(v.mean()) for a, v in pooled.items()},
+            "solved": solved,
+        }
         for agent in ("known-task", "atlpo-mf"):
             if span <= 0:  # the team does no better than random: no scale to normalise on
                 row[agent] = {"iqm": float("nan"), "ci": [float("nan")] * 2, "mean": float("nan")}
                 continue
             summary = summarise((random_mean - pooled[agent]) / span)
-            row[agent] = {"iqm": summary.iqm, "ci": [summary.iqm_ci_low, summary.iqm_ci_high], "mean": summary.mean}
+            row[agent] = {
+                "iqm": summary.iqm,
+                "ci": [summary.iqm_ci_low, summary.iqm_ci_high],
+                "mean": summary.mean,
+            }
         scores[team] = row
     return scores

@@ -50,7 +50,9 @@ class AtlpoTraining:
     threads: int = 0  # 0: torch's choice
     generalist: bool = False
     quiet: bool = False
-    model: str = "mf"  # "mf": ATLPO-MF; "mb": ATLPO-MB (world model on replayed experience, PPO on its latents)
+    model: str = (
+        "mf"  # "mf": ATLPO-MF; "mb": ATLPO-MB (world model on replayed experience, PPO on its latents)
+    )
 
 
 def train_atlpo(settings: AtlpoTraining) -> dict:
@@ -58,42 +60,76 @@ def train_atlpo(settings: AtlpoTraining) -> dict:
     if settings.threads:
         torch.set_num_threads(settings.threads)
     batch = settings.envs * ROLLOUT_STEPS
-    config = PpoConfig(total_steps=settings.steps, num_envs=settings.envs, rollout_steps=ROLLOUT_STEPS,
-                       seed=settings.seed, device=settings.device, minibatches=4 if batch % 4 == 0 else 1)
+    config = PpoConfig(
+        total_steps=settings.steps,
+        num_envs=settings.envs,
+        rollout_steps=ROLLOUT_STEPS,
+        seed=settings.seed,
+        device=settings.device,
+        minibatches=4 if batch % 4 == 0 else 1,
+    )
     out = Path(settings.out)
     members = library_set(settings.set_name)
     started = time.perf_counter()
     policies = len(members) + (1 if settings.generalist else 0)
-    with tqdm(total=policies * max(1, settings.steps // batch) * batch, unit="step",
-              desc=f"atlpo {settings.domain} {settings.set_name}", disable=settings.quiet) as bar:
+    with tqdm(
+        total=policies * max(1, settings.steps // batch) * batch,
+        unit="step",
+        desc=f"atlpo {settings.domain} {settings.set_name}",
+        disable=settings.quiet,
+    ) as bar:
+
         def progress(member: str, steps: int, row: dict) -> None:
             bar.set_postfix_str(f"{member} episode length {row['mean_episode_length'] or '-'}")
             bar.update(batch)
 
-        library = train_library(settings.domain, settings.set_name, config, out, progress=progress,
-                                model=settings.model)
+        library = train_library(
+            settings.domain, settings.set_name, config, out, progress=progress, model=settings.model
+        )
         if settings.generalist:
-            train_generalist(settings.domain, settings.set_name, config, out,
-                             progress=lambda steps, row: progress("all", steps, row), model=settings.model)
+            train_generalist(
+                settings.domain,
+                settings.set_name,
+                config,
+                out,
+                progress=lambda steps, row: progress("all", steps, row),
+                model=settings.model,
+            )
     policy_seconds = time.perf_counter() - started
-    data = collect_trajectories(library, settings.episodes, settings.episode_steps, seed=settings.seed,
-                                mixing=settings.mixing)
-    held_out = collect_trajectories(library, max(8, settings.episodes // 8), settings.episode_steps,
-                                    seed=settings.seed + 10**6, mixing=settings.mixing)
-    classifier = RecurrentBayesianClassifier(ClassifierConfig(channels=data.observations.shape[2],
-                                                              environments=len(members)))
+    data = collect_trajectories(
+        library, settings.episodes, settings.episode_steps, seed=settings.seed, mixing=settings.mixing
+    )
+    held_out = collect_trajectories(
+        library,
+        max(8, settings.episodes // 8),
+        settings.episode_steps,
+        seed=settings.seed + 10**6,
+        mixing=settings.mixing,
+    )
+    classifier = RecurrentBayesianClassifier(
+        ClassifierConfig(channels=data.observations.shape[2], environments=len(members))
+    )
     device = pick_device(settings.device)
-    losses = train_classifier(classifier, data, ClassifierTraining(iterations=settings.iterations, seed=settings.seed),
-                              device)
+    losses = train_classifier(
+        classifier, data, ClassifierTraining(iterations=settings.iterations, seed=settings.seed), device
+    )
     classifier.cpu().eval()
     write_manifest(out, library, classifier)
-    report = {"domain": settings.domain, "set": settings.set_name, "model": settings.model,
-              "members": [m.name for m in members],
-              "steps": settings.steps, "seed": settings.seed, "device": str(device),
-              "classifier_episodes": settings.episodes, "classifier_iterations": settings.iterations,
-              "mixing": settings.mixing, "policy_seconds": round(policy_seconds, 1),
-              "total_seconds": round(time.perf_counter() - started, 1),
-              "classifier_loss": {"first": losses[0], "last": losses[-1]},
-              "per_step": per_step_scores(classifier, held_out)}
+    report = {
+        "domain": settings.domain,
+        "set": settings.set_name,
+        "model": settings.model,
+        "members": [m.name for m in members],
+        "steps": settings.steps,
+        "seed": settings.seed,
+        "device": str(device),
+        "classifier_episodes": settings.episodes,
+        "classifier_iterations": settings.iterations,
+        "mixing": settings.mixing,
+        "policy_seconds": round(policy_seconds, 1),
+        "total_seconds": round(time.perf_counter() - started, 1),
+        "classifier_loss": {"first": losses[0], "last": losses[-1]},
+        "per_step": per_step_scores(classifier, held_out),
+    }
     atomic_write_text(out / "training.json", json.dumps(report, indent=1) + "\n")
     return report

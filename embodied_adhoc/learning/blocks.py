@@ -44,7 +44,9 @@ class NumpyMlp:
             if isinstance(layer, nn.Linear):
                 self.layers.append((layer.weight.detach().numpy().T, layer.bias.detach().numpy()))
             elif not isinstance(layer, nn.ReLU):
-                raise ConfigError(f"NumpyMlp: layer {layer!r} is not Linear or ReLU; give a module built by mlp()")
+                raise ConfigError(
+                    f"NumpyMlp: layer {layer!r} is not Linear or ReLU; give a module built by mlp()"
+                )
 
     def __call__(self, inputs: np.ndarray) -> np.ndarray:
         """(B, inputs) float32 -> (B, outputs) float32 pre-activations of the output layer."""
@@ -88,7 +90,9 @@ class ReplayBuffer:
         if capacity < 1:
             raise ConfigError(f"replay capacity={capacity}: give a positive integer")
         self.capacity, self.size, self.cursor = capacity, 0, 0
-        self.data = {name: np.zeros((capacity, *shape), dtype=dtype) for name, (shape, dtype) in columns.items()}
+        self.data = {
+            name: np.zeros((capacity, *shape), dtype=dtype) for name, (shape, dtype) in columns.items()
+        }
 
     def add(self, **row) -> None:
         for name, column in self.data.items():

@@ -47,8 +47,15 @@ class RecurrentBayesianClassifier(nn.Module):
     def __init__(self, config: ClassifierConfig) -> None:
         super().__init__()
         self.config = config
-        self.encoder = Encoder(NetworkConfig(channels=config.channels, view=config.view, actions=config.actions,
-                                             hidden_channels=config.hidden_channels, features=config.features))
+        self.encoder = Encoder(
+            NetworkConfig(
+                channels=config.channels,
+                view=config.view,
+                actions=config.actions,
+                hidden_channels=config.hidden_channels,
+                features=config.features,
+            )
+        )
         self.gru = nn.GRU(config.features + config.actions + 1, config.hidden, batch_first=True)
         self.head = nn.Linear(config.hidden, config.environments)
 
@@ -59,16 +66,18 @@ class RecurrentBayesianClassifier(nn.Module):
         one_hot = nn.functional.one_hot(previous_actions, self.config.actions + 1).float()
         return torch.cat([features.reshape(batch, steps, -1), one_hot], dim=-1)
 
-    def forward(self, observations: torch.Tensor, previous_actions: torch.Tensor,
-                history: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(
+        self, observations: torch.Tensor, previous_actions: torch.Tensor, history: torch.Tensor | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
         """Log-posteriors (B, T, K) after each of T observations (B, T, C, f, f), each with the action that led
         to it (B, T; ``config.actions`` for none), and the final latent history (1, B, hidden)."""
         outputs, history = self.gru(self._inputs(observations, previous_actions), history)
         return torch.log_softmax(self.head(outputs), dim=-1), history
 
     @torch.no_grad()
-    def posterior_step(self, observation: np.ndarray, previous_action: int | None,
-                       history: torch.Tensor | None) -> tuple[np.ndarray, torch.Tensor]:
+    def posterior_step(
+        self, observation: np.ndarray, previous_action: int | None, history: torch.Tensor | None
+    ) -> tuple[np.ndarray, torch.Tensor]:
         """One online update of Eq. 6.2: ``(p_{t+1}, h_{t+1})`` from ``z_{t+1}`` and ``a_t`` (None at t=0)."""
         device = next(self.parameters()).device
         observation = torch.as_tensor(np.asarray(observation, dtype=np.float32), device=device)[None, None]
@@ -99,8 +108,12 @@ class ClassifierTraining:
     seed: int = 0
 
 
-def train_classifier(model: RecurrentBayesianClassifier, data: Trajectories, settings: ClassifierTraining,
-                     device: torch.device | None = None) -> list[float]:
+def train_classifier(
+    model: RecurrentBayesianClassifier,
+    data: Trajectories,
+    settings: ClassifierTraining,
+    device: torch.device | None = None,
+) -> list[float]:
     """Minimise the per-step cross-entropy of the true environment over random minibatches of episodes;
     returns the loss of every iteration. Seeded: ``torch.manual_seed`` and a numpy Generator."""
     torch.manual_seed(settings.seed)
@@ -114,10 +127,13 @@ def train_classifier(model: RecurrentBayesianClassifier, data: Trajectories, set
     optimiser = torch.optim.Adam(model.parameters(), lr=settings.learning_rate)
     losses = []
     for _ in range(settings.iterations):
-        pick = torch.as_tensor(rng.choice(len(labels), size=min(settings.batch_size, len(labels)), replace=False),
-                               device=device)
+        pick = torch.as_tensor(
+            rng.choice(len(labels), size=min(settings.batch_size, len(labels)), replace=False), device=device
+        )
         log_posterior, _ = model(observations[pick], actions[pick])
-        chosen = log_posterior.gather(-1, labels[pick][:, None, None].expand(-1, log_posterior.shape[1], 1))[..., 0]
+        chosen = log_posterior.gather(-1, labels[pick][:, None, None].expand(-1, log_posterior.shape[1], 1))[
+            ..., 0
+        ]
         loss = -(chosen * mask[pick]).sum() / mask[pick].sum()
         optimiser.zero_grad()
         loss.backward()
@@ -148,8 +164,10 @@ def per_step_scores(model: RecurrentBayesianClassifier, data: Trajectories, bins
     of the true environment and the expected calibration error over those episodes."""
     model.eval()
     device = next(model.parameters()).device
-    log_posterior, _ = model(torch.as_tensor(data.observations, dtype=torch.float32, device=device),
-                             torch.as_tensor(data.previous_actions, dtype=torch.long, device=device))
+    log_posterior, _ = model(
+        torch.as_tensor(data.observations, dtype=torch.float32, device=device),
+        torch.as_tensor(data.previous_actions, dtype=torch.long, device=device),
+    )
     posterior = log_posterior.exp().cpu().numpy()
     mask = data.mask()
     rows = []
@@ -158,7 +176,13 @@ def per_step_scores(model: RecurrentBayesianClassifier, data: Trajectories, bins
         if not live.any():
             break
         p, labels = posterior[live, t], data.labels[live]
-        rows.append({"step": t, "episodes": int(live.sum()), "accuracy": float((p.argmax(1) == labels).mean()),
-                     "true_posterior": float(p[np.arange(len(labels)), labels].mean()),
-                     "ece": expected_calibration_error(p, labels, bins)})
+        rows.append(
+            {
+                "step": t,
+                "episodes": int(live.sum()),
+                "accuracy": float((p.argmax(1) == labels).mean()),
+                "true_posterior": float(p[np.arange(len(labels)), labels].mean()),
+                "ece": expected_calibration_error(p, labels, bins),
+            }
+        )
     return rows

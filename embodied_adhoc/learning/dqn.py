@@ -37,24 +37,39 @@ class DqnConfig:
 
     def __post_init__(self) -> None:
         if not (0 <= self.epsilon_end <= self.epsilon_start <= 1 and 0 < self.gamma <= 1):
-            raise ConfigError(f"DqnConfig: need 0 <= epsilon_end <= epsilon_start <= 1 and 0 < gamma <= 1 "
-                              f"(got {self.epsilon_end}, {self.epsilon_start}, {self.gamma})")
+            raise ConfigError(
+                f"DqnConfig: need 0 <= epsilon_end <= epsilon_start <= 1 and 0 < gamma <= 1 "
+                f"(got {self.epsilon_end}, {self.epsilon_start}, {self.gamma})"
+            )
 
 
 class Dqn:
     """One Q-network ``q_k`` trained while playing with one team."""
 
-    def __init__(self, inputs: int, actions: int, rng: np.random.Generator, config: DqnConfig | None = None,
-                 decay_steps: int = 1) -> None:
+    def __init__(
+        self,
+        inputs: int,
+        actions: int,
+        rng: np.random.Generator,
+        config: DqnConfig | None = None,
+        decay_steps: int = 1,
+    ) -> None:
         self.config = config or DqnConfig()
         self.inputs, self.actions, self.rng, self.decay_steps = inputs, actions, rng, max(1, decay_steps)
         cfg = self.config
         self.q = seeded_module(lambda: mlp(inputs, cfg.hidden, cfg.layers, actions), rng)
         self.target = copy.deepcopy(self.q)
         self.optimiser = torch.optim.Adam(self.q.parameters(), lr=cfg.lr)
-        self.buffer = ReplayBuffer(cfg.capacity, {"x": ((inputs,), np.float32), "a": ((), np.int64),
-                                                  "r": ((), np.float32), "y": ((inputs,), np.float32),
-                                                  "done": ((), np.float32)})
+        self.buffer = ReplayBuffer(
+            cfg.capacity,
+            {
+                "x": ((inputs,), np.float32),
+                "a": ((), np.int64),
+                "r": ((), np.float32),
+                "y": ((inputs,), np.float32),
+                "done": ((), np.float32),
+            },
+        )
         self.steps = 0
 
     @property
@@ -88,8 +103,17 @@ class Dqn:
         return loss
 
     def save(self, path: str | Path) -> Path:
-        return save_weights(path, self.q, {"kind": "dqn", "inputs": self.inputs, "actions": self.actions,
-                                           "hidden": self.config.hidden, "steps": self.steps})
+        return save_weights(
+            path,
+            self.q,
+            {
+                "kind": "dqn",
+                "inputs": self.inputs,
+                "actions": self.actions,
+                "hidden": self.config.hidden,
+                "steps": self.steps,
+            },
+        )
 
     def load(self, path: str | Path) -> dict:
         meta = load_into(self.q, path)

@@ -34,7 +34,9 @@ class NetworkConfig:
             if not isinstance(value, int) or value < 1:
                 raise ConfigError(f"NetworkConfig.{name}={value!r}: give a positive integer")
         if not isinstance(self.head_hidden, int) or self.head_hidden < 0:
-            raise ConfigError(f"NetworkConfig.head_hidden={self.head_hidden!r}: give 0 (linear heads) or a width")
+            raise ConfigError(
+                f"NetworkConfig.head_hidden={self.head_hidden!r}: give 0 (linear heads) or a width"
+            )
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -54,9 +56,14 @@ class Encoder(nn.Module):
         super().__init__()
         hidden, gain = config.hidden_channels, 2**0.5
         self.net = nn.Sequential(
-            _layer(nn.Conv2d(config.channels, hidden, 3, padding=1), gain), nn.ReLU(),
-            _layer(nn.Conv2d(hidden, hidden, 3, padding=1), gain), nn.ReLU(), nn.Flatten(),
-            _layer(nn.Linear(hidden * config.view * config.view, config.features), gain), nn.ReLU())
+            _layer(nn.Conv2d(config.channels, hidden, 3, padding=1), gain),
+            nn.ReLU(),
+            _layer(nn.Conv2d(hidden, hidden, 3, padding=1), gain),
+            nn.ReLU(),
+            nn.Flatten(),
+            _layer(nn.Linear(hidden * config.view * config.view, config.features), gain),
+            nn.ReLU(),
+        )
 
     def forward(self, observations: torch.Tensor) -> torch.Tensor:
         return self.net(observations)
@@ -66,8 +73,11 @@ def _head(config: NetworkConfig, outputs: int, gain: float) -> nn.Module:
     """A linear head on the latent state, or an MLP with one tanh hidden layer of ``config.head_hidden``."""
     if not config.head_hidden:
         return _layer(nn.Linear(config.features, outputs), gain)
-    return nn.Sequential(_layer(nn.Linear(config.features, config.head_hidden), 2**0.5), nn.Tanh(),
-                         _layer(nn.Linear(config.head_hidden, outputs), gain))
+    return nn.Sequential(
+        _layer(nn.Linear(config.features, config.head_hidden), 2**0.5),
+        nn.Tanh(),
+        _layer(nn.Linear(config.head_hidden, outputs), gain),
+    )
 
 
 class ActorCritic(nn.Module):

@@ -51,8 +51,10 @@ class PpoConfig:
             if getattr(self, name) < 1:
                 raise ConfigError(f"PpoConfig.{name}={getattr(self, name)}: give a positive integer")
         if (self.num_envs * self.rollout_steps) % self.minibatches:
-            raise ConfigError(f"PpoConfig.minibatches={self.minibatches}: must divide num_envs * rollout_steps "
-                              f"= {self.num_envs * self.rollout_steps}")
+            raise ConfigError(
+                f"PpoConfig.minibatches={self.minibatches}: must divide num_envs * rollout_steps "
+                f"= {self.num_envs * self.rollout_steps}"
+            )
         for name in ("gamma", "gae_lambda"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise ConfigError(f"PpoConfig.{name}={getattr(self, name)}: must be in [0, 1]")
@@ -73,7 +75,9 @@ def ppo_loss(model: ActorCritic, observations, actions, old_logprobs, advantages
     logits, values = model(observations)
     distribution = torch.distributions.Categorical(logits=logits)
     ratio = torch.exp(distribution.log_prob(actions) - old_logprobs)
-    policy = torch.max(-advantages * ratio, -advantages * torch.clamp(ratio, 1 - config.clip, 1 + config.clip)).mean()
+    policy = torch.max(
+        -advantages * ratio, -advantages * torch.clamp(ratio, 1 - config.clip, 1 + config.clip)
+    ).mean()
     value = 0.5 * ((values - returns) ** 2).mean()
     entropy = distribution.entropy().mean()
     return policy - config.entropy_coef * entropy + config.value_coef * value, policy, value, entropy
@@ -91,9 +95,14 @@ class PpoResult:
         return self.env_steps / self.seconds if self.seconds > 0 else 0.0
 
 
-def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
-              progress: Callable[[int, dict], None] | None = None, encoder: nn.Module | None = None,
-              after_update: Callable[[ActorCritic, tuple], None] | None = None) -> PpoResult:
+def train_ppo(
+    domain: str,
+    env_kwargs: dict,
+    config: PpoConfig,
+    progress: Callable[[int, dict], None] | None = None,
+    encoder: nn.Module | None = None,
+    after_update: Callable[[ActorCritic, tuple], None] | None = None,
+) -> PpoResult:
     """Train an actor-critic on ``GridVectorEnv(domain, config.num_envs, **env_kwargs)`` for
     ``config.total_steps`` env steps. ``progress(steps_done, row)`` is called after every update. With
     ``encoder`` (ATLPO-MB: a world model's trained encoder) the actor and critic learn on its latent states: its
@@ -106,23 +115,30 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
     device = pick_device(config.device)
     env = GridVectorEnv(domain, config.num_envs, **env_kwargs)
     observation, _ = env.reset(seed=config.seed)
-    network = NetworkConfig(channels=observation.shape[1], view=observation.shape[2],
-                            hidden_channels=config.hidden_channels, features=config.features,
-                            head_hidden=config.head_hidden)
+    network = NetworkConfig(
+        channels=observation.shape[1],
+        view=observation.shape[2],
+        hidden_channels=config.hidden_channels,
+        features=config.features,
+        head_hidden=config.head_hidden,
+    )
     model = ActorCritic(network)
     if encoder is not None:
         model.encoder.load_state_dict(encoder.state_dict())
         model.encoder.requires_grad_(False)
     model.to(device)
-    optimiser = torch.optim.Adam([p for p in model.parameters() if p.requires_grad], lr=config.learning_rate,
-                                 eps=1e-5)
+    optimiser = torch.optim.Adam(
+        [p for p in model.parameters() if p.requires_grad], lr=config.learning_rate, eps=1e-5
+    )
     steps, envs = config.rollout_steps, config.num_envs
     batch = steps * envs
     updates = max(1, config.total_steps // batch)
     obs_buf = torch.zeros((steps, envs, *observation.shape[1:]), device=device)
     action_buf = torch.zeros((steps, envs), dtype=torch.long, device=device)
     logprob_buf, value_buf, reward_buf = (torch.zeros((steps, envs), device=device) for _ in range(3))
-    ended_buf, terminal_buf, valid_buf = (torch.zeros((steps, envs), dtype=torch.bool, device=device) for _ in range(3))
+    ended_buf, terminal_buf, valid_buf = (
+        torch.zeros((steps, envs), dtype=torch.bool, device=device) for _ in range(3)
+    )
     next_obs = torch.as_tensor(observation, device=device)
     resetting = torch.zeros(envs, dtype=torch.bool, device=device)  # this step only resets the sub-env
     lengths = np.zeros(envs, dtype=np.int64)
@@ -161,12 +177,17 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
                 advantages[t] = running
             returns = advantages + value_buf
         valid = valid_buf.reshape(-1)
-        flat = [b.reshape(-1, *b.shape[2:])[valid] for b in (obs_buf, action_buf, logprob_buf, advantages, returns)]
+        flat = [
+            b.reshape(-1, *b.shape[2:])[valid]
+            for b in (obs_buf, action_buf, logprob_buf, advantages, returns)
+        ]
         b_obs, b_actions, b_logprobs, b_advantages, b_returns = flat
         if len(b_obs) > 1:
             b_advantages = (b_advantages - b_advantages.mean()) / (b_advantages.std() + 1e-8)
         with torch.no_grad():
-            loss_before = ppo_loss(model, b_obs, b_actions, b_logprobs, b_advantages, b_returns, config)[0].item()
+            loss_before = ppo_loss(model, b_obs, b_actions, b_logprobs, b_advantages, b_returns, config)[
+                0
+            ].item()
         size = len(b_obs)
         for _ in range(config.epochs):
             order = rng.permutation(size)
@@ -174,8 +195,15 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
                 if chunk.size == 0:
                     continue
                 index = torch.as_tensor(chunk, device=device)
-                loss, policy, value, entropy = ppo_loss(model, b_obs[index], b_actions[index], b_logprobs[index],
-                                                        b_advantages[index], b_returns[index], config)
+                loss, policy, value, entropy = ppo_loss(
+                    model,
+                    b_obs[index],
+                    b_actions[index],
+                    b_logprobs[index],
+                    b_advantages[index],
+                    b_returns[index],
+                    config,
+                )
                 optimiser.zero_grad()
                 loss.backward()
                 nn.utils.clip_grad_norm_(model.parameters(), config.max_grad_norm)
@@ -184,12 +212,21 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
             after = ppo_loss(model, b_obs, b_actions, b_logprobs, b_advantages, b_returns, config)
         if after_update is not None:
             following = torch.cat([obs_buf[1:], next_obs[None]]).reshape(-1, *obs_buf.shape[2:])[valid]
-            after_update(model, tuple(x.cpu().numpy() for x in (b_obs, b_actions, reward_buf.reshape(-1)[valid],
-                                                                 following)))
-        row = {"update": update + 1, "env_steps": result.env_steps, "loss_before": loss_before,
-               "loss_after": after[0].item(), "policy_loss": after[1].item(), "value_loss": after[2].item(),
-               "entropy": after[3].item(), "episodes": len(finished),
-               "mean_episode_length": float(np.mean(finished)) if finished else None}
+            after_update(
+                model,
+                tuple(x.cpu().numpy() for x in (b_obs, b_actions, reward_buf.reshape(-1)[valid], following)),
+            )
+        row = {
+            "update": update + 1,
+            "env_steps": result.env_steps,
+            "loss_before": loss_before,
+            "loss_after": after[0].item(),
+            "policy_loss": after[1].item(),
+            "value_loss": after[2].item(),
+            "entropy": after[3].item(),
+            "episodes": len(finished),
+            "mean_episode_length": float(np.mean(finished)) if finished else None,
+        }
         result.history.append(row)
         if progress is not None:
             progress(result.env_steps, row)
@@ -201,9 +238,17 @@ def train_ppo(domain: str, env_kwargs: dict, config: PpoConfig,
 POLICY_KINDS = ("atlpo-mf-policy", "atlpo-mb-policy")
 
 
-def training_metadata(domain: str, env_kwargs: dict, config: PpoConfig, result: PpoResult,
-                      kind: str = "atlpo-mf-policy") -> dict:
+def training_metadata(
+    domain: str, env_kwargs: dict, config: PpoConfig, result: PpoResult, kind: str = "atlpo-mf-policy"
+) -> dict:
     """What to store beside the weights: network sizes, env, settings and the training cost."""
-    return {"kind": kind, "domain": domain, "env_kwargs": env_kwargs,
-            "network": result.model.config.as_dict(), "ppo": asdict(config), "env_steps": result.env_steps,
-            "seconds": round(result.seconds, 3), "final": result.history[-1] if result.history else None}
+    return {
+        "kind": kind,
+        "domain": domain,
+        "env_kwargs": env_kwargs,
+        "network": result.model.config.as_dict(),
+        "ppo": asdict(config),
+        "env_steps": result.env_steps,
+        "seconds": round(result.seconds, 3),
+        "final": result.history[-1] if result.history else None,
+    }

@@ -50,7 +50,9 @@ class Features:
         half = world.size // 2
         # (C, C, 2 * size) one-hot of the toroidal offset (rows then columns) from one cell to another
         eye = np.eye(world.size, dtype=np.float32)
-        self.offset_code = np.concatenate([eye[world.delta[..., 0] + half], eye[world.delta[..., 1] + half]], -1)
+        self.offset_code = np.concatenate(
+            [eye[world.delta[..., 0] + half], eye[world.delta[..., 1] + half]], -1
+        )
         cells = np.arange(world.cells)
         moves = np.full((world.cells, world.cells), -1, dtype=np.int64)
         for k in range(N_ACTIONS):
@@ -70,13 +72,17 @@ class Features:
         eye = np.eye(N_ACTIONS, dtype=np.float32)
         agent = np.broadcast_to(np.eye(N_AGENTS, dtype=np.float32), (count, N_AGENTS, N_AGENTS))
         own = np.concatenate([eye[actions], np.zeros((count, 1, N_ACTIONS), np.float32)], axis=1)
-        joint = np.broadcast_to(eye[actions].reshape(count, 1, -1), (count, N_AGENTS, N_PREDATORS * N_ACTIONS))
+        joint = np.broadcast_to(
+            eye[actions].reshape(count, 1, -1), (count, N_AGENTS, N_PREDATORS * N_ACTIONS)
+        )
         rows = np.concatenate([agent, self.offsets(states), own, joint], axis=-1)
         return rows.reshape(count * N_AGENTS, -1)
 
     def reward(self, states: np.ndarray) -> np.ndarray:
         """(B, 40) offsets from the prey to the four predators."""
-        return self.offset_code[states[:, PREY][:, None], states[:, :N_PREDATORS]].reshape(states.shape[0], -1)
+        return self.offset_code[states[:, PREY][:, None], states[:, :N_PREDATORS]].reshape(
+            states.shape[0], -1
+        )
 
     def team(self, states: np.ndarray) -> np.ndarray:
         """(B * 3, 43) per teammate: seat one-hot and its offsets."""
@@ -93,8 +99,15 @@ class Features:
 class LearnedTeam:
     """A team model learned online by Eq. 4.1 (negative log-likelihood of the observed teammates' actions)."""
 
-    def __init__(self, world: Pursuit4, rng: np.random.Generator, hidden: int = 48, lr: float = 1e-3,
-                 name: str = "online", features=None) -> None:
+    def __init__(
+        self,
+        world: Pursuit4,
+        rng: np.random.Generator,
+        hidden: int = 48,
+        lr: float = 1e-3,
+        name: str = "online",
+        features=None,
+    ) -> None:
         """``features``: the world's network encodings (default pursuit's :class:`Features`; the navigation
         maps pass theirs, ``learning/teamster_navigation.py``)."""
         self.features = features if features is not None else Features(world)
@@ -110,11 +123,15 @@ class LearnedTeam:
         self.forward = NumpyMlp(self.net)
         self.optimiser = torch.optim.Adam(self.net.parameters(), lr=self.lr, fused=True)
         f = self.features
-        self.buffer = ReplayBuffer(CAPACITY, {"state": ((f.n_agents,), np.int64), "mates": ((f.n_mates,), np.int64)})
+        self.buffer = ReplayBuffer(
+            CAPACITY, {"state": ((f.n_agents,), np.int64), "mates": ((f.n_mates,), np.int64)}
+        )
         self.steps = 0
 
     def probs(self, states: np.ndarray) -> np.ndarray:
-        return softmax(self.forward(self.features.team(states))).reshape(states.shape[0], self.features.n_mates, N_ACTIONS)
+        return softmax(self.forward(self.features.team(states))).reshape(
+            states.shape[0], self.features.n_mates, N_ACTIONS
+        )
 
     def update(self, state: np.ndarray, mates: np.ndarray) -> float | None:
         """Line 12 of Algorithm 1: store the sample, one Adam step of Eq. 4.1 on a minibatch."""
@@ -138,8 +155,17 @@ class LearnedTeam:
         return copy
 
     def save(self, path: str | Path) -> Path:
-        return save_weights(path, self.net, {"kind": "teamster-team", "hidden": self.hidden, "name": self.name,
-                                             "size": self.features.size, "steps": self.steps})
+        return save_weights(
+            path,
+            self.net,
+            {
+                "kind": "teamster-team",
+                "hidden": self.hidden,
+                "name": self.name,
+                "size": self.features.size,
+                "steps": self.steps,
+            },
+        )
 
     def load(self, path: str | Path) -> dict:
         return load_into(self.net, path)
@@ -148,18 +174,36 @@ class LearnedTeam:
 class LearnedEnvironment:
     """TEAMSTER's environment model: factored transition network (Eq. 4.3) and reward network."""
 
-    def __init__(self, world: Pursuit4, rng: np.random.Generator, transition_hidden: int = 256,
-                 reward_hidden: int = 64, features=None) -> None:
+    def __init__(
+        self,
+        world: Pursuit4,
+        rng: np.random.Generator,
+        transition_hidden: int = 256,
+        reward_hidden: int = 64,
+        features=None,
+    ) -> None:
         self.world, self.rng = world, rng
         self.features = f = features if features is not None else Features(world)
-        self.transition_net = seeded_module(lambda: mlp(f.transition_width, transition_hidden, 2, N_ACTIONS), rng)
+        self.transition_net = seeded_module(
+            lambda: mlp(f.transition_width, transition_hidden, 2, N_ACTIONS), rng
+        )
         self.reward_net = seeded_module(lambda: mlp(f.reward_width, reward_hidden, 2, 1), rng)
-        self.transition_forward, self.reward_forward = NumpyMlp(self.transition_net), NumpyMlp(self.reward_net)
+        self.transition_forward, self.reward_forward = (
+            NumpyMlp(self.transition_net),
+            NumpyMlp(self.reward_net),
+        )
         # fused: torch's one-kernel CPU Adam, cheaper per step than the per-parameter loop for small networks
         self.transition_opt = torch.optim.Adam(self.transition_net.parameters(), lr=1e-3, fused=True)
         self.reward_opt = torch.optim.Adam(self.reward_net.parameters(), lr=1e-2, fused=True)
-        self.buffer = ReplayBuffer(CAPACITY, {"state": ((f.n_agents,), np.int64), "action": ((f.n_actors,), np.int64),
-                                              "next": ((f.n_agents,), np.int64), "reward": ((), np.float32)})
+        self.buffer = ReplayBuffer(
+            CAPACITY,
+            {
+                "state": ((f.n_agents,), np.int64),
+                "action": ((f.n_actors,), np.int64),
+                "next": ((f.n_agents,), np.int64),
+                "reward": ((), np.float32),
+            },
+        )
         self.steps = 0
 
     def transition_probs(self, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
@@ -169,7 +213,9 @@ class LearnedEnvironment:
 
     def capture_probability(self, states: np.ndarray) -> np.ndarray:
         logit = self.reward_forward(self.features.reward(states))[:, 0].astype(np.float64)
-        with np.errstate(over="ignore"):  # exp(-logit) = inf for logit < -709 gives 1 / inf = 0.0, the exact limit
+        with np.errstate(
+            over="ignore"
+        ):  # exp(-logit) = inf for logit < -709 gives 1 / inf = 0.0, the exact limit
             return 1.0 / (1.0 + np.exp(-logit))
 
     def step(self, states: np.ndarray, joint_actions: np.ndarray, rng: np.random.Generator):
@@ -177,7 +223,9 @@ class LearnedEnvironment:
         above 1/2)."""
         probs = self.transition_probs(states, joint_actions)
         cdf = np.cumsum(probs, -1)
-        moves = np.minimum((rng.random(probs.shape[:-1])[..., None] * cdf[..., -1:] >= cdf).sum(-1), N_ACTIONS - 1)
+        moves = np.minimum(
+            (rng.random(probs.shape[:-1])[..., None] * cdf[..., -1:] >= cdf).sum(-1), N_ACTIONS - 1
+        )
         nxt = self.world.neighbours[states, moves]
         goal = self.capture_probability(nxt).astype(np.float64)
         return nxt, self.features.step_reward + self.features.goal_reward * goal, goal > 0.5
@@ -190,18 +238,23 @@ class LearnedEnvironment:
         self.steps += 1
         batch = self.buffer.sample(BATCH, self.rng)
         target = torch.from_numpy(self.features.move_of[batch["state"], batch["next"]].reshape(-1))
-        logits = self.transition_net(torch.from_numpy(self.features.transition(batch["state"], batch["action"])))
+        logits = self.transition_net(
+            torch.from_numpy(self.features.transition(batch["state"], batch["action"]))
+        )
         transition_loss = adam_step(self.transition_opt, F.cross_entropy(logits, target))
         predicted = self.reward_net(torch.from_numpy(self.features.reward(batch["next"])))[:, 0]
-        reward_loss = adam_step(self.reward_opt, F.binary_cross_entropy_with_logits(
-            predicted, torch.from_numpy(batch["reward"])))
+        reward_loss = adam_step(
+            self.reward_opt, F.binary_cross_entropy_with_logits(predicted, torch.from_numpy(batch["reward"]))
+        )
         return transition_loss, reward_loss
 
     def save(self, folder: str | Path) -> list[Path]:
         folder = Path(folder)
         meta = {"kind": "teamster-environment", "size": self.world.size, "steps": self.steps}
-        return [save_weights(folder / "transition.safetensors", self.transition_net, meta),
-                save_weights(folder / "reward.safetensors", self.reward_net, meta)]
+        return [
+            save_weights(folder / "transition.safetensors", self.transition_net, meta),
+            save_weights(folder / "reward.safetensors", self.reward_net, meta),
+        ]
 
     def load(self, folder: str | Path) -> None:
         load_into(self.transition_net, Path(folder) / "transition.safetensors")

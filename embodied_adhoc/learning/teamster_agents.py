@@ -45,8 +45,15 @@ class PlasticPolicy(TeamTracking):
     """PLASTIC-Policy: a library of (learned team model, DQN) pairs; the DQN of the most likely team acts.
     While playing a team it trains a new team model and a new DQN (epsilon-greedy when that DQN acts)."""
 
-    def __init__(self, world: Pursuit4, rng: np.random.Generator, horizon: int, eta: float = 0.1,
-                 rule: str = "plastic", config: DqnConfig | None = None) -> None:
+    def __init__(
+        self,
+        world: Pursuit4,
+        rng: np.random.Generator,
+        horizon: int,
+        eta: float = 0.1,
+        rule: str = "plastic",
+        config: DqnConfig | None = None,
+    ) -> None:
         self.name, self.world, self.rng, self.horizon = "plastic-policy", world, rng, horizon
         self.features = features_for(world)
         self.eta, self.rule, self.config = eta, rule, config
@@ -91,8 +98,15 @@ class PlasticPolicy(TeamTracking):
         self.online = LearnedTeam(self.world, self.rng, features=self.features)
 
 
-def build_agent(name: str, world: Pursuit4, rng: np.random.Generator, horizon: int,
-                uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic"):
+def build_agent(
+    name: str,
+    world: Pursuit4,
+    rng: np.random.Generator,
+    horizon: int,
+    uct: UctConfig | None = None,
+    eta: float = 0.1,
+    rule: str = "plastic",
+):
     """A fresh agent ``name`` (see the module table) for ``world`` (pursuit or a navigation map: its teams,
     exact models and network encodings); ``horizon`` is the interaction length per team (the DQN's epsilon
     decays over it); ``uct`` defaults to the world's row of Table 4.1."""
@@ -103,10 +117,13 @@ def build_agent(name: str, world: Pursuit4, rng: np.random.Generator, horizon: i
     if name in MODEL_BASED:
         learned_env = name in ("teamster", "learns-environment")
         features = features_for(world)
-        environment = LearnedEnvironment(world, rng, features=features) if learned_env else ExactEnvironment(world)
+        environment = (
+            LearnedEnvironment(world, rng, features=features) if learned_env else ExactEnvironment(world)
+        )
         exact_library = exact if name in ("plastic-model", "learns-environment") else None
-        return ModelBasedAgent(name, environment, LearnedTeam(world, rng, features=features), exact_library, uct,
-                               eta, rule)
+        return ModelBasedAgent(
+            name, environment, LearnedTeam(world, rng, features=features), exact_library, uct, eta, rule
+        )
     if name == "plastic-policy":
         return PlasticPolicy(world, rng, horizon, eta, rule, dqn_config(world, horizon))
     if name == "random":
@@ -135,7 +152,9 @@ def plugin_agent(spec: str, world: Pursuit4, rng: np.random.Generator, horizon: 
     agent = resolve("agent", spec, builtin=AGENTS, flag="--agents").factory(world, rng=rng, horizon=horizon)
     missing = [m for m in TEAMWORK_METHODS if not callable(getattr(agent, m, None))]
     if missing or not isinstance(getattr(agent, "name", None), str):
-        lacks = [f"{m}()" for m in missing] + ([] if isinstance(getattr(agent, "name", None), str) else ["name"])
+        lacks = [f"{m}()" for m in missing] + (
+            [] if isinstance(getattr(agent, "name", None), str) else ["name"]
+        )
         raise ConfigError(
             f"agent {spec!r}: {type(agent).__name__} does not meet the chapter-4 TeamworkAgent protocol "
             f"(decision.agents.teamwork): it lacks {', '.join(lacks)}"

@@ -86,9 +86,11 @@ def features_for(world):
 # Table 4.3's navigation rows: (lr, hidden, epsilon start, epsilon end, initial random steps, target update
 # every) and the original implementation's interaction length per team, which scales the random warm-up here
 # (10,000 of 100,000 steps on ntu, 15,000 of 100,000 on isr, 15,000 of 125,000 on pentagon).
-TABLE_4_3 = {"ntu": (0.01, 512, 0.75, 0.05, 10_000, 3, 100_000),
-             "isr": (0.001, 512, 0.95, 0.05, 15_000, 4, 100_000),
-             "pentagon": (0.001, 512, 0.95, 0.05, 15_000, 4, 125_000)}
+TABLE_4_3 = {
+    "ntu": (0.01, 512, 0.75, 0.05, 10_000, 3, 100_000),
+    "isr": (0.001, 512, 0.95, 0.05, 15_000, 4, 100_000),
+    "pentagon": (0.001, 512, 0.95, 0.05, 15_000, 4, 125_000),
+}
 
 
 def dqn_config(world, horizon: int):
@@ -100,5 +102,11 @@ def dqn_config(world, horizon: int):
     if not isinstance(world, Navigation4):
         return None
     lr, hidden, start, end, warm, target, original = TABLE_4_3.get(world.name, TABLE_4_3["isr"])
-    return DqnConfig(hidden=hidden, lr=lr, epsilon_start=start, epsilon_end=end,
-                     random_steps=round(warm * horizon / original), target_every=target)
+    return DqnConfig(
+        hidden=hidden,
+        lr=lr,
+        epsilon_start=start,
+        epsilon_end=end,
+        random_steps=round(warm * horizon / original),
+        target_every=target,
+    )

@@ -49,8 +49,14 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, domain: str, num_envs: int, max_episode_steps: int | None = None,
-                 environments: list[tuple[int, str]] | None = None, **env_kwargs) -> None:
+    def __init__(
+        self,
+        domain: str,
+        num_envs: int,
+        max_episode_steps: int | None = None,
+        environments: list[tuple[int, str]] | None = None,
+        **env_kwargs,
+    ) -> None:
         import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 
         if domain not in GRID_IDS:
@@ -59,7 +65,9 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
             raise ConfigError(f"num_envs={num_envs!r}: give a positive integer")
         for key in ("backend", "obs_mode", "render_mode"):
             if key in env_kwargs:
-                raise ConfigError(f"{key}: the vector env is the abstract grid twin with grid observations only")
+                raise ConfigError(
+                    f"{key}: the vector env is the abstract grid twin with grid observations only"
+                )
         probe = gymnasium.make(GRID_IDS[domain], **env_kwargs)
         self.max_episode_steps = int(max_episode_steps or probe.spec.max_episode_steps or 10**9)
         if self.max_episode_steps < 1:
@@ -79,9 +87,13 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.single_action_space = gymnasium.spaces.Discrete(5)
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self.action_space = batch_space(self.single_action_space, num_envs)
-        self.batch = GridBatch(np.zeros((num_envs, cfg.n_agents, 2), np.int64), np.ones((num_envs, cfg.n_agents), np.int64),
-                               np.zeros((num_envs, cfg.n_targets, 2), np.int64),
-                               np.ones((num_envs, cfg.n_targets), np.int64), np.ones((num_envs, cfg.n_targets), bool))
+        self.batch = GridBatch(
+            np.zeros((num_envs, cfg.n_agents, 2), np.int64),
+            np.ones((num_envs, cfg.n_agents), np.int64),
+            np.zeros((num_envs, cfg.n_targets, 2), np.int64),
+            np.ones((num_envs, cfg.n_targets), np.int64),
+            np.ones((num_envs, cfg.n_targets), bool),
+        )
         self.task_index = np.zeros(num_envs, np.int64)  # 0-based into core.tasks
         self.team_index = np.zeros(num_envs, np.int64)
         self.steps = np.zeros(num_envs, np.int64)
@@ -103,8 +115,10 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
                 raise ConfigError("environments=[]: give (task, team) pairs, or None for tasks x teams")
             for task, team in self.environments:
                 if not 1 <= task <= len(self.core.tasks) or team not in self.core.teams:
-                    raise ConfigError(f"environments: ({task}, {team!r}) is not a task 1..{len(self.core.tasks)} "
-                                      f"with a team of {sorted(self.core.teams)}")
+                    raise ConfigError(
+                        f"environments: ({task}, {team!r}) is not a task 1..{len(self.core.tasks)} "
+                        f"with a team of {sorted(self.core.teams)}"
+                    )
 
     def _rewind(self, index: int) -> None:
         """Put sub-env ``index``'s Generator where the single env's is: after the used steps of its block."""
@@ -157,7 +171,9 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         else:
             seeds = list(seed)
             if len(seeds) != self.num_envs:
-                raise ConfigError(f"seed: {len(seeds)} seeds for {self.num_envs} sub-envs; give one each or an int")
+                raise ConfigError(
+                    f"seed: {len(seeds)} seeds for {self.num_envs} sub-envs; give one each or an int"
+                )
         if not self.rngs or seed is not None:
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
             self.used[:], self.block_states = DRAW_BLOCK, [None] * self.num_envs
@@ -169,9 +185,15 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         if not self.rngs:
             raise gymnasium.error.ResetNeeded("call reset() before step()")
         actions = np.asarray(actions)
-        if actions.shape != (self.num_envs,) or actions.dtype.kind not in "iu" or np.any((actions < 0) | (actions > 4)):
-            raise ConfigError(f"actions {actions.tolist()!r}: need {self.num_envs} integers in 0..4 "
-                              "(up, down, left, right, interact)")
+        if (
+            actions.shape != (self.num_envs,)
+            or actions.dtype.kind not in "iu"
+            or np.any((actions < 0) | (actions > 4))
+        ):
+            raise ConfigError(
+                f"actions {actions.tolist()!r}: need {self.num_envs} integers in 0..4 "
+                "(up, down, left, right, interact)"
+            )
         resetting = self.needs_reset.copy()
         stepping = ~resetting
         terminated, truncated = np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool)
@@ -186,9 +208,12 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         cfg = self.rules.config
         n, b = cfg.n_agents, self.batch
         uniforms = self._draw(stepping)
-        team_uniforms = uniforms[:, :TEAM_DRAWS * n].reshape(self.num_envs, n, TEAM_DRAWS)
-        prey_uniforms = (uniforms[:, TEAM_DRAWS * n:].reshape(self.num_envs, cfg.n_targets, 2)
-                         if self.rules.prey_draws() else None)
+        team_uniforms = uniforms[:, : TEAM_DRAWS * n].reshape(self.num_envs, n, TEAM_DRAWS)
+        prey_uniforms = (
+            uniforms[:, TEAM_DRAWS * n :].reshape(self.num_envs, cfg.n_targets, 2)
+            if self.rules.prey_draws()
+            else None
+        )
         offsets, teams = self.episode_offsets, self.episode_teams
         team = self.planner.actions(b, offsets, self.interchangeable, teams, team_uniforms)
         team[:, 0] = actions

@@ -41,7 +41,9 @@ def load_weights(path: str | Path) -> tuple[dict[str, torch.Tensor], dict]:
     """(state dict, metadata) of a file written by :func:`save_weights`."""
     path = Path(path)
     if not path.is_file():
-        raise WeightsError(f"{path}: no such weights file; train one (embodied_adhoc.learning) or fix the path")
+        raise WeightsError(
+            f"{path}: no such weights file; train one (embodied_adhoc.learning) or fix the path"
+        )
     try:
         tensors = load_file(str(path))
         with open(path, "rb") as handle:
@@ -49,10 +51,14 @@ def load_weights(path: str | Path) -> tuple[dict[str, torch.Tensor], dict]:
             header = json.loads(handle.read(header_size))
         metadata = json.loads(header.get("__metadata__", {}).get(METADATA_KEY, "null"))
     except (SafetensorError, ValueError, UnicodeDecodeError, OSError) as error:
-        raise WeightsError(f"{path}: not a safetensors weights file ({error}); pickled weights (torch.save) are "
-                           "refused, re-save the state dict with save_weights") from None
+        raise WeightsError(
+            f"{path}: not a safetensors weights file ({error}); pickled weights (torch.save) are "
+            "refused, re-save the state dict with save_weights"
+        ) from None
     if not isinstance(metadata, dict):
-        raise WeightsError(f"{path}: safetensors file without embodied_adhoc metadata; write it with save_weights")
+        raise WeightsError(
+            f"{path}: safetensors file without embodied_adhoc metadata; write it with save_weights"
+        )
     return tensors, metadata
 
 
@@ -62,6 +68,8 @@ def load_into(module: torch.nn.Module, path: str | Path) -> dict:
     try:
         module.load_state_dict(tensors, strict=True)
     except RuntimeError as error:
-        raise WeightsError(f"{path}: the weights do not fit this network ({str(error).splitlines()[0]}); "
-                           "check the network sizes in its metadata") from None
+        raise WeightsError(
+            f"{path}: the weights do not fit this network ({str(error).splitlines()[0]}); "
+            "check the network sizes in its metadata"
+        ) from None
     return metadata

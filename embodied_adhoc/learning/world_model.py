@@ -40,11 +40,15 @@ class WorldModelTraining:
     batch_size: int = 128
     learning_rate: float = 1e-3  # the thesis's Adam rate for encoder, decoder, transition and reward networks
     seed: int = 0
-    policy_learning_rate: float = 1e-3  # PPO's rate for the actor and critic on the latents (the thesis: 0.001)
+    policy_learning_rate: float = (
+        1e-3  # PPO's rate for the actor and critic on the latents (the thesis: 0.001)
+    )
     # world-model minibatches on the replay, refilled with the policy's transitions, after each PPO update; 0:
     # the encoder stays the one pre-trained on random replay (measured as good on LBF task 1, and 40 % cheaper)
     updates_per_rollout: int = 0
-    head_hidden: int = 64  # the actor's and critic's hidden width on the latents (the thesis: MLPs); 0: linear
+    head_hidden: int = (
+        64  # the actor's and critic's hidden width on the latents (the thesis: MLPs); 0: linear
+    )
     replay: int = 16_384  # replay capacity; the policy's own transitions replace the oldest
 
     def __post_init__(self) -> None:
@@ -67,9 +71,12 @@ class WorldModel(nn.Module):
         self.config = config
         features, actions = config.features, config.actions
         self.encoder = Encoder(config)
-        self.transition = nn.Sequential(nn.Linear(features + actions, features), nn.ReLU(),
-                                        nn.Linear(features, features), nn.ReLU())
-        self.reward = nn.Sequential(nn.Linear(features + actions, features), nn.ReLU(), nn.Linear(features, 1))
+        self.transition = nn.Sequential(
+            nn.Linear(features + actions, features), nn.ReLU(), nn.Linear(features, features), nn.ReLU()
+        )
+        self.reward = nn.Sequential(
+            nn.Linear(features + actions, features), nn.ReLU(), nn.Linear(features, 1)
+        )
         self.decoder = nn.Linear(features, config.channels * config.view * config.view)
 
     def _with_action(self, latent: torch.Tensor, actions: torch.Tensor) -> torch.Tensor:
@@ -99,7 +106,9 @@ class Experience:
     next_observations: np.ndarray  # (n, C, f, f)
 
 
-def collect_experience(domain: str, env_kwargs: dict, steps: int, seed: int, num_envs: int = 16) -> Experience:
+def collect_experience(
+    domain: str, env_kwargs: dict, steps: int, seed: int, num_envs: int = 16
+) -> Experience:
     """``steps`` transitions of a uniformly random agent on ``GridVectorEnv`` (NEXT_STEP autoreset: the reset
     steps, which are no transitions, are left out)."""
     rng = np.random.default_rng(seed)
@@ -117,8 +126,12 @@ def collect_experience(domain: str, env_kwargs: dict, steps: int, seed: int, num
         observation, resetting = following, terminated | truncated
     env.close()
     parts = [np.concatenate(column)[:steps] for column in zip(*rows, strict=True)]
-    return Experience(parts[0].astype(np.float32), parts[1].astype(np.int64), parts[2].astype(np.float32),
-                      parts[3].astype(np.float32))
+    return Experience(
+        parts[0].astype(np.float32),
+        parts[1].astype(np.int64),
+        parts[2].astype(np.float32),
+        parts[3].astype(np.float32),
+    )
 
 
 class Replay:
@@ -126,8 +139,10 @@ class Replay:
 
     def __init__(self, data: Experience, capacity: int, device: torch.device) -> None:
         columns = (data.observations, data.actions, data.rewards, data.next_observations)
-        self.tensors = [torch.zeros((capacity, *x.shape[1:]), dtype=torch.as_tensor(x[:1]).dtype, device=device)
-                        for x in columns]
+        self.tensors = [
+            torch.zeros((capacity, *x.shape[1:]), dtype=torch.as_tensor(x[:1]).dtype, device=device)
+            for x in columns
+        ]
         self.size = self.cursor = 0
         self.add(*columns)
 
@@ -136,7 +151,9 @@ class Replay:
         rows = (self.cursor + np.arange(len(columns[0]))) % capacity
         index = torch.as_tensor(rows[-capacity:])
         for tensor, column in zip(self.tensors, columns, strict=True):
-            tensor[index] = torch.as_tensor(np.asarray(column)[-capacity:], dtype=tensor.dtype, device=tensor.device)
+            tensor[index] = torch.as_tensor(
+                np.asarray(column)[-capacity:], dtype=tensor.dtype, device=tensor.device
+            )
         self.cursor = int((self.cursor + len(columns[0])) % capacity)
         self.size = min(capacity, self.size + len(columns[0]))
 
@@ -157,28 +174,38 @@ class WorldModelTrainer:
         history = []
         device = self.replay.tensors[0].device
         for step in range(iterations):
-            index = torch.as_tensor(self.rng.integers(self.replay.size, size=self.settings.batch_size), device=device)
+            index = torch.as_tensor(
+                self.rng.integers(self.replay.size, size=self.settings.batch_size), device=device
+            )
             terms = self.model.losses(*(t[index] for t in self.replay.tensors))
             loss = sum(terms.values())
             self.optimiser.zero_grad()
             loss.backward()
             self.optimiser.step()
             if self.iterations % 50 == 0 or step == iterations - 1:
-                history.append({"iteration": self.iterations, "loss": loss.item(),
-                                **{k: v.item() for k, v in terms.items()}})
+                history.append(
+                    {
+                        "iteration": self.iterations,
+                        "loss": loss.item(),
+                        **{k: v.item() for k, v in terms.items()},
+                    }
+                )
             self.iterations += 1
         self.model.eval()
         return history
 
 
-def train_world_model(model: WorldModel, data: Experience, settings: WorldModelTraining,
-                      device: torch.device | None = None) -> list[dict]:
+def train_world_model(
+    model: WorldModel, data: Experience, settings: WorldModelTraining, device: torch.device | None = None
+) -> list[dict]:
     """``settings.iterations`` minibatches drawn (seeded) from the replay ``data``; returns the loss terms every
     50 iterations (and the last)."""
     device = device or torch.device("cpu")
     torch.manual_seed(settings.seed)
     model.to(device)
-    history = WorldModelTrainer(model, Replay(data, len(data.actions), device), settings).train(settings.iterations)
+    history = WorldModelTrainer(model, Replay(data, len(data.actions), device), settings).train(
+        settings.iterations
+    )
     model.cpu()
     return history
 
@@ -201,12 +228,17 @@ def train_mb_policy(domain: str, env_kwargs: dict, config, settings: WorldModelT
     from embodied_adhoc.learning.ppo import train_ppo
 
     data = collect_experience(domain, env_kwargs, settings.experience, settings.seed, config.num_envs)
-    network = NetworkConfig(channels=data.observations.shape[1], view=data.observations.shape[2],
-                            hidden_channels=config.hidden_channels, features=config.features)
+    network = NetworkConfig(
+        channels=data.observations.shape[1],
+        view=data.observations.shape[2],
+        hidden_channels=config.hidden_channels,
+        features=config.features,
+    )
     torch.manual_seed(settings.seed)
     model = WorldModel(network)
-    trainer = WorldModelTrainer(model, Replay(data, max(settings.replay, settings.experience), torch.device("cpu")),
-                                settings)
+    trainer = WorldModelTrainer(
+        model, Replay(data, max(settings.replay, settings.experience), torch.device("cpu")), settings
+    )
     history = trainer.train(settings.iterations)
 
     def after_update(policy, transitions) -> None:
@@ -215,8 +247,14 @@ def train_mb_policy(domain: str, env_kwargs: dict, config, settings: WorldModelT
         policy.encoder.load_state_dict(model.encoder.state_dict())
 
     hook = after_update if settings.updates_per_rollout else None
-    result = train_ppo(domain, env_kwargs, mb_policy_config(config, settings), progress, encoder=model.encoder,
-                       after_update=hook)
+    result = train_ppo(
+        domain,
+        env_kwargs,
+        mb_policy_config(config, settings),
+        progress,
+        encoder=model.encoder,
+        after_update=hook,
+    )
     return result, model, history
 
 

@@ -66,7 +66,9 @@ def open_realtime_episode(
     from embodied_adhoc.experiments.registry import build_agent
     from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
-    agent = build_agent(DOMAIN, setup.session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent))
+    agent = build_agent(
+        DOMAIN, setup.session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)
+    )
     metrics = episode_metrics(
         config,
         setup,

@@ -32,13 +32,15 @@ class PursuitPomdpArena:
 
     def __init__(self, physics: ArenaPhysics | None = None, predators: int = 2) -> None:
         self.predators = predators
-        config = GridConfig(domain="pursuit", rows=SIZE, cols=SIZE, n_agents=predators, n_targets=1,
-                            interact_required=False)
+        config = GridConfig(
+            domain="pursuit", rows=SIZE, cols=SIZE, n_agents=predators, n_targets=1, interact_required=False
+        )
         self.backend = GridArenaBackend(GridRules(config), physics=physics)
         model = self.backend.model
         roots = {model.body(f"{name}/").id for name in self.backend.robots}
         robot_geoms = np.flatnonzero(
-            np.isin(model.body_rootid[model.geom_bodyid], list(roots)) & (model.geom_contype | model.geom_conaffinity > 0)
+            np.isin(model.body_rootid[model.geom_bodyid], list(roots))
+            & (model.geom_contype | model.geom_conaffinity > 0)
         )
         model.geom_contype[robot_geoms] = ROBOT_CONTYPE
         model.geom_conaffinity[robot_geoms] = ROBOT_CONAFFINITY
@@ -46,7 +48,9 @@ class PursuitPomdpArena:
 
     def _grid_state(self, cells: np.ndarray) -> GridState:
         n = self.predators
-        return GridState(cells[:n].copy(), np.ones(n, np.int64), cells[n:n + 1].copy(), np.ones(1, np.int64))
+        return GridState(
+            cells[:n].copy(), np.ones(n, np.int64), cells[n : n + 1].copy(), np.ones(1, np.int64)
+        )
 
     @staticmethod
     def _cells(state: GridState) -> np.ndarray:
@@ -63,7 +67,7 @@ class PursuitPomdpArena:
             self.backend.place(robot, target[robot], yaw[robot])
             self.teleports += 1
         n = self.predators
-        plan = StepPlan(target[:n].copy(), target[n:n + 1].copy(), np.zeros(1, dtype=bool))
+        plan = StepPlan(target[:n].copy(), target[n : n + 1].copy(), np.zeros(1, dtype=bool))
         return self._cells(self.backend.execute(self._grid_state(cells), plan))
 
     def poses(self) -> np.ndarray:

@@ -94,11 +94,14 @@ def test_random_agent_covers_all_actions(library):
 
 def test_atpo_with_perseus_on_a_small_library():
     """ATPO end to end (Perseus solves each model) on two 2-state POMDPs that differ in their dynamics."""
+
     def model(p: float) -> POMDP:
         transitions = [np.array([[p, 1 - p], [1 - p, p]]), np.eye(2)]
         observations = [np.array([[0.85, 0.15], [0.15, 0.85]])] * 2
         rewards = np.array([[0.0, 1.0], [1.0, 0.0]])
-        return POMDP(transitions, rewards, 0.9, observations=observations, initial_belief=np.array([0.5, 0.5]))
+        return POMDP(
+            transitions, rewards, 0.9, observations=observations, initial_belief=np.array([0.5, 0.5])
+        )
 
     models = [model(1.0), model(0.0)]
     agent = make_agent("atpo", models, perseus={"n_beliefs": 50, "tolerance": 1e-2, "time_limit": 10.0})

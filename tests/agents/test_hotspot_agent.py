@@ -17,7 +17,13 @@ def _two_state(stay_probability: float, accuracy: float) -> POMDP:
     p = stay_probability
     transitions = [np.array([[p, 1 - p], [1 - p, p]])]
     observations = [np.array([[accuracy, 1 - accuracy], [1 - accuracy, accuracy]])]
-    return POMDP(transitions, np.array([[1.0], [0.0]]), 0.9, observations=observations, initial_belief=np.array([0.5, 0.5]))
+    return POMDP(
+        transitions,
+        np.array([[1.0], [0.0]]),
+        0.9,
+        observations=observations,
+        initial_belief=np.array([0.5, 0.5]),
+    )
 
 
 def test_belief_and_posterior_update_by_hand():
@@ -31,7 +37,9 @@ def test_belief_and_posterior_update_by_hand():
     np.testing.assert_allclose(tracker.beliefs[0], [0.72 / 0.74, 0.02 / 0.74])
     np.testing.assert_allclose(tracker.beliefs[1], [0.08 / 0.26, 0.18 / 0.26])
     np.testing.assert_allclose(tracker.posterior, [0.74, 0.26])  # prior 0.5 / 0.5
-    np.testing.assert_allclose(tracker.average_belief(), 0.74 * tracker.beliefs[0] + 0.26 * tracker.beliefs[1])
+    np.testing.assert_allclose(
+        tracker.average_belief(), 0.74 * tracker.beliefs[0] + 0.26 * tracker.beliefs[1]
+    )
 
 
 def test_normalised_entropy():
@@ -48,7 +56,9 @@ def _information_reward_loops(pomdp: POMDP, rewards: np.ndarray, gain: str) -> n
     result = np.zeros((n, a_count))
     for a in range(a_count):
         for z in range(z_count):
-            b_max = np.array([sum(transition[a][x, y] * observe[a][y, z] / n for x in range(n)) for y in range(n)])
+            b_max = np.array(
+                [sum(transition[a][x, y] * observe[a][y, z] / n for x in range(n)) for y in range(n)]
+            )
             rho = b_max.sum()
             if rho == 0:
                 continue
@@ -110,7 +120,9 @@ def _agent(library, name):
 
     # ATPO with hand-made alpha-vector policies (one Q*_m column per action: the QMDP vectors).
     q = mdp_q_values(library)
-    policies = [AlphaVectorPolicy(q[m].T.copy(), np.arange(library.n_actions)) for m in range(library.n_tasks)]
+    policies = [
+        AlphaVectorPolicy(q[m].T.copy(), np.arange(library.n_actions)) for m in range(library.n_tasks)
+    ]
     return AtpoAgent(hotspot_plan(library).kernels, policies)
 
 
@@ -122,7 +134,9 @@ def _episode(env, agent, seed):
         action = agent.act()
         actions.append(action)
         obs, reward, terminated, truncated, info = env.step(action)
-        agent.observe(action, info["observation_index"], state=info["state"] if agent.observes_state else None)
+        agent.observe(
+            action, info["observation_index"], state=info["state"] if agent.observes_state else None
+        )
         if terminated:
             return step, actions, agent.task_posterior
     return 100, actions, agent.task_posterior

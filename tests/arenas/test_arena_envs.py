@@ -8,7 +8,11 @@ from gymnasium.utils.env_checker import check_env
 import embodied_adhoc.envs  # noqa: F401
 from embodied_adhoc.errors import ConfigError
 
-GRID_IDS = ["EmbodiedAdhoc/ForagingGrid-v0", "EmbodiedAdhoc/PursuitGrid-v0", "EmbodiedAdhoc/PursuitPairGrid-v0"]
+GRID_IDS = [
+    "EmbodiedAdhoc/ForagingGrid-v0",
+    "EmbodiedAdhoc/PursuitGrid-v0",
+    "EmbodiedAdhoc/PursuitPairGrid-v0",
+]
 
 
 def rollout(env, seed, steps):

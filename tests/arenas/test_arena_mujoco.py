@@ -21,8 +21,9 @@ def test_layout_maps_cells_both_ways():
     assert layout.cell_xy([0, 0])[1] > layout.cell_xy([3, 0])[1]  # row 0 is north
 
 
-@pytest.mark.parametrize("config", [foraging_config(rows=6, cols=8, n_agents=2, n_targets=2),
-                                    pursuit_config(n_agents=3)])
+@pytest.mark.parametrize(
+    "config", [foraging_config(rows=6, cols=8, n_agents=2, n_targets=2), pursuit_config(n_agents=3)]
+)
 def test_arena_compiles_and_rests_without_warnings(config):
     backend = GridArenaBackend(GridRules(config))
     backend.reset(GridRules(config).sample_state(np.random.default_rng(0)))
@@ -34,7 +35,9 @@ def test_arena_compiles_and_rests_without_warnings(config):
 def test_robots_drive_to_the_planned_cells_and_apples_vanish_when_foraged():
     rules = GridRules(foraging_config())
     backend = GridArenaBackend(rules)
-    state = GridState(np.array([[0, 0], [3, 2], [2, 1], [4, 4]]), np.ones(4, int), np.array([[2, 2]]), np.array([4]))
+    state = GridState(
+        np.array([[0, 0], [3, 2], [2, 1], [4, 4]]), np.ones(4, int), np.array([[2, 2]]), np.array([4])
+    )
     state = backend.reset(state)
     rng = np.random.default_rng(0)
     plan = rules.plan(state, foraging_tasks()[0], np.array([RIGHT, INTERACT, INTERACT, DOWN]), rng)
@@ -47,8 +50,9 @@ def test_robots_drive_to_the_planned_cells_and_apples_vanish_when_foraged():
     assert backend.model.geom_rgba[backend.apple_geoms[0], 3] == 0.0
 
 
-@pytest.mark.parametrize("env_id", ["EmbodiedAdhoc/Foraging-v0", "EmbodiedAdhoc/Pursuit-v0",
-                                    "EmbodiedAdhoc/PursuitPair-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["EmbodiedAdhoc/Foraging-v0", "EmbodiedAdhoc/Pursuit-v0", "EmbodiedAdhoc/PursuitPair-v0"]
+)
 def test_mujoco_env_checks_and_determinism(env_id):
     env = gymnasium.make(env_id, rows=5, cols=5)
     check_env(env.unwrapped, skip_render_check=True)
@@ -57,7 +61,7 @@ def test_mujoco_env_checks_and_determinism(env_id):
         obs, info = env.reset(seed=seed)
         trace = [obs]
         for action in (0, 3, 1, 4):
-            obs, *_ , info = env.step(action)
+            obs, *_, info = env.step(action)
             trace.append(obs)
         traces.append((np.stack(trace), info["state"]))
     assert np.array_equal(traces[0][0], traces[1][0]) and traces[0][1] == traces[1][1]

@@ -19,7 +19,9 @@ def test_parallel_seeded_and_solvable_by_the_team():
         obs, infos = env.reset(seed=11)
         history = []
         while env.agents:
-            actions = dict(zip(env.possible_agents, env.core.scripted_actions(range(4)).tolist(), strict=True))
+            actions = dict(
+                zip(env.possible_agents, env.core.scripted_actions(range(4)).tolist(), strict=True)
+            )
             obs, rewards, terminations, truncations, infos = env.step(actions)
             history.append(env.state())
         runs.append(np.stack(history))

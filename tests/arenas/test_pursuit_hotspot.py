@@ -123,8 +123,9 @@ def test_bad_reset_options_and_kwargs_are_refused():
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", *args], capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", *args], capture_output=True, text=True, timeout=300
+    )
 
 
 @pytest.mark.slow
@@ -158,7 +159,9 @@ def test_the_rule_based_pair_envs_expose_the_pomdps_observation_index(env_id):
             _, _, terminated, _, info = env.step(action)
             state = info["state"]
             offsets = np.array([state["agents"][1], state["targets"][0]]) - np.array(state["agents"][0])
-            expected = [3 * (d[0] + 1) + d[1] + 1 if np.abs(d).max() <= 1 and np.abs(d).sum() else 4 for d in offsets]
+            expected = [
+                3 * (d[0] + 1) + d[1] + 1 if np.abs(d).max() <= 1 and np.abs(d).sum() else 4 for d in offsets
+            ]
             if noise == 0.0:
                 assert info["observation_index"] == 9 * expected[0] + expected[1]
             trace.append((info["teammate_actions"], state["targets"]))
@@ -178,18 +181,52 @@ def test_run_pursuit_records_video_rerun_and_metrics(tmp_path):
     import imageio.v3 as iio
     from rerun.chunk import RrdReader
 
-    done = _cli("run", "pursuit", "--agent", "hotspot", "--seed", "0", "--size", "160", "--record", str(tmp_path),
-                "--no-progress", "--json")
+    done = _cli(
+        "run",
+        "pursuit",
+        "--agent",
+        "hotspot",
+        "--seed",
+        "0",
+        "--size",
+        "160",
+        "--record",
+        str(tmp_path),
+        "--no-progress",
+        "--json",
+    )
     assert done.returncode == 0, done.stderr
     summary = json.loads(done.stdout)
     assert summary["success"] and summary["physics_mismatches"] == 0
     assert len(iio.imread(tmp_path / "episode.mp4")) > summary["steps"]
-    entities = {chunk.entity_path.lstrip("/") for chunk in RrdReader(tmp_path / "episode.rrd").store().stream().to_chunks()}
-    for entity in ("world/arena/cells", "world/arena/robots", "world/arena/headings", "belief/task", "belief/entropy",
-                   "log/observations", "log/actions", "log/events", "camera/overhead"):
+    entities = {
+        chunk.entity_path.lstrip("/")
+        for chunk in RrdReader(tmp_path / "episode.rrd").store().stream().to_chunks()
+    }
+    for entity in (
+        "world/arena/cells",
+        "world/arena/robots",
+        "world/arena/headings",
+        "belief/task",
+        "belief/entropy",
+        "log/observations",
+        "log/actions",
+        "log/events",
+        "camera/overhead",
+    ):
         assert entity in entities, entity
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["config"]["env"] == PHYSICS and len(metrics["per_step"]) == summary["steps"]
-    trial = _cli("trials", "pursuit", "--pairs", "--backend", "mujoco", "--agents", "hotspot", "--episodes", "1",
-                 "--json")
+    trial = _cli(
+        "trials",
+        "pursuit",
+        "--pairs",
+        "--backend",
+        "mujoco",
+        "--agents",
+        "hotspot",
+        "--episodes",
+        "1",
+        "--json",
+    )
     assert json.loads(trial.stdout)["agents"]["hotspot"]["steps_mean"] == summary["steps"]

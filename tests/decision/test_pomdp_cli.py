@@ -55,7 +55,9 @@ def test_update_chooses_the_stage_and_the_classic_one_reproduces_the_library(tmp
     assert run("export", "gridworld", "--models", "1", "--out", str(tmp_path)).returncode == 0
     model = tmp_path / "gridworld-m0.pomdp"
     flags = ("solve", str(model), "--json", "--quiet", "--no-expand", "--beliefs", "50")
-    reports = {update: json.loads(run(*flags, "--update", update).stdout) for update in ("perseus", "gauss-seidel")}
+    reports = {
+        update: json.loads(run(*flags, "--update", update).stdout) for update in ("perseus", "gauss-seidel")
+    }
     assert reports["perseus"]["iterations"] != reports["gauss-seidel"]["iterations"]
     pomdp = read_pomdp(model)
     for update, report in reports.items():

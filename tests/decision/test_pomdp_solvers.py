@@ -187,8 +187,13 @@ def test_stored_policy_stays_uniformly_improvable(tmp_path):
 def test_old_and_newer_policy_files(tiger_policy, tmp_path):
     def uncompressed(version: int):
         path = tmp_path / f"v{version}.npz"
-        np.savez(path, alphas=tiger_policy.alphas, actions=tiger_policy.actions, stages=tiger_policy.stages,
-                 format_version=np.int64(version))
+        np.savez(
+            path,
+            alphas=tiger_policy.alphas,
+            actions=tiger_policy.actions,
+            stages=tiger_policy.stages,
+            format_version=np.int64(version),
+        )
         return path
 
     # format 1: uncompressed float64 (the files cached before format 2) loads as it was

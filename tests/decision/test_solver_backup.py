@@ -31,7 +31,12 @@ def _sparse_identity_pomdp(n_states: int = 60, n_actions: int = 3, seed: int = 4
 
 
 def _random_pomdp(
-    rng: np.random.Generator, n_states: int, n_actions: int, observation: np.ndarray, density: float, bump: float
+    rng: np.random.Generator,
+    n_states: int,
+    n_actions: int,
+    observation: np.ndarray,
+    density: float,
+    bump: float,
 ) -> POMDP:
     """Random sparse transitions (each row: entries with probability ``density``, plus ``bump`` on one random
     successor), normal rewards, discount 0.9, the same observation matrix for every action, uniform b0."""
@@ -67,13 +72,17 @@ def _naive_backup_values(pomdp: POMDP, beliefs: np.ndarray, alphas: np.ndarray) 
         for action in range(pomdp.n_actions):
             predicted = pomdp.transitions[action].T @ belief
             observation = pomdp.observations[action].toarray()
-            future = sum(float((alphas @ (predicted * observation[:, z])).max()) for z in range(pomdp.n_observations))
+            future = sum(
+                float((alphas @ (predicted * observation[:, z])).max()) for z in range(pomdp.n_observations)
+            )
             best = max(best, float(belief @ pomdp.rewards[:, action]) + pomdp.discount * future)
         values.append(best)
     return np.asarray(values)
 
 
-@pytest.mark.parametrize("name", ["tiger.95.POMDP", "hallway.POMDP", "sarsop-TagAvoid.pomdp", "sparse-identity"])
+@pytest.mark.parametrize(
+    "name", ["tiger.95.POMDP", "hallway.POMDP", "sarsop-TagAvoid.pomdp", "sparse-identity"]
+)
 def test_backup_equals_the_naive_one_and_each_vector_is_its_plan(name):
     pomdp = _model(name)
     beliefs = collect_beliefs(pomdp, 24, np.random.default_rng(3))
@@ -156,7 +165,9 @@ def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
         np.testing.assert_array_equal(scores_t, (rows @ stage.vectors.T).T)
         np.testing.assert_array_equal(stage.values, scores_t.max(axis=0))
         assert np.all(stage.values >= values)
-        np.testing.assert_array_equal(np.argmax(scores_t[:, stage.witness], axis=0), np.arange(len(stage.witness)))
+        np.testing.assert_array_equal(
+            np.argmax(scores_t[:, stage.witness], axis=0), np.arange(len(stage.witness))
+        )
         alphas, actions, values = stage.vectors, stage.actions, stage.values
 
 
@@ -166,7 +177,9 @@ def test_batch_size_does_not_change_the_solve(name):
     any batch size gives the sequential algorithm's stages, bit for bit (sparse belief rows included)."""
     pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
     solves = [
-        perseus(pomdp, PerseusConfig(n_beliefs=300, max_iterations=12, seed=1, batch_size=size, update="perseus"))
+        perseus(
+            pomdp, PerseusConfig(n_beliefs=300, max_iterations=12, seed=1, batch_size=size, update="perseus")
+        )
         for size in (5, 256)
     ]
     np.testing.assert_array_equal(solves[0].alphas, solves[1].alphas)
@@ -264,7 +277,8 @@ def test_gauss_seidel_stages_converge_in_fewer_stages_to_a_higher_value():
     stages stop in fewer stages than the classic ones, at a lower bound at least as high."""
     pomdp = _model("sarsop-TagAvoid.pomdp")
     classic, seidel = (
-        perseus(pomdp, PerseusConfig(n_beliefs=1000, seed=0, update=update)) for update in ("perseus", "gauss-seidel")
+        perseus(pomdp, PerseusConfig(n_beliefs=1000, seed=0, update=update))
+        for update in ("perseus", "gauss-seidel")
     )
     assert seidel.stats.converged_on_beliefs and classic.stats.converged_on_beliefs
     assert seidel.stats.iterations < classic.stats.iterations
@@ -285,7 +299,9 @@ def test_row_products_equal_the_whole_product_and_refuse_zero_threads():
     try:
         whole = matrix @ dense
         np.testing.assert_array_equal(products(matrix, dense), whole)
-        np.testing.assert_array_equal(products(matrix, dense, lambda s: np.argmax(s, axis=1)), np.argmax(whole, axis=1))
+        np.testing.assert_array_equal(
+            products(matrix, dense, lambda s: np.argmax(s, axis=1)), np.argmax(whole, axis=1)
+        )
     finally:
         products.close()
     with pytest.raises(SolverError, match="threads must be an integer >= 1, got 0"):

@@ -47,7 +47,9 @@ def _simulate(pomdp, policy, episodes: int, seed: int = 0):
 # policy simulated at -11.0 (issue 12); then the same with expansion and a time limit.
 CASES = [
     ("tiger.95.POMDP", {"n_beliefs": 200, "tolerance": 1e-4}, 2000),
-    pytest.param("hallway.POMDP", {"n_beliefs": 300, "time_limit": 3.0}, 300, marks=pytest.mark.slow, id="hallway"),
+    pytest.param(
+        "hallway.POMDP", {"n_beliefs": 300, "time_limit": 3.0}, 300, marks=pytest.mark.slow, id="hallway"
+    ),
     ("4x3.95.POMDP", {"n_beliefs": 200, "expand": True, "time_limit": 2.0}, 1000),
     pytest.param(
         "sarsop-TagAvoid.pomdp", {"n_beliefs": 1000}, 500, marks=pytest.mark.slow, id="tag-defaults"
@@ -73,8 +75,12 @@ def test_saved_policy_earns_its_lower_bound_and_stays_below_the_upper(name, sett
     assert stats.lower == pytest.approx(solved.stats.lower, abs=1e-4 * float(np.abs(solved.alphas).max()))
     assert stats.upper >= stats.lower
     mean, half = _simulate(pomdp, policy, episodes)
-    assert mean + half >= stats.lower, f"simulated {mean:.4f} +- {half:.4f}, claimed lower bound {stats.lower:.4f}"
-    assert mean - half <= stats.upper, f"simulated {mean:.4f} +- {half:.4f}, claimed upper bound {stats.upper:.4f}"
+    assert mean + half >= stats.lower, (
+        f"simulated {mean:.4f} +- {half:.4f}, claimed lower bound {stats.lower:.4f}"
+    )
+    assert mean - half <= stats.upper, (
+        f"simulated {mean:.4f} +- {half:.4f}, claimed upper bound {stats.upper:.4f}"
+    )
 
 
 def test_plan_graph_keeps_exactly_the_closure():
@@ -97,7 +103,9 @@ def test_upper_bound_is_above_the_optimum_and_below_qmdp():
     for belief in beliefs[::-1]:
         bound.update(belief)
     # SARSOP's lower bound at b0 is 19.3711: an upper bound can never go below it
-    assert 19.3711 - 1e-6 <= bound.values(pomdp.initial_belief)[0] < float((fib.T @ pomdp.initial_belief).max())
+    assert (
+        19.3711 - 1e-6 <= bound.values(pomdp.initial_belief)[0] < float((fib.T @ pomdp.initial_belief).max())
+    )
     exact = perseus(pomdp, PerseusConfig(n_beliefs=200, tolerance=1e-6))
     assert np.all(bound.values(beliefs) >= exact.values(beliefs) - 1e-9)
 
@@ -108,11 +116,15 @@ def _naive_fast_informed_bound(pomdp, tolerance=1e-6):
 
     q_values = value_iteration(pomdp.as_mdp(), tolerance=tolerance).q_values.copy()
     joint = [  # (S, Z, S'): T(s, a, s') O(z | s', a)
-        t.toarray()[:, None, :] * o.toarray().T[None, :, :] for t, o in zip(pomdp.transitions, pomdp.observations, strict=True)
+        t.toarray()[:, None, :] * o.toarray().T[None, :, :]
+        for t, o in zip(pomdp.transitions, pomdp.observations, strict=True)
     ]
     while True:
         new = np.stack(
-            [pomdp.rewards[:, a] + pomdp.discount * (m @ q_values).max(axis=2).sum(axis=1) for a, m in enumerate(joint)],
+            [
+                pomdp.rewards[:, a] + pomdp.discount * (m @ q_values).max(axis=2).sum(axis=1)
+                for a, m in enumerate(joint)
+            ],
             axis=1,
         )
         new = np.minimum(new, q_values)
@@ -144,13 +156,17 @@ def _identity_observation_pomdp(n_states=40, n_actions=3, seed=5):
 def test_fast_informed_bound_equals_the_dense_operator(name):
     """The sparse bound (only the possible (s, z) pairs) is the dense operator's fixed point, to rounding."""
     pomdp = _identity_observation_pomdp() if name == "identity-observations" else _model(name)
-    np.testing.assert_allclose(fast_informed_bound(pomdp), _naive_fast_informed_bound(pomdp), rtol=0, atol=1e-10)
+    np.testing.assert_allclose(
+        fast_informed_bound(pomdp), _naive_fast_informed_bound(pomdp), rtol=0, atol=1e-10
+    )
 
 
 def test_gap_closes_and_sets_converged_on_tiger():
     pomdp = _model("tiger.95.POMDP")
     # a CPU-time cap (a safety net, not the property): on a loaded machine a wall-clock one ran out first
-    policy = perseus(pomdp, PerseusConfig(n_beliefs=100, expand=True, precision=0.05, time_limit=60.0, clock="cpu"))
+    policy = perseus(
+        pomdp, PerseusConfig(n_beliefs=100, expand=True, precision=0.05, time_limit=60.0, clock="cpu")
+    )
     assert policy.stats.converged and policy.stats.gap <= 0.05
     assert policy.stats.lower <= 19.3721 and policy.stats.upper >= 19.3711
 
@@ -206,7 +222,9 @@ def test_trials_from_b0_lift_the_lower_bound_from_the_first_stage(name):
     assert tried.stats.lower > 0.02  # cit: 0.17, sunysb: 0.05 after one trial and one stage
     assert tried.stats.upper >= tried.stats.lower
     mean, half = _simulate(pomdp, tried, 300)
-    assert mean + half >= tried.stats.lower, f"simulated {mean:.4f} +- {half:.4f}, claimed {tried.stats.lower:.4f}"
+    assert mean + half >= tried.stats.lower, (
+        f"simulated {mean:.4f} +- {half:.4f}, claimed {tried.stats.lower:.4f}"
+    )
 
 
 def test_backup_without_projection_matches_the_projected_one():
@@ -220,7 +238,8 @@ def test_backup_without_projection_matches_the_projected_one():
     # each direct vector is the value of its plan: rebuilt from its action and continuations
     for vector, action, children in zip(direct[0], direct[1], direct[3], strict=True):
         continuation = sum(
-            pomdp.observations[action][:, z].toarray().ravel() * alphas[children[z]] for z in range(pomdp.n_observations)
+            pomdp.observations[action][:, z].toarray().ravel() * alphas[children[z]]
+            for z in range(pomdp.n_observations)
         )
         rebuilt = pomdp.rewards[:, action] + pomdp.discount * (pomdp.transitions[action] @ continuation)
         np.testing.assert_allclose(vector, rebuilt, atol=1e-9)

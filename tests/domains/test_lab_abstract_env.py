@@ -62,7 +62,9 @@ def test_transitions_follow_the_model():
     n = 4000
     for episode in range(n):
         env.reset(seed=episode, options={"task": 0, "robot_node": 2, "human_node": 1})
-        _, _, _, _, info = env.step(1)  # robot 2 -> its 2nd neighbour (fallback to 1); human at 1 picks ball 1
+        _, _, _, _, info = env.step(
+            1
+        )  # robot 2 -> its 2nd neighbour (fallback to 1); human at 1 picks ball 1
         counts[info["state"]] = counts.get(info["state"], 0) + 1
     row = library.mdps[0].transitions[1][library.state_index(2, 1, (0, 0, 0))].toarray().ravel()
     for state, count in counts.items():

@@ -61,19 +61,45 @@ def test_human_policy_rules():
     assert human.optimal_actions(1, (GROUND, HELD, GROUND)) == (human.stay_action,)
     # From node 1 with balls left at 0 and 2 (both at distance 1): both moves are optimal, chosen uniformly.
     assert human.optimal_actions(1, (GROUND, DISPOSED, GROUND)) == (0, 1)
-    outcomes = {(o.next_node, o.picked_ball): o.probability for o in human.policy_outcomes(1, (GROUND, DISPOSED, GROUND))}
+    outcomes = {
+        (o.next_node, o.picked_ball): o.probability
+        for o in human.policy_outcomes(1, (GROUND, DISPOSED, GROUND))
+    }
     assert outcomes == pytest.approx({(0, -1): 0.475, (2, -1): 0.475, (1, -1): 0.05})
-    picked = {(o.next_node, o.picked_ball): o.probability for o in human.policy_outcomes(2, (DISPOSED, DISPOSED, GROUND))}
+    picked = {
+        (o.next_node, o.picked_ball): o.probability
+        for o in human.policy_outcomes(2, (DISPOSED, DISPOSED, GROUND))
+    }
     assert picked == pytest.approx({(2, 2): 0.95, (2, -1): 0.05})
 
 
 def test_hand_over_needs_colocation_and_stay_or_locate():
     graph = LabGraph()
     wait = HumanOutcome(1.0, 1)
-    assert apply_step(graph, 1, 1, (DISPOSED, HELD, GROUND), 3, wait) == (1, 1, (DISPOSED, DISPOSED, GROUND), True)
-    assert apply_step(graph, 1, 1, (DISPOSED, HELD, GROUND), 4, wait) == (1, 1, (DISPOSED, DISPOSED, GROUND), True)
-    assert apply_step(graph, 1, 1, (DISPOSED, HELD, GROUND), 0, wait) == (0, 1, (DISPOSED, HELD, GROUND), False)
-    assert apply_step(graph, 2, 1, (DISPOSED, HELD, GROUND), 3, wait) == (2, 1, (DISPOSED, HELD, GROUND), False)
+    assert apply_step(graph, 1, 1, (DISPOSED, HELD, GROUND), 3, wait) == (
+        1,
+        1,
+        (DISPOSED, DISPOSED, GROUND),
+        True,
+    )
+    assert apply_step(graph, 1, 1, (DISPOSED, HELD, GROUND), 4, wait) == (
+        1,
+        1,
+        (DISPOSED, DISPOSED, GROUND),
+        True,
+    )
+    assert apply_step(graph, 1, 1, (DISPOSED, HELD, GROUND), 0, wait) == (
+        0,
+        1,
+        (DISPOSED, HELD, GROUND),
+        False,
+    )
+    assert apply_step(graph, 2, 1, (DISPOSED, HELD, GROUND), 3, wait) == (
+        2,
+        1,
+        (DISPOSED, HELD, GROUND),
+        False,
+    )
     # Robot move actions: k-th lowest neighbour, k beyond the degree falls back to the lowest.
     assert [apply_step(graph, 3, 0, (GROUND,) * 3, a, HumanOutcome(1.0, 0))[0] for a in range(3)] == [1, 4, 1]
 

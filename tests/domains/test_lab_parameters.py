@@ -33,14 +33,23 @@ def test_the_parameter_list_and_its_defaults_live_in_lab_config_only():
 
 @pytest.mark.parametrize(
     "kwargs, match",
-    [({"communication": "no"}, "communication"), ({"human_epsilon": -0.1}, "human_epsilon"),
-     ({"robot_node_accuracy": 1.5}, "robot_node_accuracy"), ({"rfid_miss": None}, "rfid_miss"),
-     ({"discount": 1.0}, "discount"), ({"confusion": 3}, "confusion"), ({"tasks": [[0, 9, 1]]}, "node 9")],
+    [
+        ({"communication": "no"}, "communication"),
+        ({"human_epsilon": -0.1}, "human_epsilon"),
+        ({"robot_node_accuracy": 1.5}, "robot_node_accuracy"),
+        ({"rfid_miss": None}, "rfid_miss"),
+        ({"discount": 1.0}, "discount"),
+        ({"confusion": 3}, "confusion"),
+        ({"tasks": [[0, 9, 1]]}, "node 9"),
+    ],
 )
 def test_every_entry_point_refuses_the_same_bad_parameter_with_the_same_message(kwargs, match):
     messages = set()
-    for build in (lambda: LabConfig(**kwargs), lambda: build_lab_library(**kwargs),
-                  lambda: ToxicWasteAbstractEnv(**kwargs)):
+    for build in (
+        lambda: LabConfig(**kwargs),
+        lambda: build_lab_library(**kwargs),
+        lambda: ToxicWasteAbstractEnv(**kwargs),
+    ):
         with pytest.raises(ConfigError, match=match) as error:
             build()
         messages.add(str(error.value))
@@ -50,8 +59,22 @@ def test_every_entry_point_refuses_the_same_bad_parameter_with_the_same_message(
 @pytest.mark.parametrize(
     "status, robot, human, action, outcome, expected",
     [
-        ((HELD, GROUND, GROUND), 2, 2, 3, None, ("drop_into_container", 0)),  # co-located, stays: the hand-over
-        ((HELD, GROUND, GROUND), 2, 2, 4, None, ("drop_into_container", 0)),  # co-located, asks: the hand-over too
+        (
+            (HELD, GROUND, GROUND),
+            2,
+            2,
+            3,
+            None,
+            ("drop_into_container", 0),
+        ),  # co-located, stays: the hand-over
+        (
+            (HELD, GROUND, GROUND),
+            2,
+            2,
+            4,
+            None,
+            ("drop_into_container", 0),
+        ),  # co-located, asks: the hand-over too
         ((GROUND, HELD, GROUND), 1, 2, 3, None, ("stay", None)),  # not co-located: the human waits
         ((HELD, GROUND, GROUND), 2, 2, 0, None, ("stay", None)),  # the robot drives away: no hand-over
         ((GROUND, GROUND, GROUND), 0, 1, 0, HumanOutcome(1.0, 1, 1), ("pick", 1)),

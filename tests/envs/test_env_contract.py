@@ -14,10 +14,15 @@ from embodied_adhoc.errors import ConfigError
 
 IDS = [spec.id for spec in ENV_SPECS]
 MUJOCO = {spec.id for spec in ENV_SPECS if spec.backend == "mujoco"}
-POMDP_RULES = {"EmbodiedAdhoc/PursuitPairPomdpGrid-v0", "EmbodiedAdhoc/PursuitPairPomdp-v0"}  # Fig. 7.12's POMDP
+POMDP_RULES = {
+    "EmbodiedAdhoc/PursuitPairPomdpGrid-v0",
+    "EmbodiedAdhoc/PursuitPairPomdp-v0",
+}  # Fig. 7.12's POMDP
 LAB = {"EmbodiedAdhoc/ToxicWasteAbstract-v0", "EmbodiedAdhoc/ToxicWaste-v0"}
 TEAMWORK = {"EmbodiedAdhoc/Pursuit4Grid-v0", "EmbodiedAdhoc/Pursuit4-v0"}  # chapter 4's pursuit (no tasks)
-SMALL = {"EmbodiedAdhoc/ToxicWaste-v0": {"width": 64, "height": 48}}  # small frames keep the physics test fast
+SMALL = {
+    "EmbodiedAdhoc/ToxicWaste-v0": {"width": 64, "height": 48}
+}  # small frames keep the physics test fast
 
 ACCEPTED_ACTIONS = [1, np.int8(1), np.uint16(1), np.int64(1), np.array(1), np.array(1, dtype=np.uint8)]
 REFUSED_ACTIONS = [2.7, 2.0, "2", None, True, np.bool_(False), np.array([2]), np.float32(1.0), np.array(1.0)]
@@ -41,7 +46,9 @@ def test_every_id_declares_rgb_array_and_render_fps():
         cls = getattr(__import__(module, fromlist=[name]), name)
         assert "rgb_array" in cls.metadata["render_modes"], env_id
         assert cls.metadata["render_fps"] > 0, env_id
-    assert "rgb_array" in GridParallelEnv.metadata["render_modes"] and GridParallelEnv.metadata["render_fps"] > 0
+    assert (
+        "rgb_array" in GridParallelEnv.metadata["render_modes"] and GridParallelEnv.metadata["render_fps"] > 0
+    )
 
 
 def test_actions_are_integers_of_any_width_and_nothing_else(env):
@@ -89,7 +96,9 @@ def test_registered_cap_is_the_time_limit_and_make_overrides_it(env_id):
 def test_step_after_termination_raises(env_id):
     env = make(env_id)
     core = getattr(env.unwrapped, "core", None)
-    if env_id in POMDP_RULES:  # the oracle's policy (value iteration on the true task's MDP) captures the prey
+    if (
+        env_id in POMDP_RULES
+    ):  # the oracle's policy (value iteration on the true task's MDP) captures the prey
         from embodied_adhoc.decision.agents.factory import mdp_q_values
 
         q_values = mdp_q_values(env.unwrapped.library)[0]
@@ -99,7 +108,9 @@ def test_step_after_termination_raises(env_id):
         env.reset(seed=0, options={"team": "teammate-aware"})
         seat = env.unwrapped.models["teammate-aware"].seat
         policy = lambda: int(seat(env.unwrapped.state[None])[0].argmax())  # noqa: E731
-    elif core is None:  # the lab: a human who never fails, and a robot that follows it (see test_lab_abstract_env)
+    elif (
+        core is None
+    ):  # the lab: a human who never fails, and a robot that follows it (see test_lab_abstract_env)
         env = make(env_id, human_epsilon=0.0)
         env.reset(seed=0, options={"task": 0, "robot_node": 0, "human_node": 0})
         actions = iter((3, 3, 0, 3, 3, 1, 3, 3))
@@ -157,14 +168,26 @@ def test_the_env_has_no_step_cap_kwarg_of_its_own(env_id):
         gymnasium.make(replace(spec, kwargs={**spec.kwargs, "max_episode_steps": 50}))
 
 
-LAB_BAD_KWARGS = [({"communication": "no"}, "communication"), ({"human_epsilon": "0.1"}, "human_epsilon"),
-                  ({"task": 0.5}, "task"), ({"tasks": [[0, 1.5, 2]]}, r"tasks\[0\]\[1\]"),
-                  ({"render_mode": "rgb"}, "render_mode")]
-GRID_BAD_KWARGS = [({"toroidal": "no"}, "toroidal"), ({"rows": 5.5}, "rows"), ({"tasks": (1.9,)}, "tasks"),
-                   ({"teams": 3}, "teams"), ({"view": True}, "view"), ({"render_mode": "ansi"}, "render_mode")]
+LAB_BAD_KWARGS = [
+    ({"communication": "no"}, "communication"),
+    ({"human_epsilon": "0.1"}, "human_epsilon"),
+    ({"task": 0.5}, "task"),
+    ({"tasks": [[0, 1.5, 2]]}, r"tasks\[0\]\[1\]"),
+    ({"render_mode": "rgb"}, "render_mode"),
+]
+GRID_BAD_KWARGS = [
+    ({"toroidal": "no"}, "toroidal"),
+    ({"rows": 5.5}, "rows"),
+    ({"tasks": (1.9,)}, "tasks"),
+    ({"teams": 3}, "teams"),
+    ({"view": True}, "view"),
+    ({"render_mode": "ansi"}, "render_mode"),
+]
 
 
-@pytest.mark.filterwarnings("ignore:.*render_mode.*:UserWarning")  # gymnasium's own warning before the env refuses
+@pytest.mark.filterwarnings(
+    "ignore:.*render_mode.*:UserWarning"
+)  # gymnasium's own warning before the env refuses
 @pytest.mark.parametrize("env_id", [i for i in IDS if i not in MUJOCO or i in LAB])
 def test_wrongly_typed_kwargs_are_refused(env_id):
     for kwargs, match in LAB_BAD_KWARGS if env_id in LAB else GRID_BAD_KWARGS:
@@ -176,8 +199,11 @@ def test_wrongly_typed_reset_options_are_refused(env):
     env_id = env.spec.id
     lab = env_id in LAB
     bad = [{"task": "a"}, {"task": 1.9}, {"task": True}, {"tasks": 1}]
-    bad += [{"robot_node": 2.5}, {"human_node": "1"}, {"robot_node": None}] if lab else [
-        {"team": 3}, {"state": {"agents": [[0.5, 1]]}}, {"state": "x"}]
+    bad += (
+        [{"robot_node": 2.5}, {"human_node": "1"}, {"robot_node": None}]
+        if lab
+        else [{"team": 3}, {"state": {"agents": [[0.5, 1]]}}, {"state": "x"}]
+    )
     for options in bad:
         with pytest.raises(ConfigError, match=next(iter(options))):
             env.reset(seed=0, options=options)
@@ -219,21 +245,33 @@ def parallel(**kwargs):
 
 
 def test_parallel_env_refuses_unknown_and_wrongly_typed_kwargs():
-    for kwargs, match in [({"team": ("tau1",)}, "did you mean 'teams'"), ({"n_apple": 2}, "n_apple"),
-                          ({"max_steps": 5}, "max_cycles"), ({"toroidal": "no"}, "toroidal"),
-                          ({"max_cycles": 2.5}, "max_cycles"), ({"domain": "chess"}, "domain"),
-                          ({"render_mode": "ansi"}, "render_mode"), ({"obs_mode": "image"}, "grid")]:
+    for kwargs, match in [
+        ({"team": ("tau1",)}, "did you mean 'teams'"),
+        ({"n_apple": 2}, "n_apple"),
+        ({"max_steps": 5}, "max_cycles"),
+        ({"toroidal": "no"}, "toroidal"),
+        ({"max_cycles": 2.5}, "max_cycles"),
+        ({"domain": "chess"}, "domain"),
+        ({"render_mode": "ansi"}, "render_mode"),
+        ({"obs_mode": "image"}, "grid"),
+    ]:
         with pytest.raises(ConfigError, match=match):
             parallel(**kwargs)
 
 
 def test_parallel_env_refuses_unknown_reset_options_but_pettingzoos_probe():
     env = parallel()
-    for options, match in [({"tsk": 0}, "did you mean 'task'"), ({"task": 0, "robot_node": 1}, "robot_node"),
-                           ({"task": 1.5}, "task"), (["task"], "dict")]:
+    for options, match in [
+        ({"tsk": 0}, "did you mean 'task'"),
+        ({"task": 0, "robot_node": 1}, "robot_node"),
+        ({"task": 1.5}, "task"),
+        (["task"], "dict"),
+    ]:
         with pytest.raises(ConfigError, match=match):
             env.reset(seed=0, options=options)
-    _, infos = env.reset(seed=0, options={"options": 1, "task": 2})  # what pettingzoo's parallel_api_test sends
+    _, infos = env.reset(
+        seed=0, options={"options": 1, "task": 2}
+    )  # what pettingzoo's parallel_api_test sends
     assert infos["agent_0"]["task"] == 2
     _, infos = env.reset(seed=0, options={"options": 1})
     _, plain = env.reset(seed=0)
@@ -253,7 +291,10 @@ def test_parallel_env_spaces_and_state():
     assert env.state_space.contains(env.state())
     foraging = GridParallelEnv("foraging", n_agents=3)
     foraging.reset(seed=0)
-    assert foraging.state_space.contains(foraging.state()) and foraging.state_space.shape == foraging.state().shape
+    assert (
+        foraging.state_space.contains(foraging.state())
+        and foraging.state_space.shape == foraging.state().shape
+    )
 
 
 def test_parallel_env_actions_and_episode_end():
@@ -298,7 +339,9 @@ def test_sb3_make_vec_env_works_with_its_default_render_mode(env_id):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("env_id", ["EmbodiedAdhoc/ToxicWasteAbstract-v0", "EmbodiedAdhoc/PursuitPairGrid-v0"])
+@pytest.mark.parametrize(
+    "env_id", ["EmbodiedAdhoc/ToxicWasteAbstract-v0", "EmbodiedAdhoc/PursuitPairGrid-v0"]
+)
 def test_ppo_smoke_run(env_id):
     """A few hundred PPO steps through SB3's own vector env: the envs meet the contract RL libraries expect."""
     pytest.importorskip("stable_baselines3")

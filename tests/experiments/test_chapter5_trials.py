@@ -19,7 +19,14 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _options(cache: bool = False, **library) -> dict:
-    return {"library": library, "task": None, "beliefs": 60, "solve_stages": 10, "solve_seconds": None, "cache": cache}
+    return {
+        "library": library,
+        "task": None,
+        "beliefs": 60,
+        "solve_stages": 10,
+        "solve_seconds": None,
+        "cache": cache,
+    }
 
 
 @pytest.fixture()
@@ -241,7 +248,12 @@ def test_a_stage_budget_gives_the_same_policy_on_any_load(tmp_path, monkeypatch)
     library = build_library("gridworld", n_models=1)
     settings = solver_settings(library, {"beliefs": 100, "solve_stages": 8})
     assert settings == {
-        "n_beliefs": 100, "tolerance": 0.01, "max_iterations": 8, "time_limit": None, "seed": 0, "update": "perseus"
+        "n_beliefs": 100,
+        "tolerance": 0.01,
+        "max_iterations": 8,
+        "time_limit": None,
+        "seed": 0,
+        "update": "perseus",
     }
     assert solver_settings(library, {})["max_iterations"] == SOLVE_STAGES["gridworld"]
     pomdp = library.pomdps[0]

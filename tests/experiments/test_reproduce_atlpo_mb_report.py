@@ -29,8 +29,10 @@ def write_cell(module, out: Path, domain: str, seed: int, set_name: str, results
 
 def test_mb_rows_pool_the_evaluated_seeds(tmp_path):
     module = load_script()
-    seed0 = {"atlpo-mb": {"steps": [10, 20], "finished": [True, True]},
-             "mb-all": {"steps": [200, 40], "finished": [False, True]}}
+    seed0 = {
+        "atlpo-mb": {"steps": [10, 20], "finished": [True, True]},
+        "mb-all": {"steps": [200, 40], "finished": [False, True]},
+    }
     seed2 = {"atlpo-mb": {"steps": [30, 40], "finished": [True, True]}}  # no baseline trained for this seed
     write_cell(module, tmp_path, "pursuit", 0, "team", seed0)
     write_cell(module, tmp_path, "pursuit", 1, "team", None)  # trained, not evaluated: not in the row

@@ -45,7 +45,9 @@ def test_member_seeds_depend_on_the_environment_not_the_set():
 
 
 def test_tiny_library_classifier_and_agent(tmp_path):
-    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    config = PpoConfig(
+        total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu"
+    )
     library = train_library("foraging", "team", config, tmp_path)
     assert len(library.policies) == 3 and len(list(tmp_path.glob("*.safetensors"))) == 3
     data = collect_trajectories(library, episodes=4, max_steps=12, seed=0)
@@ -55,8 +57,11 @@ def test_tiny_library_classifier_and_agent(tmp_path):
     assert not np.array_equal(mixed.previous_actions, data.previous_actions)  # other members' actions
     with pytest.raises(ConfigError, match="mixing"):
         collect_trajectories(library, episodes=4, max_steps=12, seed=0, mixing=1.5)
-    classifier = RecurrentBayesianClassifier(ClassifierConfig(channels=data.observations.shape[2], environments=3,
-                                                              features=16, hidden=16, hidden_channels=4))
+    classifier = RecurrentBayesianClassifier(
+        ClassifierConfig(
+            channels=data.observations.shape[2], environments=3, features=16, hidden=16, hidden_channels=4
+        )
+    )
     train_classifier(classifier, data, ClassifierTraining(iterations=5, batch_size=8))
     write_manifest(tmp_path, library, classifier)
     library, classifier = load_library(tmp_path)  # the agent runs on what was written
@@ -85,11 +90,15 @@ def test_tiny_library_classifier_and_agent(tmp_path):
     generalist = train_generalist("foraging", "team", config, tmp_path)
     assert generalist_path(tmp_path, "foraging", "team").exists()
     results = evaluate(library, classifier, episodes=1, seed=0, max_steps=8, generalist=generalist)
-    assert results == evaluate(library, classifier, episodes=1, seed=0, max_steps=8, generalist=generalist)  # seeded
+    assert results == evaluate(
+        library, classifier, episodes=1, seed=0, max_steps=8, generalist=generalist
+    )  # seeded
     for name in ("original", "known", "mf-all", "atlpo-mf", "random"):
         assert len(results[name]["steps"]) == 3 and all(1 <= s <= 8 for s in results[name]["steps"])
     assert 1 <= len(results["true_posterior_per_step"]) <= 8
     again = train_library("foraging", "team", config, tmp_path)  # resumes: members are loaded, not retrained
     assert load_library(tmp_path)[1] is not None  # and the classifier stays in the manifest
     for a, b in zip(again.policies, library.policies, strict=True):
-        assert all(torch.equal(x, y) for x, y in zip(a.state_dict().values(), b.state_dict().values(), strict=True))
+        assert all(
+            torch.equal(x, y) for x, y in zip(a.state_dict().values(), b.state_dict().values(), strict=True)
+        )

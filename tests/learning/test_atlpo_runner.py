@@ -22,27 +22,51 @@ torch.set_num_threads(1)
 
 def _tiny_library(folder, domain="foraging", set_name="task"):
     """Untrained-enough members (64 PPO steps) and an untrained classifier: enough to drive the loop."""
-    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    config = PpoConfig(
+        total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu"
+    )
     library = train_library(domain, set_name, config, folder)
     torch.manual_seed(0)
-    classifier = RecurrentBayesianClassifier(ClassifierConfig(channels=library.policies[0].config.channels,
-                                                              environments=len(library.policies), features=8,
-                                                              hidden=8, hidden_channels=4))
+    classifier = RecurrentBayesianClassifier(
+        ClassifierConfig(
+            channels=library.policies[0].config.channels,
+            environments=len(library.policies),
+            features=8,
+            hidden=8,
+            hidden_channels=4,
+        )
+    )
     write_manifest(folder, library, classifier.eval())
     return folder
 
 
 def _options(domain, library, **changes):
-    options = {"domain": domain, "teams": ["tau0", "tau1", "tau2"], "task": None, "rows": 5, "cols": 5,
-               "agents": 4, "toroidal": False, "pairs": False, "library": str(library)}
+    options = {
+        "domain": domain,
+        "teams": ["tau0", "tau1", "tau2"],
+        "task": None,
+        "rows": 5,
+        "cols": 5,
+        "agents": 4,
+        "toroidal": False,
+        "pairs": False,
+        "library": str(library),
+    }
     return {**options, **changes}
 
 
 @pytest.mark.parametrize("domain", ["foraging", "pursuit"])
 def test_trials_run_atlpo_with_raw_observations_and_a_task_posterior(tmp_path, domain):
     library = _tiny_library(tmp_path / "lib", domain)
-    config = SweepConfig(domain, "abstract", _options(domain, library), agents=("atlpo-mf", "random"), episodes=3,
-                         seed=2, max_steps=12)
+    config = SweepConfig(
+        domain,
+        "abstract",
+        _options(domain, library),
+        agents=("atlpo-mf", "random"),
+        episodes=3,
+        seed=2,
+        max_steps=12,
+    )
     result = run_sweep(config)
     again = run_sweep(config)
     atlpo = [r for r in result.records if r.agent == "atlpo-mf"]
@@ -62,14 +86,28 @@ def test_the_episode_loop_hands_atlpo_the_arrays_and_the_first_observation(tmp_p
     agent = library_agent("foraging", _tiny_library(tmp_path), GridConfig())
     seen = []
     original_start, original_observe = agent.start, agent.observe
-    agent.start = lambda observation: (seen.append(("start", np.shape(observation))), original_start(observation))
-    agent.observe = lambda action, observation, state=None: (seen.append(("observe", np.shape(observation))),
-                                                              original_observe(action, observation, state))
+    agent.start = lambda observation: (
+        seen.append(("start", np.shape(observation))),
+        original_start(observation),
+    )
+    agent.observe = lambda action, observation, state=None: (
+        seen.append(("observe", np.shape(observation))),
+        original_observe(action, observation, state),
+    )
     env = gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0")
-    trace = run_episode_loop(env, agent, env_seed=0, agent_rng=np.random.default_rng(0), reset_options=None,
-                             max_steps=4, observation_index=lambda observation: 7)
+    trace = run_episode_loop(
+        env,
+        agent,
+        env_seed=0,
+        agent_rng=np.random.default_rng(0),
+        reset_options=None,
+        max_steps=4,
+        observation_index=lambda observation: 7,
+    )
     assert seen[0] == ("start", (6, 5, 5)) and all(s == ("observe", (6, 5, 5)) for s in seen[1:])
-    assert len(seen) == trace.steps + 1 and trace.observations == [7] * trace.steps  # the trace keeps the index
+    assert (
+        len(seen) == trace.steps + 1 and trace.observations == [7] * trace.steps
+    )  # the trace keeps the index
     history = trace.posterior_history()
     assert history.shape == (trace.steps + 1, 4) and np.allclose(history.sum(axis=1), 1.0)
 
@@ -88,8 +126,24 @@ def test_library_agent_refuses_another_domain_grid_or_a_missing_classifier(tmp_p
 
 
 def test_trials_cli_refuses_a_folder_without_a_library(tmp_path):
-    done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "trials", "foraging", "--agents", "atlpo-mf",
-                           "--library", str(tmp_path), "--episodes", "1"], capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "embodied_adhoc.cli",
+            "trials",
+            "foraging",
+            "--agents",
+            "atlpo-mf",
+            "--library",
+            str(tmp_path),
+            "--episodes",
+            "1",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 2
     assert done.stderr.strip().count("\n") == 0 and "train atlpo --domain foraging" in done.stderr
 
@@ -99,7 +153,13 @@ def test_the_shipped_libraries_load_and_fit_the_default_grid(domain):
     folder = shipped_library(domain)
     agent = library_agent(domain, None, GridConfig(domain=domain))
     assert [e.name for e in agent.library.environments] == [
-        "task1-tau1", "task2-tau1", "task3-tau1", "task4-tau1", "task1-tau0", "task1-tau2"]
+        "task1-tau1",
+        "task2-tau1",
+        "task3-tau1",
+        "task4-tau1",
+        "task1-tau0",
+        "task1-tau2",
+    ]
     size = sum(path.stat().st_size for path in folder.iterdir())
     assert size < 3 * 2**20  # a few MB at most for both domains
     training = json.loads((folder / "training.json").read_text())
@@ -113,8 +173,9 @@ def test_run_foraging_records_atlpo_in_the_arena(tmp_path):
     choose_gl_platform()
     from embodied_adhoc.experiments.recorded_foraging import ForagingEpisodeConfig, run_foraging_episode
 
-    config = ForagingEpisodeConfig(seed=1, library=_tiny_library(tmp_path / "lib"), max_steps=3,
-                                   record_dir=tmp_path / "rec", size=64)
+    config = ForagingEpisodeConfig(
+        seed=1, library=_tiny_library(tmp_path / "lib"), max_steps=3, record_dir=tmp_path / "rec", size=64
+    )
     outcome = run_foraging_episode(config)
     assert set(outcome.files) == {"video", "rerun", "metrics"} and outcome.video_frames > 0
     metrics = json.loads((tmp_path / "rec" / "metrics.json").read_text())
@@ -123,9 +184,15 @@ def test_run_foraging_records_atlpo_in_the_arena(tmp_path):
     assert metrics["config"]["spec"]["team"] == outcome.metrics["true_team"]
 
 
-@pytest.mark.parametrize(("args", "named"), [(("--team", "tau9"), "--team tau9"), (("--task", "7"), "--task 7"),
-                                             (("--size", "15"), "--size: 15")])
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [(("--team", "tau9"), "--team tau9"), (("--task", "7"), "--task 7"), (("--size", "15"), "--size: 15")],
+)
 def test_run_foraging_bad_input_is_one_line_and_exit_2(args, named):
-    done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "run", "foraging", *args, "--no-progress"],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", "run", "foraging", *args, "--no-progress"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 2 and named in done.stderr and done.stderr.strip().count("\n") == 0, done.stderr

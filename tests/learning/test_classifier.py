@@ -33,7 +33,9 @@ def synthetic(episodes: int, rng: np.random.Generator) -> Trajectories:
     """Environment k shows its sign (row k) on a random half of the steps and nothing otherwise; the actions are
     uniform and carry no information."""
     labels = rng.integers(0, K, episodes)
-    observations = np.stack([[marked(k if rng.random() < 0.5 else None) for _ in range(STEPS)] for k in labels])
+    observations = np.stack(
+        [[marked(k if rng.random() < 0.5 else None) for _ in range(STEPS)] for k in labels]
+    )
     previous = rng.integers(0, 5, (episodes, STEPS))
     previous[:, 0] = NONE
     return Trajectories(observations, previous, labels, np.full(episodes, STEPS))
@@ -41,8 +43,9 @@ def synthetic(episodes: int, rng: np.random.Generator) -> Trajectories:
 
 def test_posterior_sums_to_one_and_moves_to_the_only_environment_that_explains_the_sequence():
     rng = np.random.default_rng(0)
-    model = RecurrentBayesianClassifier(ClassifierConfig(channels=2, environments=K, features=16, hidden=16,
-                                                         hidden_channels=4))
+    model = RecurrentBayesianClassifier(
+        ClassifierConfig(channels=2, environments=K, features=16, hidden=16, hidden_channels=4)
+    )
     losses = train_classifier(model, synthetic(192, rng), ClassifierTraining(iterations=150, batch_size=32))
     assert np.mean(losses[-20:]) < 0.5 * np.mean(losses[:20])
     sequence = [marked(None), marked(None), marked(2), marked(None), marked(2)]
@@ -54,7 +57,9 @@ def test_posterior_sums_to_one_and_moves_to_the_only_environment_that_explains_t
     posteriors = np.array(posteriors)
     assert np.allclose(posteriors.sum(axis=1), 1.0)
     assert posteriors[1].max() < 0.6  # no sign yet: no environment is favoured
-    assert posteriors[2, 2] > posteriors[1, 2] + 0.3 and posteriors[-1].argmax() == 2 and posteriors[-1, 2] > 0.9
+    assert (
+        posteriors[2, 2] > posteriors[1, 2] + 0.3 and posteriors[-1].argmax() == 2 and posteriors[-1, 2] > 0.9
+    )
     scores = per_step_scores(model, synthetic(60, np.random.default_rng(1)))
     assert len(scores) == STEPS and scores[-1]["accuracy"] > scores[0]["accuracy"]
     assert all(0.0 <= row["ece"] <= 1.0 for row in scores)

@@ -19,7 +19,9 @@ def test_tiny_training_lowers_the_ppo_loss_and_writes_loadable_weights(tmp_path)
     assert len(result.history) == 3 and result.env_steps == 384
     for row in result.history:  # each update lowers the PPO objective on the batch it was computed from
         assert row["loss_after"] < row["loss_before"], row
-    path = save_weights(tmp_path / "member.safetensors", result.model, training_metadata("pursuit", ENV, TINY, result))
+    path = save_weights(
+        tmp_path / "member.safetensors", result.model, training_metadata("pursuit", ENV, TINY, result)
+    )
     tensors, metadata = load_weights(path)
     assert metadata["domain"] == "pursuit" and metadata["ppo"]["seed"] == 3
     fresh = ActorCritic(NetworkConfig(**metadata["network"]))
@@ -34,7 +36,9 @@ def fresh_shape(metadata):
 
 
 def test_training_is_deterministic_given_the_seed():
-    config = PpoConfig(total_steps=128, num_envs=2, rollout_steps=32, minibatches=2, epochs=2, seed=5, device="cpu")
+    config = PpoConfig(
+        total_steps=128, num_envs=2, rollout_steps=32, minibatches=2, epochs=2, seed=5, device="cpu"
+    )
     first, second = train_ppo("foraging", ENV, config), train_ppo("foraging", ENV, config)
     for a, b in zip(first.model.state_dict().values(), second.model.state_dict().values(), strict=True):
         assert torch.equal(a, b)
@@ -46,8 +50,10 @@ class Payload:
 
 
 def test_a_pickled_object_in_a_weights_file_is_refused(tmp_path):
-    for name, write in (("torch", lambda p: torch.save({"weight": torch.zeros(2), "payload": Payload()}, p)),
-                        ("pickle", lambda p: p.write_bytes(pickle.dumps(Payload())))):
+    for name, write in (
+        ("torch", lambda p: torch.save({"weight": torch.zeros(2), "payload": Payload()}, p)),
+        ("pickle", lambda p: p.write_bytes(pickle.dumps(Payload()))),
+    ):
         path = tmp_path / f"{name}.safetensors"
         write(path)
         with pytest.raises(WeightsError, match=str(path)):
@@ -59,6 +65,8 @@ def test_a_pickled_object_in_a_weights_file_is_refused(tmp_path):
 
 
 def test_weights_must_fit_the_network(tmp_path):
-    path = save_weights(tmp_path / "small.safetensors", ActorCritic(NetworkConfig(channels=5)), {"kind": "test"})
+    path = save_weights(
+        tmp_path / "small.safetensors", ActorCritic(NetworkConfig(channels=5)), {"kind": "test"}
+    )
     with pytest.raises(WeightsError, match="do not fit"):
         load_into(ActorCritic(NetworkConfig(channels=6)), path)

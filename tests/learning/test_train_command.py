@@ -10,15 +10,37 @@ from embodied_adhoc.learning.atlpo import load_library
 
 
 def run_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", *args], capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", *args], capture_output=True, text=True, timeout=300
+    )
 
 
 @pytest.mark.slow  # three subprocesses that import torch and train three tiny members: ~20-40 s
 def test_train_atlpo_writes_a_loadable_library_and_resumes(tmp_path):
     out = tmp_path / "library"
-    args = ("train", "atlpo", "--domain", "pursuit", "--set", "team", "--steps", "64", "--envs", "2", "--episodes",
-            "4", "--episode-steps", "6", "--iterations", "3", "--threads", "1", "--quiet", "--out", str(out))
+    args = (
+        "train",
+        "atlpo",
+        "--domain",
+        "pursuit",
+        "--set",
+        "team",
+        "--steps",
+        "64",
+        "--envs",
+        "2",
+        "--episodes",
+        "4",
+        "--episode-steps",
+        "6",
+        "--iterations",
+        "3",
+        "--threads",
+        "1",
+        "--quiet",
+        "--out",
+        str(out),
+    )
     result = run_cli(*args)
     assert result.returncode == 0, result.stderr
     library, classifier = load_library(out)
@@ -32,7 +54,13 @@ def test_train_atlpo_writes_a_loadable_library_and_resumes(tmp_path):
 
 
 def test_train_atlpo_refuses_bad_input(tmp_path):
-    result = run_cli("train", "atlpo", "--domain", "pursuit", "--set", "team", "--steps", "0", "--out", str(tmp_path))
-    assert result.returncode == 2 and "--steps 0" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    result = run_cli(
+        "train", "atlpo", "--domain", "pursuit", "--set", "team", "--steps", "0", "--out", str(tmp_path)
+    )
+    assert (
+        result.returncode == 2
+        and "--steps 0" in result.stderr
+        and len(result.stderr.strip().splitlines()) == 1
+    )
     result = run_cli("train", "atlpo", "--domain", "lab", "--set", "team", "--out", str(tmp_path))
     assert result.returncode == 2 and "--domain" in result.stderr

@@ -21,8 +21,12 @@ CASES = [
 
 def reference_vector(domain, num_envs, max_steps, kwargs):
     return gymnasium.vector.SyncVectorEnv(
-        [lambda: gymnasium.make(GRID_IDS[domain], max_episode_steps=max_steps, **kwargs) for _ in range(num_envs)],
-        autoreset_mode=gymnasium.vector.AutoresetMode.NEXT_STEP)
+        [
+            lambda: gymnasium.make(GRID_IDS[domain], max_episode_steps=max_steps, **kwargs)
+            for _ in range(num_envs)
+        ],
+        autoreset_mode=gymnasium.vector.AutoresetMode.NEXT_STEP,
+    )
 
 
 @pytest.mark.parametrize(("domain", "kwargs"), CASES)
@@ -79,9 +83,17 @@ def test_vector_env_draws_listed_environments():
 
 
 @settings(max_examples=8, deadline=None)
-@given(domain=st.sampled_from(["foraging", "pursuit"]), rows=st.integers(5, 7), cols=st.integers(5, 7),
-       n_agents=st.integers(2, 4), toroidal=st.booleans(), seed=st.integers(0, 10**6))
-def test_vector_env_matches_the_single_env_on_random_configurations(domain, rows, cols, n_agents, toroidal, seed):
+@given(
+    domain=st.sampled_from(["foraging", "pursuit"]),
+    rows=st.integers(5, 7),
+    cols=st.integers(5, 7),
+    n_agents=st.integers(2, 4),
+    toroidal=st.booleans(),
+    seed=st.integers(0, 10**6),
+)
+def test_vector_env_matches_the_single_env_on_random_configurations(
+    domain, rows, cols, n_agents, toroidal, seed
+):
     kwargs = {"rows": rows, "cols": cols, "n_agents": n_agents, "toroidal": toroidal}
     fast = GridVectorEnv(domain, 4, max_episode_steps=15, **kwargs)
     slow = reference_vector(domain, 4, 15, kwargs)
@@ -112,5 +124,15 @@ def test_move_table_answers_like_the_search(toroidal):
     searched = best_moves(bits, bits.neighbour_bits[start], bits.of(goal), blocked)
     assert np.array_equal(table.lookup(start, goal, blocked), searched)
     assert (searched > 0).mean() > 0.5 and (searched == 0).any()  # both reachable and walled-off goals occur
-    assert table.lookup(start, goal, blocked | bits.of(np.full_like(goal, 24)) | bits.of(np.full_like(goal, 23))
-                        | bits.of(np.full_like(goal, 22)) | bits.of(np.full_like(goal, 21))) is None  # > 4 cells
+    assert (
+        table.lookup(
+            start,
+            goal,
+            blocked
+            | bits.of(np.full_like(goal, 24))
+            | bits.of(np.full_like(goal, 23))
+            | bits.of(np.full_like(goal, 22))
+            | bits.of(np.full_like(goal, 21)),
+        )
+        is None
+    )  # > 4 cells

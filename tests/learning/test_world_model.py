@@ -44,42 +44,61 @@ def test_world_model_training_lowers_every_loss_term():
 
 
 def test_mb_policy_learns_on_the_frozen_encoder(tmp_path):
-    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    config = PpoConfig(
+        total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu"
+    )
     settings = WorldModelTraining(experience=256, iterations=20, batch_size=32)
     result, world, _ = train_mb_policy("foraging", ONE, config, settings)
-    for ours, theirs in zip(result.model.encoder.state_dict().values(), world.encoder.state_dict().values(),
-                            strict=True):
+    for ours, theirs in zip(
+        result.model.encoder.state_dict().values(), world.encoder.state_dict().values(), strict=True
+    ):
         assert torch.equal(ours, theirs)  # PPO trained the heads only
     library = train_library("foraging", "team", config, tmp_path, model="mb", world_model=settings)
     assert sorted(p.name for p in tmp_path.glob("*-mb-*.safetensors")) == [
-        "foraging-mb-task1-tau0.safetensors", "foraging-mb-task1-tau1.safetensors", "foraging-mb-task1-tau2.safetensors"]
+        "foraging-mb-task1-tau0.safetensors",
+        "foraging-mb-task1-tau1.safetensors",
+        "foraging-mb-task1-tau2.safetensors",
+    ]
     assert load_weights(tmp_path / "foraging-mb-task1-tau0.safetensors")[1]["kind"] == "atlpo-mb-policy"
     loaded, _ = load_library(tmp_path)
     assert loaded.model == "mb" and len(loaded.policies) == len(library.policies) == 3
     baseline = train_generalist("foraging", "team", config, tmp_path, model="mb", world_model=settings)
     assert generalist_path(tmp_path, "foraging", "team", "mb").exists()
-    assert torch.equal(next(iter(load_policy(generalist_path(tmp_path, "foraging", "team", "mb")).state_dict().values())),
-                       next(iter(baseline.state_dict().values())))
+    assert torch.equal(
+        next(iter(load_policy(generalist_path(tmp_path, "foraging", "team", "mb")).state_dict().values())),
+        next(iter(baseline.state_dict().values())),
+    )
 
 
 def test_world_model_keeps_learning_on_the_policys_replay():
     """After every PPO update the rollout joins the replay and the world model trains on it (its encoder then
     replaces the policy's); with updates_per_rollout=0 the encoder stays the pre-trained one. Seeded."""
-    config = PpoConfig(total_steps=128, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
+    config = PpoConfig(
+        total_steps=128, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu"
+    )
     frozen = WorldModelTraining(experience=256, iterations=20, batch_size=32, updates_per_rollout=0)
     before, frozen_world, frozen_history = train_mb_policy("foraging", ONE, config, frozen)
-    interleaved = WorldModelTraining(experience=256, iterations=20, batch_size=32, updates_per_rollout=5, replay=300)
+    interleaved = WorldModelTraining(
+        experience=256, iterations=20, batch_size=32, updates_per_rollout=5, replay=300
+    )
     result, world, history = train_mb_policy("foraging", ONE, config, interleaved)
     assert frozen_history[-1]["iteration"] == 19 and history[-1]["iteration"] == 19 + 2 * 5  # two PPO updates
-    changed = [not torch.equal(a, b) for a, b in zip(world.encoder.state_dict().values(),
-                                                    frozen_world.encoder.state_dict().values(), strict=True)]
+    changed = [
+        not torch.equal(a, b)
+        for a, b in zip(
+            world.encoder.state_dict().values(), frozen_world.encoder.state_dict().values(), strict=True
+        )
+    ]
     assert any(changed)
-    for ours, theirs in zip(result.model.encoder.state_dict().values(), world.encoder.state_dict().values(),
-                            strict=True):
+    for ours, theirs in zip(
+        result.model.encoder.state_dict().values(), world.encoder.state_dict().values(), strict=True
+    ):
         assert torch.equal(ours, theirs)
     assert result.model.config.head_hidden == 64 and isinstance(result.model.actor, torch.nn.Sequential)
     again = train_mb_policy("foraging", ONE, config, interleaved)[0]
-    for ours, theirs in zip(result.model.state_dict().values(), again.model.state_dict().values(), strict=True):
+    for ours, theirs in zip(
+        result.model.state_dict().values(), again.model.state_dict().values(), strict=True
+    ):
         assert torch.equal(ours, theirs)
 
 
@@ -88,8 +107,12 @@ def test_replay_replaces_the_oldest_transitions():
 
     def rows(start, count):
         values = np.arange(start, start + count, dtype=np.float32)
-        return Experience(np.broadcast_to(values[:, None, None, None], (count, 1, 2, 2)).copy(),
-                          np.arange(count, dtype=np.int64), values, values[:, None, None, None] + np.zeros((1, 2, 2)))
+        return Experience(
+            np.broadcast_to(values[:, None, None, None], (count, 1, 2, 2)).copy(),
+            np.arange(count, dtype=np.int64),
+            values,
+            values[:, None, None, None] + np.zeros((1, 2, 2)),
+        )
 
     replay = Replay(rows(0, 3), capacity=4, device=torch.device("cpu"))
     assert replay.size == 3
@@ -99,8 +122,12 @@ def test_replay_replaces_the_oldest_transitions():
 
 
 def test_mb_member_metadata_records_the_ppo_settings_it_trained_with(tmp_path):
-    config = PpoConfig(total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu")
-    settings = WorldModelTraining(experience=128, iterations=5, batch_size=32, policy_learning_rate=5e-4, head_hidden=8)
+    config = PpoConfig(
+        total_steps=64, num_envs=2, rollout_steps=32, minibatches=2, epochs=1, seed=1, device="cpu"
+    )
+    settings = WorldModelTraining(
+        experience=128, iterations=5, batch_size=32, policy_learning_rate=5e-4, head_hidden=8
+    )
     train_library("foraging", "team", config, tmp_path, model="mb", world_model=settings)
     metadata = load_weights(tmp_path / "foraging-mb-task1-tau1.safetensors")[1]
     assert metadata["ppo"]["learning_rate"] == 5e-4 and metadata["network"]["head_hidden"] == 8

@@ -619,5 +619,7 @@ def test_the_default_questionnaire_is_a_valid_plan(tmp_path):
 
     plan_file = tmp_path / "plan.json"
     plan_file.write_text(json.dumps({"episodes": [{"agent": "hotspot"}]}))
-    assert [item["id"] for item in load_plan(plan_file).questionnaire] == [i["id"] for i in DEFAULT_QUESTIONNAIRE]
+    assert [item["id"] for item in load_plan(plan_file).questionnaire] == [
+        i["id"] for i in DEFAULT_QUESTIONNAIRE
+    ]
     assert not {item["id"] for item in DEFAULT_QUESTIONNAIRE} & set(CSV_COLUMNS)

@@ -130,7 +130,9 @@ def test_skipping_scans_the_filter_will_not_use_changes_nothing():
         with LabWorld() as lab:
             lab.reset(seed=4, robot_node=1, human_node=4, ball_nodes=(0, 1, 2))
             if compute_all:
-                lab.localiser.due = lambda pose, time: True  # every scan computed; the filter still gates itself
+                lab.localiser.due = lambda pose, time: (
+                    True
+                )  # every scan computed; the filter still gates itself
             lab.step_macro(3, HumanCommand.stay())
             clouds.append(lab.localiser.particles.copy())
     np.testing.assert_array_equal(clouds[0], clouds[1])

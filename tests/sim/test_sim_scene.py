@@ -30,7 +30,15 @@ def _distance_to_box(points: np.ndarray, centre: np.ndarray, half: np.ndarray) -
 def test_lab_scene_counts_are_pinned():
     model = load_lab_model()
     counts = (model.nbody, model.ngeom, model.njnt, model.nu, model.nsensor, model.nsite, model.ncam)
-    assert counts == (12, 84, 6, 2, 77, 76, 3)  # the robot's lidar: 72 rangefinders on 72 sites, 1 visual geom
+    assert counts == (
+        12,
+        84,
+        6,
+        2,
+        77,
+        76,
+        3,
+    )  # the robot's lidar: 72 rangefinders on 72 sites, 1 visual geom
     assert model.nmocap == 2 and model.neq == 3
 
 

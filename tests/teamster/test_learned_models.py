@@ -60,7 +60,9 @@ def test_transition_model_relearns_the_mirrored_rules_and_its_factors_still_sum_
     ad hoc agent's own action and P(x'|x,a) still sums to 1 over all 5**5 move combinations."""
     env = LearnedEnvironment(WORLD, np.random.default_rng(0))
     mirrored = Pursuit4(mirror=True)
-    lone = np.array([[12, 0, 4, 20, 24]])  # nobody next to the ad hoc agent: "up" moves it up (7) or down (17)
+    lone = np.array(
+        [[12, 0, 4, 20, 24]]
+    )  # nobody next to the ad hoc agent: "up" moves it up (7) or down (17)
     up = np.zeros((1, 4), dtype=np.int64)
     rng = np.random.default_rng(1)
 
@@ -136,8 +138,9 @@ def test_protocol_records_and_same_seed_same_result():
     assert first == second
     assert set(first["curves"]) == set(TEAMS) and [p[0] for p in first["curves"]["greedy"]] == [0, 5, 10]
     assert set(first["after"]["greedy"]) == set(TEAMS) and len(first["changed"]) == 3
-    mirror = run_trial("random", 0, ProtocolConfig(steps=10, eval_steps=5, points=2, changed="mirror",
-                                                   changed_steps=20))
+    mirror = run_trial(
+        "random", 0, ProtocolConfig(steps=10, eval_steps=5, points=2, changed="mirror", changed_steps=20)
+    )
     assert [p[0] for p in mirror["changed"]] == [0, 10, 20] and mirror["config"]["changed"] == "mirror"
     with pytest.raises(ConfigError, match="steps"):
         ProtocolConfig(steps=15, points=10)

@@ -30,8 +30,9 @@ def cells(world: Navigation4, *row_columns: tuple[int, int]) -> np.ndarray:
     return np.array([index[rc] for rc in row_columns])
 
 
-@pytest.mark.parametrize("world, agents, n_cells, shape", [(NTU, 4, 16, (6, 6)), (ISR, 3, 43, (10, 9)),
-                                                           (PENTAGON, 3, 52, (9, 11))])
+@pytest.mark.parametrize(
+    "world, agents, n_cells, shape", [(NTU, 4, 16, (6, 6)), (ISR, 3, 43, (10, 9)), (PENTAGON, 3, 52, (9, 11))]
+)
 def test_sizes_and_the_chapter5_open_cells(world, agents, n_cells, shape):
     assert (world.n_agents, world.cells, world.grid.shape) == (agents, n_cells, shape)
     assert world.exits.size == agents and world.starts.size == agents  # N agents, N exits, N spawn cells
@@ -56,18 +57,28 @@ def test_hand_checked_transition_on_ntu():
     # the last agent steps onto the last free exit: -1 + 100, the episode ends
     state = cells(NTU, (2, 1), (0, 3), (3, 5), (5, 2))[None]
     nxt, reward, done = NTU.step(state, np.array([[LEFT, DOWN, UP, RIGHT]]), rng)
-    assert nxt[0].tolist() == cells(NTU, (2, 0), (0, 3), (3, 5), (5, 2)).tolist() and reward[0] == 99.0 and done[0]
+    assert (
+        nxt[0].tolist() == cells(NTU, (2, 0), (0, 3), (3, 5), (5, 2)).tolist()
+        and reward[0] == 99.0
+        and done[0]
+    )
     # the changed environment: a move fails with the slip probability
     slipping = Navigation4("ntu", slip=0.5)
-    moved = [slipping.step(cells(NTU, (1, 1), (0, 3), (3, 5), (5, 2))[None], np.array([[DOWN, 4, 4, 4]]), rng)[0][0, 0]
-             for _ in range(400)]
+    moved = [
+        slipping.step(cells(NTU, (1, 1), (0, 3), (3, 5), (5, 2))[None], np.array([[DOWN, 4, 4, 4]]), rng)[0][
+            0, 0
+        ]
+        for _ in range(400)
+    ]
     assert 0.4 < np.mean(np.array(moved) == cells(NTU, (2, 1))[0]) < 0.6
     # the mirrored environment: the ad hoc agent's "down" from (1,1) goes up into the wall (stays), its "right"
     # goes left into the wall; its "up" goes down to (2,1); the others' moves are unchanged
     mirrored = Navigation4("ntu", mirror=True)
     state = cells(NTU, (1, 1), (1, 4), (4, 1), (5, 2))[None]
-    assert mirrored.step(state, np.array([[UP, DOWN, STAY, STAY]]), rng)[0][0].tolist() == cells(
-        NTU, (2, 1), (2, 4), (4, 1), (5, 2)).tolist()
+    assert (
+        mirrored.step(state, np.array([[UP, DOWN, STAY, STAY]]), rng)[0][0].tolist()
+        == cells(NTU, (2, 1), (2, 4), (4, 1), (5, 2)).tolist()
+    )
     assert mirrored.step(state, np.array([[DOWN, STAY, STAY, STAY]]), rng)[0][0, 0] == state[0, 0]
 
 
@@ -96,8 +107,9 @@ def test_teams_act_as_described_on_isr():
         ISR.team_policy("greedy", state)
 
 
-@pytest.mark.parametrize("world, team, expected", [(NTU, "altruistic", 98.0), (ISR, "selfish", 94.0),
-                                                   (PENTAGON, "selfish", 88.0)])
+@pytest.mark.parametrize(
+    "world, team, expected", [(NTU, "altruistic", 98.0), (ISR, "selfish", 94.0), (PENTAGON, "selfish", 88.0)]
+)
 def test_a_team_on_its_own_scores_the_thesis_original_teammate_row(world, team, expected):
     """Tables 4.5-4.7's "Original Teammate" rows that have no spread (98.0, 94.0, 88.0 with +-0.0)."""
     rng = np.random.default_rng(2)
@@ -160,7 +172,9 @@ def test_learned_transition_factorises_over_n_agents_and_fits_the_rules():
 
 
 def test_protocol_on_a_map_same_seed_same_result():
-    config = ProtocolConfig(domain="ntu", steps=6, points=2, eval_episodes=1, iterations=10, depth=4, changed=0.2)
+    config = ProtocolConfig(
+        domain="ntu", steps=6, points=2, eval_episodes=1, iterations=10, depth=4, changed=0.2
+    )
     first, second = run_trial("teamster", 0, config), run_trial("teamster", 0, config)
     first.pop("seconds"), second.pop("seconds")
     assert first == second and set(first["curves"]) == set(TEAMS) and len(first["changed"]) == 3
@@ -171,8 +185,24 @@ def test_protocol_on_a_map_same_seed_same_result():
 
 
 def test_command_on_a_map(tmp_path, capsys):
-    argv = ["teamster", "ntu", "--agents", "original,altruistic", "--steps", "4", "--points", "2",
-            "--eval-episodes", "2", "--trials", "2", "--quiet", "--json", "--out", str(tmp_path)]
+    argv = [
+        "teamster",
+        "ntu",
+        "--agents",
+        "original,altruistic",
+        "--steps",
+        "4",
+        "--points",
+        "2",
+        "--eval-episodes",
+        "2",
+        "--trials",
+        "2",
+        "--quiet",
+        "--json",
+        "--out",
+        str(tmp_path),
+    ]
     assert main(argv) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["config"]["iterations"] == 100 and summary["config"]["depth"] == 10  # Table 4.1's ntu row

@@ -13,17 +13,24 @@ from embodied_adhoc.cli import main
 SMALL = ["--steps", "20", "--points", "2", "--eval-steps", "10", "--trials", "2", "--quiet"]
 
 
-@pytest.mark.parametrize("argv, fragment", [
-    (["--agents", "oracle"], "--agents 'oracle'"),
-    (["--steps", "45"], "--steps 45: must be a multiple of --points 10"),
-    (["--changed", "1.5"], "--changed '1.5'"),
-    (["--changed", "fail:x"], "--changed 'fail:x': give fail:P"),
-    (["--changed", "0", "--changed-steps", "20"], "--changed-steps 20: only with a changed phase"),
-    (["--trials", "0"], "--trials"),
-])
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["--agents", "oracle"], "--agents 'oracle'"),
+        (["--steps", "45"], "--steps 45: must be a multiple of --points 10"),
+        (["--changed", "1.5"], "--changed '1.5'"),
+        (["--changed", "fail:x"], "--changed 'fail:x': give fail:P"),
+        (["--changed", "0", "--changed-steps", "20"], "--changed-steps 20: only with a changed phase"),
+        (["--trials", "0"], "--trials"),
+    ],
+)
 def test_bad_input_is_one_line_and_exit_2(argv, fragment):
-    done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "teamster", "pursuit", *argv],
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", "teamster", "pursuit", *argv],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert done.returncode == 2 and fragment in done.stderr and len(done.stderr.strip().splitlines()) == 1
 
 
@@ -37,9 +44,31 @@ def test_out_resumes_and_json_summary(tmp_path, capsys):
     assert json.loads(capsys.readouterr().out) == first and record.stat().st_mtime_ns == stamp
     curve = first["agents"]["original"]["curves"]["greedy"]
     assert [p["step"] for p in curve] == [0, 10, 20] and set(curve[0]["per_500"]) == {"mean", "ci", "n"}
-    assert (tmp_path / "curves.png").stat().st_size > 0 and "after learning" in (tmp_path / "table.md").read_text()
-    assert main(["teamster", "pursuit", "--agents", "random", "--steps", "40", "--points", "2", "--eval-steps",
-                 "10", "--trials", "1", "--quiet", "--out", str(tmp_path)]) == 2
+    assert (tmp_path / "curves.png").stat().st_size > 0 and "after learning" in (
+        tmp_path / "table.md"
+    ).read_text()
+    assert (
+        main(
+            [
+                "teamster",
+                "pursuit",
+                "--agents",
+                "random",
+                "--steps",
+                "40",
+                "--points",
+                "2",
+                "--eval-steps",
+                "10",
+                "--trials",
+                "1",
+                "--quiet",
+                "--out",
+                str(tmp_path),
+            ]
+        )
+        == 2
+    )
     assert "written with other settings" in capsys.readouterr().err
 
 
@@ -50,11 +79,24 @@ def test_changed_environment_table_tests_agents_on_their_trials_after_learning_b
     curves = {"teammate-aware": [[0, 1], [50, 2], [100, 3]]}
 
     def record(agent, trial, changed):
-        return {"agent": agent, "trial": trial, "config": config, "curves": curves, "after": {},
-                "changed": [[0, 9]] + [[50 * (i + 1), c] for i, c in enumerate(changed)], "seconds": 1.0}
+        return {
+            "agent": agent,
+            "trial": trial,
+            "config": config,
+            "curves": curves,
+            "after": {},
+            "changed": [[0, 9]] + [[50 * (i + 1), c] for i, c in enumerate(changed)],
+            "seconds": 1.0,
+        }
 
-    records = [record("a", 0, [4, 6]), record("a", 1, [5, 5]), record("a", 2, [6, 8]),
-               record("b", 0, [1, 1]), record("b", 1, [2, 0]), record("b", 2, [1, 3])]
+    records = [
+        record("a", 0, [4, 6]),
+        record("a", 1, [5, 5]),
+        record("a", 2, [6, 8]),
+        record("b", 0, [1, 1]),
+        record("b", 1, [2, 0]),
+        record("b", 2, [1, 3]),
+    ]
     summary = summarise(records)
     assert summary["a"]["changed_after"] == [50.0, 50.0, 70.0]  # (4 + 6) / 2 captures per 50 steps -> per 500
     assert summary["b"]["changed_after"] == [10.0, 10.0, 20.0]  # the step-0 evaluation (9) is left out

@@ -42,9 +42,16 @@ def _plastic_model():
 
 def _episode(env, steps: int = 6):
     observer = _States()
-    trace = run_episode_loop(env, _plastic_model(), env_seed=3, agent_rng=np.random.default_rng(4),
-                             reset_options=START, max_steps=steps, observation_index=env.unwrapped.observation_index,
-                             observers=[observer])
+    trace = run_episode_loop(
+        env,
+        _plastic_model(),
+        env_seed=3,
+        agent_rng=np.random.default_rng(4),
+        reset_options=START,
+        max_steps=steps,
+        observation_index=env.unwrapped.observation_index,
+        observers=[observer],
+    )
     return trace, observer.rows
 
 
@@ -80,13 +87,32 @@ def test_grid_env_contract_and_one_line_errors():
 
 
 def test_trials_pursuit4_runs_chapter4_agents_and_refuses_bad_input():
-    done = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "trials", "pursuit4", "--agents",
-                           "plastic-model,random", "--episodes", "2", "--learn-steps", "0"],
-                          capture_output=True, text=True, timeout=300)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "embodied_adhoc.cli",
+            "trials",
+            "pursuit4",
+            "--agents",
+            "plastic-model,random",
+            "--episodes",
+            "2",
+            "--learn-steps",
+            "0",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert done.returncode == 0, done.stderr
     assert "plastic-model" in done.stdout and "random" in done.stdout
-    bad = subprocess.run([sys.executable, "-m", "embodied_adhoc.cli", "trials", "pursuit4", "--team", "tau9"],
-                         capture_output=True, text=True, timeout=120)
+    bad = subprocess.run(
+        [sys.executable, "-m", "embodied_adhoc.cli", "trials", "pursuit4", "--team", "tau9"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert bad.returncode == 2 and "--team 'tau9'" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
 
 
@@ -95,8 +121,9 @@ def test_a_learning_seat_gets_the_env_rewards_through_the_loop():
     observed actions to the agent, which stores them."""
     one_thread()
     env = gymnasium.make("EmbodiedAdhoc/Pursuit4Grid-v0", max_episode_steps=40)
-    agent = build_agent("learns-environment", Pursuit4(), np.random.default_rng(0), 40,
-                        uct=UctConfig(iterations=10, depth=2))
+    agent = build_agent(
+        "learns-environment", Pursuit4(), np.random.default_rng(0), 40, uct=UctConfig(iterations=10, depth=2)
+    )
     agent.start_team(np.random.default_rng(1))
     seat = EpisodeSeat(agent, 5)
     rewards = []
@@ -105,9 +132,17 @@ def test_a_learning_seat_gets_the_env_rewards_through_the_loop():
         def step_finished(self, record) -> None:
             rewards.append((record.reward, record.info["teammate_actions"]))
 
-    trace = run_episode_loop(env, seat, env_seed=0, agent_rng=np.random.default_rng(2), reset_options=START,
-                             max_steps=40, observation_index=env.unwrapped.observation_index, observers=[_Rewards()])
+    trace = run_episode_loop(
+        env,
+        seat,
+        env_seed=0,
+        agent_rng=np.random.default_rng(2),
+        reset_options=START,
+        max_steps=40,
+        observation_index=env.unwrapped.observation_index,
+        observers=[_Rewards()],
+    )
     buffer = agent.environment.buffer
     assert len(buffer) == trace.steps == agent.online.steps
-    assert buffer.data["reward"][:trace.steps].tolist() == [r for r, _ in rewards]
-    assert buffer.data["action"][:trace.steps, 1:].tolist() == [m for _, m in rewards]
+    assert buffer.data["reward"][: trace.steps].tolist() == [r for r, _ in rewards]
+    assert buffer.data["action"][: trace.steps, 1:].tolist() == [m for _, m in rewards]

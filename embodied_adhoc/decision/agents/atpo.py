@@ -31,7 +31,12 @@ class AtpoAgent(AgentBase):
     observes_state = False
 
     def __init__(
-        self, kernels: LibraryKernels, policies: Sequence, prior: np.ndarray | None = None, greedy: bool = False, name: str = "atpo"
+        self,
+        kernels: LibraryKernels,
+        policies: Sequence,
+        prior: np.ndarray | None = None,
+        greedy: bool = False,
+        name: str = "atpo",
     ) -> None:
         if len(policies) != kernels.n_models:
             raise ModelError(f"{len(policies)} policies for a library of {kernels.n_models} models")

@@ -28,7 +28,9 @@ class OracleAgent(AgentBase):
 
     def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
         if state is None:
-            raise ConfigError(f"agent '{self.name}' observes the state: the runner must pass state= to reset()")
+            raise ConfigError(
+                f"agent '{self.name}' observes the state: the runner must pass state= to reset()"
+            )
         self.rng, self.state = rng, int(state)
 
     def act(self) -> int:
@@ -36,7 +38,9 @@ class OracleAgent(AgentBase):
 
     def observe(self, action: int, observation: int, state: int | None = None) -> None:
         if state is None:
-            raise ConfigError(f"agent '{self.name}' observes the state: the runner must pass state= to observe()")
+            raise ConfigError(
+                f"agent '{self.name}' observes the state: the runner must pass state= to observe()"
+            )
         self.state = int(state)
 
     @property

@@ -40,7 +40,12 @@ class BopaAgent(AgentBase):
     observes_state = True
 
     def __init__(
-        self, mdps: Sequence[MDP], q_values: np.ndarray, prior: np.ndarray | None = None, greedy: bool = False, name: str = "bopa"
+        self,
+        mdps: Sequence[MDP],
+        q_values: np.ndarray,
+        prior: np.ndarray | None = None,
+        greedy: bool = False,
+        name: str = "bopa",
     ) -> None:
         check_library(mdps)
         self.mdps = tuple(mdps)
@@ -57,14 +62,18 @@ class BopaAgent(AgentBase):
 
     def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
         if state is None:
-            raise ConfigError(f"agent '{self.name}' observes the state: the runner must pass state= to reset()")
+            raise ConfigError(
+                f"agent '{self.name}' observes the state: the runner must pass state= to reset()"
+            )
         self.rng, self.state = rng, int(state)
         self.posterior = self.prior.copy()
         self.impossible_transitions = 0
 
     def action_distribution(self) -> np.ndarray:
         """Eq. 5.2 at the current state."""
-        return dot(self.posterior, self.policies[:, self.state, :])  # fixed summation order: ties decided alike on any host
+        return dot(
+            self.posterior, self.policies[:, self.state, :]
+        )  # fixed summation order: ties decided alike on any host
 
     def act(self) -> int:
         return draw_action(self.action_distribution(), self.rng, self.greedy)
@@ -72,7 +81,9 @@ class BopaAgent(AgentBase):
     def observe(self, action: int, observation: int, state: int | None = None) -> None:
         """Eq. 5.1 on the observed transition ``(x_t, a_t, x_{t+1})``."""
         if state is None:
-            raise ConfigError(f"agent '{self.name}' observes the state: the runner must pass state= to observe()")
+            raise ConfigError(
+                f"agent '{self.name}' observes the state: the runner must pass state= to observe()"
+            )
         likelihoods = np.array([mdp.transitions[action][self.state, int(state)] for mdp in self.mdps])
         weighted = likelihoods * self.posterior
         if weighted.sum() > 0.0:

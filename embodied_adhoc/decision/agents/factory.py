@@ -37,7 +37,9 @@ _CACHE: dict[tuple[int, ...], dict] = {}
 def _pomdps(library) -> tuple[POMDP, ...]:
     pomdps = getattr(library, "pomdps", library)
     if not isinstance(pomdps, Sequence) or not pomdps or not all(isinstance(p, POMDP) for p in pomdps):
-        raise ConfigError("library must have .pomdps (or be) a non-empty sequence of POMDPs sharing S, A and Z")
+        raise ConfigError(
+            "library must have .pomdps (or be) a non-empty sequence of POMDPs sharing S, A and Z"
+        )
     return tuple(pomdps)
 
 
@@ -109,7 +111,9 @@ def make_agent(
     return agent
 
 
-def _build(name: str, library, true_task: int | None, hotspot: HotspotConfig | None, perseus: dict | None) -> Agent:
+def _build(
+    name: str, library, true_task: int | None, hotspot: HotspotConfig | None, perseus: dict | None
+) -> Agent:
     pomdps = _pomdps(library)
     n_models = len(pomdps)
     if name == "hotspot":

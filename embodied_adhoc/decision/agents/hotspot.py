@@ -52,9 +52,13 @@ class HotspotConfig:
 
     def __post_init__(self) -> None:
         if self.belief_in_choice not in ("average", "task"):
-            raise ConfigError(f"HotspotConfig.belief_in_choice must be 'average' or 'task', got {self.belief_in_choice!r}")
+            raise ConfigError(
+                f"HotspotConfig.belief_in_choice must be 'average' or 'task', got {self.belief_in_choice!r}"
+            )
         if self.reward_gain not in REWARD_GAINS:
-            raise ConfigError(f"HotspotConfig.reward_gain must be one of {REWARD_GAINS}, got {self.reward_gain!r}")
+            raise ConfigError(
+                f"HotspotConfig.reward_gain must be one of {REWARD_GAINS}, got {self.reward_gain!r}"
+            )
 
 
 @dataclass(frozen=True, eq=False)

@@ -51,7 +51,9 @@ def check_library(models: Sequence) -> None:
                 f"{first.n_states} and {first.n_actions}: library models must share S and A"
             )
         if hasattr(first, "n_observations") and model.n_observations != first.n_observations:
-            raise ModelError(f"library model {index} has {model.n_observations} observations, model 0 {first.n_observations}")
+            raise ModelError(
+                f"library model {index} has {model.n_observations} observations, model 0 {first.n_observations}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,7 +81,9 @@ class LibraryKernels:
             sp.block_diag([transposed[m][a] for m in range(len(pomdps))], format="csr")
             for a in range(pomdps[0].n_actions)
         )
-        dense = all(isinstance(c, np.ndarray) for c in columns) and sum(c.size for c in columns) <= _DENSE_LIMIT
+        dense = (
+            all(isinstance(c, np.ndarray) for c in columns) and sum(c.size for c in columns) <= _DENSE_LIMIT
+        )
         stacked_columns = np.ascontiguousarray(np.concatenate(columns, axis=2)) if dense else None
         return cls(pomdps, transposed, tuple(columns), stacked, stacked_columns)
 
@@ -124,7 +128,9 @@ class LibraryBeliefs:
         unnormalised = columns * predicted
         likelihoods = unnormalised.sum(axis=1)
         possible = likelihoods > 0.0
-        self.beliefs = np.where(possible[:, None], unnormalised / np.where(possible, likelihoods, 1.0)[:, None], predicted)
+        self.beliefs = np.where(
+            possible[:, None], unnormalised / np.where(possible, likelihoods, 1.0)[:, None], predicted
+        )
         weighted = likelihoods * self.posterior
         total = weighted.sum()
         if total > 0.0:
@@ -135,4 +141,6 @@ class LibraryBeliefs:
 
     def average_belief(self) -> np.ndarray:
         """Eq. 7.2: ``b(x) = sum_m p(m) b_m(x)``."""
-        return dot(self.posterior, self.beliefs)  # fixed summation order (products.py): the same bits on any host
+        return dot(
+            self.posterior, self.beliefs
+        )  # fixed summation order (products.py): the same bits on any host

@@ -27,8 +27,14 @@ from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.uct import BatchedUct, UctConfig, update_team_belief
 
 MODEL_BASED = ("teamster", "plastic-model", "learns-team", "learns-environment")
-CHAPTER4_AGENTS = MODEL_BASED + ("plastic-policy", "random", "original", "teammate-aware", "greedy",
-                                 "probabilistic-destinations")
+CHAPTER4_AGENTS = MODEL_BASED + (
+    "plastic-policy",
+    "random",
+    "original",
+    "teammate-aware",
+    "greedy",
+    "probabilistic-destinations",
+)
 """The chapter-4 agents by name (built in ``learning/teamster_agents.py``); the last three are scripted team
 policies in the ad hoc seat."""
 
@@ -42,8 +48,14 @@ class TeamworkAgent(Protocol):
     def act(self, state: np.ndarray) -> int:
         """The ad hoc agent's action in the observed state."""
 
-    def observe(self, state: np.ndarray, joint_action: np.ndarray, reward: float, next_state: np.ndarray,
-                terminal: bool) -> None:
+    def observe(
+        self,
+        state: np.ndarray,
+        joint_action: np.ndarray,
+        reward: float,
+        next_state: np.ndarray,
+        terminal: bool,
+    ) -> None:
         """The step's outcome: all agents' actions (the ad hoc agent's first), reward and next state."""
 
     def set_evaluation(self, evaluating: bool) -> None:
@@ -94,8 +106,16 @@ class ModelBasedAgent(TeamTracking):
     """Algorithm 1: UCT over an environment model with the most likely team model of the library (augmented
     with the team model learned online), the belief updated by Algorithm 2."""
 
-    def __init__(self, name: str, environment, online, exact_teams: dict | None = None,
-                 uct: UctConfig | None = None, eta: float = 0.1, rule: str = "plastic") -> None:
+    def __init__(
+        self,
+        name: str,
+        environment,
+        online,
+        exact_teams: dict | None = None,
+        uct: UctConfig | None = None,
+        eta: float = 0.1,
+        rule: str = "plastic",
+    ) -> None:
         self.name, self.environment, self.online, self.exact_teams = name, environment, online, exact_teams
         self.library: list = []
         self.planner = BatchedUct(uct or UctConfig())
@@ -138,8 +158,9 @@ class ModelBasedAgent(TeamTracking):
         """Section 4.1.4 step 4: the team joins the library, as its exact model when the designer provides
         them (PLASTIC-Model, Learns Environment), else as the frozen online model (TEAMSTER, Learns Team); the
         online model starts afresh with the next team."""
-        self.library.append(self.exact_teams[team] if self.exact_teams is not None
-                            else self.online.frozen_copy(name=team))
+        self.library.append(
+            self.exact_teams[team] if self.exact_teams is not None else self.online.frozen_copy(name=team)
+        )
 
 
 def sample_rows(probs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -218,15 +239,17 @@ class EpisodeSeat(AgentBase):
             self.agent.set_evaluation(True)
 
     def start(self, observation) -> None:
-        self.state = np.asarray(observation[:self.n_agents], dtype=np.int64)
+        self.state = np.asarray(observation[: self.n_agents], dtype=np.int64)
 
     def act(self) -> int:
         return int(self.agent.act(self.state))
 
-    def observe(self, action: int, observation, state=None, reward: float = 0.0, terminated: bool = False) -> None:
+    def observe(
+        self, action: int, observation, state=None, reward: float = 0.0, terminated: bool = False
+    ) -> None:
         observation = np.asarray(observation, dtype=np.int64)
-        following = observation[:self.n_agents]
-        joint = np.concatenate([[action], observation[self.n_agents:]])
+        following = observation[: self.n_agents]
+        joint = np.concatenate([[action], observation[self.n_agents :]])
         self.agent.observe(self.state, joint, float(reward), following, bool(terminated))
         self.state = following
 
