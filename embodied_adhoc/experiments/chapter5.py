@@ -1,4 +1,5 @@
-"""Chapter-5 trial domains: ``embodied-adhoc trials DOMAIN`` for every library of :mod:`embodied_adhoc.domains.chapter5`.
+"""Chapter-5 trial domains: ``embodied-adhoc trials DOMAIN`` for every library of
+:mod:`embodied_adhoc.domains.chapter5`.
 
 Episode spec (drawn once per episode, shared by every agent): ``task`` (the true model, uniform over the library,
 or fixed by ``--task``) and ``start`` (a state drawn from that model's initial belief). The world is the true
