@@ -94,7 +94,8 @@ def main() -> None:
     rows.append(
         ["thesis (original's result files)"]
         + [
-            f"{THESIS_FIG_7_12[a][0]:.2f} ± {THESIS_FIG_7_12[a][1] * math.sqrt(THESIS_TRIALS / (THESIS_TRIALS - 1)):.2f}"
+            f"{THESIS_FIG_7_12[a][0]:.2f} ± "
+            f"{THESIS_FIG_7_12[a][1] * math.sqrt(THESIS_TRIALS / (THESIS_TRIALS - 1)):.2f}"
             for a in ABLATION_AGENTS
         ]
     )

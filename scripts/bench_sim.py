@@ -296,16 +296,19 @@ def main() -> None:
     episodes = episode_pair(args, default_config)
     world_rtf = sim_total / cpu_total
     print(
-        f"physics timestep {world.config.timestep * 1e3:.1f} ms, control period {world.config.control_period * 1e3:.0f} ms"
+        f"physics timestep {world.config.timestep * 1e3:.1f} ms, "
+        f"control period {world.config.control_period * 1e3:.0f} ms"
     )
     print(
-        "\n| seed | distance (m) | drift after tour (m) | node estimate correct | arrived | worst arrival error (m) | wall contacts | RTF |"
+        "\n| seed | distance (m) | drift after tour (m) | node estimate correct | arrived | worst arrival error (m) "
+        "| wall contacts | RTF |"
     )
     print("|---|---|---|---|---|---|---|---|")
     for row in rows:
         print(
             f"| {row['seed']} | {row['distance_m']:.1f} | {row['drift_m']:.3f} | {row['node_correct']}/{len(TOUR)} | "
-            f"{row['arrivals']}/{len(TOUR)} | {row['worst_arrival_m']:.3f} | {row['wall_contacts']} | {row['rtf']:.1f} |"
+            f"{row['arrivals']}/{len(TOUR)} | {row['worst_arrival_m']:.3f} | {row['wall_contacts']} | "
+            f"{row['rtf']:.1f} |"
         )
     drifts = np.array([row["drift_m"] for row in rows])
     accuracy = sum(row["node_correct"] for row in rows) / (len(rows) * len(TOUR))

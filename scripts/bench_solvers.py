@@ -198,7 +198,8 @@ def backup_speed_table(pomdp: POMDP, name: str, args: Args) -> None:
         )
     naive = (time.perf_counter() - start) / args.naive_beliefs
     print(
-        f"| {name} | {pomdp.n_states} | {policy.n_vectors} | {naive * 1e3:.2f} | {fast * 1e3:.4f} | {naive / fast:,.0f}x |"
+        f"| {name} | {pomdp.n_states} | {policy.n_vectors} | {naive * 1e3:.2f} | {fast * 1e3:.4f} | "
+        f"{naive / fast:,.0f}x |"
     )
 
 
@@ -338,7 +339,8 @@ def main() -> None:
             f"\n## Generated 626-state, 5-action, 81-observation sparse POMDP, {args.generated_beliefs} beliefs\n"
         )
         print(
-            "| stop rule | stages | beliefs | tolerance | converged on B | seconds | vs classic | iterations | vectors | "
+            "| stop rule | stages | beliefs | tolerance | converged on B | seconds | vs classic | iterations "
+            "| vectors | "
             "V(b0) | residual | thesis |"
         )
         print("|---|---|---|---|---|---|---|---|---|---|---|---|")

@@ -297,7 +297,10 @@ def report(args: Args) -> str:
         "bootstrap CI] (solved %) | thesis",
         "",
     ]
-    header = f"| set | domain | K | seeds | {' | '.join(TABLE_AGENTS)} | classifier accuracy after step 1/3/5/7/10 (mean over the trained seeds) |"
+    header = (
+        f"| set | domain | K | seeds | {' | '.join(TABLE_AGENTS)} "
+        "| classifier accuracy after step 1/3/5/7/10 (mean over the trained seeds) |"
+    )
     lines += [header, "|" + "---|" * (header.count("|") - 1)]
     table = {}
     for set_name in SETS:

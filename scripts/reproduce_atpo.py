@@ -8,7 +8,8 @@ that does not depend on the machine's load, so two runs give the same table) are
 costs only the trials. Prints:
 
 * Table 5.5: accumulated reward, ours (mean ± sd, 95 % seeded percentile-bootstrap interval of the mean,
-  ``experiments.stats``) beside the thesis's (mean ± sd), with the Welch p-value of ours against the thesis's (summary statistics, n = 32 both sides);
+  ``experiments.stats``) beside the thesis's (mean ± sd), with the Welch p-value of ours against the thesis's
+  (summary statistics, n = 32 both sides);
 * Table 5.6: ATPO normalised between random (0 %) and value iteration (100 %), ours and the thesis's;
 * the original's model bugs (``--with-bugs``): ntu, mit and overcooked rebuilt with the bug, beside the fix;
 * Fig. 5.9: ATPO's normalised score on gridworld for library sizes --library-sizes (normalised by this run's

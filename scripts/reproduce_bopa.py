@@ -7,7 +7,8 @@ episode from --seed, the same for the three agents) of:
 * ``bopa``: BOPA over the three button configurations (section 5.1, Eqs. 5.1-5.2);
 * ``random``: uniform actions.
 
-Prints steps to finish, ours (mean ± sd, 95 % seeded percentile-bootstrap interval of the mean) beside the thesis's (mean ± the thesis's spread,
+Prints steps to finish, ours (mean ± sd, 95 % seeded percentile-bootstrap interval of the mean) beside the
+thesis's (mean ± the thesis's spread,
 taken as a standard deviation of 32 trials), the Welch p-value of ours against the thesis's (from summary
 statistics) and, per setting, the Welch test of BOPA against greedy. Our episodes end on entering the absorbing
 state, one step after the buttons are pressed (the step that collects the +100), so "ours - 1" is the thesis's

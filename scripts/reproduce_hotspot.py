@@ -6,7 +6,8 @@ Three sweeps of the same episodes (tasks and start nodes drawn once from --seed)
 * ``no-communication``: the same agents without the "locate human" action (Fig. 7.11);
 * ``epsilon-0.3``: with communication, a human that fails to act with probability 0.3 (robustness).
 
-Prints our mean ± sd and 95 % percentile-bootstrap CI beside the thesis numbers (docs/hotspot-original.md), the thesis's statistical claims
+Prints our mean ± sd and 95 % percentile-bootstrap CI beside the thesis numbers (docs/hotspot-original.md), the
+thesis's statistical claims
 with our p-values, and writes the runs (resumable CSVs) and plots to --out::
 
     .venv/bin/python scripts/reproduce_hotspot.py --out runs/reproduce_hotspot [--episodes 32 --seed 7]
@@ -69,7 +70,8 @@ def run_setting(args: Args, setting: str) -> SweepResult:
 
 def comparison_table(results: dict[str, SweepResult], markdown: bool) -> str:
     """Ours beside the thesis. The original code counted one step more than it took (its termination test read the
-    reward of the state before the transition: docs/hotspot-original.md), so "ours + 1" is the like-for-like column and the
+    reward of the state before the transition: docs/hotspot-original.md), so "ours + 1" is the like-for-like
+    column and the
     Welch p-value (from summary statistics, n = 32 on both sides) compares it with the thesis's mean ± sd."""
     rows = []
     for setting, result in results.items():
@@ -79,7 +81,8 @@ def comparison_table(results: dict[str, SweepResult], markdown: bool) -> str:
             if thesis:
                 _, p = welch_test_from_stats(s.steps.mean + 1, s.steps.sd, s.steps.n, *thesis, THESIS_TRIALS)
             rows.append([
-                setting, name, mean_sd(s.steps), interval(s.steps), fmt(s.steps.mean + 1) if thesis else "-", fmt(s.success_rate),
+                setting, name, mean_sd(s.steps), interval(s.steps), fmt(s.steps.mean + 1) if thesis else "-",
+                fmt(s.success_rate),
                 mean_sd(s.identify), fmt(s.final_entropy.mean),
                 f"{thesis[0]:.2f} ± {thesis[1]:.2f}" if thesis else "-",
                 p_value(p) if thesis else "-",

@@ -272,8 +272,8 @@ def test_user_teammates_and_human_by_module_without_pythonpath(tmp_path):
     original = json.loads(foraging.stdout)["agents"]["original"]
     # a team that never moves, with its policy in the ad hoc seat too, never forages
     assert original["steps_mean"] == 10.0 and original["success_rate"] == 0.0
-    ntu = _cli("trials", "ntu", "--agents", "value-iteration", "--episodes", "2", "--teammate", "my_adhoc_agent:still_policy",
-               "--json", cwd=tmp_path)  # fmt: skip
+    ntu = _cli("trials", "ntu", "--agents", "value-iteration", "--episodes", "2",
+               "--teammate", "my_adhoc_agent:still_policy", "--json", cwd=tmp_path)  # fmt: skip
     assert ntu.returncode == 0, ntu.stderr
     assert json.loads(ntu.stdout)["config"]["options"]["teammate"] == "my_adhoc_agent:still_policy"
     lab = _cli("trials", "toxic-waste", "--agents", "known-task", "--episodes", "2", "--max-steps", "25",

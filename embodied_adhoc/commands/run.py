@@ -224,7 +224,8 @@ def format_summary(summary: dict) -> str:
     identify = summary["identify_step"]
     entropy = summary["final_entropy"]
     lines = [
-        f"outcome:        {summary['outcome']} ({'all balls in the container' if summary['success'] else 'not finished'})",
+        f"outcome:        {summary['outcome']} "
+        f"({'all balls in the container' if summary['success'] else 'not finished'})",
         f"steps:          {summary['steps']}",
         f"identified:     {'never' if identify is None else f'at step {identify}'} (true task {summary['true_task']})",
         f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised task-belief entropy)",

@@ -63,7 +63,8 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
 
     foraging = domains.add_parser(
         "foraging",
-        help="level-based foraging in the MuJoCo arena with the ATLPO agent (thesis ch. 6; pre-trained library shipped)",
+        help="level-based foraging in the MuJoCo arena with the ATLPO agent "
+        "(thesis ch. 6; pre-trained library shipped)",
         description="One episode of EmbodiedAdhoc/Foraging-v0: the ad hoc robot and three scripted teammate robots "
         "(team drawn from --team) must forage the apple from the task's N/S/W/E positions, which the agent does "
         "not know. ATLPO-MF reads the egocentric grid the arena computes from the robots' physical positions. "

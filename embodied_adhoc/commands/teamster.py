@@ -7,7 +7,8 @@ Each agent is paired with the teammate-aware, greedy and probabilistic-destinati
 steps each, learning, evaluated (``--eval-steps`` steps, learning paused) before and after every 10 % of the
 interaction and, after each team, on all three. ``--changed fail:P`` adds the changed-environment phase
 (predator moves fail with probability P; a bare P means the same), ``--changed mirror`` one where the ad hoc
-agent's moves are mirrored (up <-> down, left <-> right), for ``--changed-steps`` steps (default ``--steps``). With ``--out`` every (agent, trial) is stored as it finishes and a rerun resumes
+agent's moves are mirrored (up <-> down, left <-> right), for ``--changed-steps`` steps (default ``--steps``).
+With ``--out`` every (agent, trial) is stored as it finishes and a rerun resumes
 from them; the folder gets ``summary.json``, ``table.md`` and ``curves.png``. ``--json`` prints the summary
 (accumulated reward = prey captures, mean and 95 % CI, at each evaluation point, and per 500 steps).
 """

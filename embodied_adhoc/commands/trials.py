@@ -122,7 +122,8 @@ def handle(args: argparse.Namespace) -> int:
     unknown = [b for b in backends if b not in domain.backends]
     if unknown or not backends or len(set(backends)) != len(backends):
         raise ConfigError(
-            f"--backend {args.backend!r}: choose one or more (comma-separated, once each) of {', '.join(domain.backends)}"
+            f"--backend {args.backend!r}: choose one or more (comma-separated, once each) of "
+            f"{', '.join(domain.backends)}"
         )
     options = domain.options_from_args(args)
     note = worker_note(args.workers)

@@ -41,7 +41,8 @@ def _node_name(node: int | None) -> str:
 
 
 def utterance(act: str, node: int | None = None) -> str:
-    """Text of a communication act: ``"where"`` (the "locate human" action), ``"arrived"`` or ``"ready"`` at ``node``."""
+    """Text of a communication act: ``"where"`` (the "locate human" action), ``"arrived"`` or ``"ready"`` at
+    ``node``."""
     if act == "where":
         return WHERE_ARE_YOU
     if act == "arrived":

@@ -143,6 +143,7 @@ def _check_sizes(graph: LabGraph, tasks: Sequence) -> None:
         codes = graph.n_nodes**2 * 2 * 3 ** min(len(task), 64)  # 3^64 already exceeds any limit
         if codes > MAX_STATE_CODES:
             raise ConfigError(
-                f"tasks[{index}]: {len(task)} balls on {graph.n_nodes} nodes give {graph.n_nodes}^2 x 3^{len(task)} x 2 "
+                f"tasks[{index}]: {len(task)} balls on {graph.n_nodes} nodes give "
+                f"{graph.n_nodes}^2 x 3^{len(task)} x 2 "
                 f"candidate states, more than the limit of {MAX_STATE_CODES:,}; place fewer balls"
             )

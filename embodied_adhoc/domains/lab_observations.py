@@ -147,7 +147,8 @@ class ObservationModel:
             self.confusion = load_confusion(config.confusion)
             if self.confusion.n_nodes != n_nodes:
                 raise ConfigError(
-                    f"confusion matrix '{config.confusion}' has {self.confusion.n_nodes} nodes, the graph has {n_nodes}; "
+                    f"confusion matrix '{config.confusion}' has {self.confusion.n_nodes} nodes, "
+                    f"the graph has {n_nodes}; "
                     "give a matrix with one row per graph node"
                 )
         self.localisation: ConfusionMatrix | None = None

@@ -49,7 +49,8 @@ class ForagingEnv(AdhocGridEnv):
     ``gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0", tasks=(1, 2, 3, 4), teams=("tau0", "tau1", "tau2"),
     rows=5, cols=5, n_agents=4, n_apples=1, max_agent_level=2, toroidal=False, view=5, backend="abstract",
     obs_mode="grid", image_size=64, render_mode=None, physics=None)``; ``physics`` (a
-    ``sim.grid_arena_world.ArenaPhysics``) and ``image_size`` are MuJoCo-arena options. ``toroidal=True`` gives the thesis's wrap-around
+    ``sim.grid_arena_world.ArenaPhysics``) and ``image_size`` are MuJoCo-arena options.
+    ``toroidal=True`` gives the thesis's wrap-around
     grid (grid twin only). ``reset(options={"task": 2, "team": "tau1", "state": {...}})`` imposes any of them.
 
     ## Info

@@ -23,7 +23,8 @@ class PursuitEnv(AdhocGridEnv):
     N predators (the ad hoc robot, agent 0, plus N-1 scripted teammates) and M prey on an R x C grid. The prey
     stays with probability ``prey_stay_probability`` (0.2), else tries one of the four moves uniformly (a move
     into a wall, an occupied cell, or, on walled grids, onto the border or an interior corner fails). A prey is
-    captured when every predator stands at its task position around it (task 1: agents 0..3 north, south, west, east of the prey;
+    captured when every predator stands at its task position around it (task 1: agents 0..3 north, south, west,
+    east of the prey;
     tasks 2-4 rotate that) and all execute *Capture* in the same step; it ends when every prey is captured.
     Teams: tau0 (closest prey, greedy), tau1 (shortest paths around teammates), tau2 (encircling: joins its
     ray around the prey on a radius-2 circle, then closes in).
@@ -53,7 +54,8 @@ class PursuitEnv(AdhocGridEnv):
     ``gymnasium.make("EmbodiedAdhoc/PursuitGrid-v0", tasks=None, teams=None, rows=5, cols=5, n_agents=4,
     n_prey=1, pairs=False, toroidal=False, prey_stay_probability=0.2, view=5, backend="abstract",
     obs_mode="grid", image_size=64, render_mode=None, physics=None, observation_noise=0.2)``
-    (``observation_noise``: eps of ``info["observation_index"]``, pairs only; 0.2 as pursuit-task, Table 5.2); ``reset(options={"task", "team", "state"})``.
+    (``observation_noise``: eps of ``info["observation_index"]``, pairs only; 0.2 as pursuit-task, Table 5.2);
+    ``reset(options={"task", "team", "state"})``.
 
     ## Info
     ``task`` (1-based), ``task_name``, ``team``, ``state`` (ground truth, evaluation only), ``steps``,

@@ -100,7 +100,8 @@ class PursuitPomdpEnv(gymnasium.Env):
     1.0 on the step that reaches the capture configuration, else 0.0 (the library's -1 / +100 are its own).
 
     ## Starting state
-    ``reset`` returns observation 40 (nothing seen; the POMDP observes only after an action). ``start`` drawn from the true task's initial belief (uniform over live non-capture states), the agent's
+    ``reset`` returns observation 40 (nothing seen; the POMDP observes only after an action). ``start`` drawn
+    from the true task's initial belief (uniform over live non-capture states), the agent's
     cell uniform over the 25 cells.
 
     ## Episode end

@@ -43,7 +43,8 @@ class TeamworkEnv(gymnasium.Env):
     cells around it. ``slip`` > 0 is the changed environment of section 4.1.4 (each predator's move fails with
     that probability).
 
-    ``backend="mujoco"``: five robots in the grid arena (:class:`~embodied_adhoc.sim.pursuit_pomdp_arena.PursuitPomdpArena`
+    ``backend="mujoco"``: five robots in the grid arena
+    (:class:`~embodied_adhoc.sim.pursuit_pomdp_arena.PursuitPomdpArena`
     with four predators), each step's cells driven to by the waypoint controller, a move across an edge of the
     torus executed as a teleport, no robot contacts (the rules keep agents on distinct cells). The cells are
     read back from the robots' poses, and the observation, the capture and the next step start from *those*.

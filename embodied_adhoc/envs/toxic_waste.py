@@ -56,14 +56,16 @@ class ToxicWasteEnv(gymnasium.Env):
     ``domains.lab_human.LabHuman`` (nearest ball on the ground, pick it up, wait holding it until the robot is in
     the same area and stays or asks; with probability ``human_epsilon`` a move or pick fails). The robot knows
     neither the task nor where the human is: it perceives its own area (from its lidar Monte Carlo localiser, or
-    wheel odometry alone with ``localisation=False``), the human's spoken reply and its container's RFID reader. It is the embodied twin of ``EmbodiedAdhoc/ToxicWasteAbstract-v0``: same actions,
+    wheel odometry alone with ``localisation=False``), the human's spoken reply and its container's RFID reader.
+    It is the embodied twin of ``EmbodiedAdhoc/ToxicWasteAbstract-v0``: same actions,
     same observation semantics and encoding, same reward, same ``reset`` options, so an agent (and the trial
     runner) works unchanged in both.
 
     Each ``step`` is one macro step, turn-based as in the thesis: the human's command is decided from the true
     state at the start of the step, then the robot's waypoint controller (tracking its pose estimate, not
     ground truth) and the human's motion script run together in physics until both are done (or the robot is
-    blocked, ``info["blocked"]``, or ``macro_timeout`` simulated seconds). The physics step and the env step are synchronous and deterministic: the
+    blocked, ``info["blocked"]``, or ``macro_timeout`` simulated seconds). The physics step and the env step are
+    synchronous and deterministic: the
     same ``reset(seed=...)`` and actions give the same trajectory.
 
     ## Action space
@@ -71,9 +73,9 @@ class ToxicWasteEnv(gymnasium.Env):
 
     | action | meaning |
     |---|---|
-    | 0, 1, 2 | drive to the 1st / 2nd / 3rd lowest-index neighbour of the robot's odometry area (beyond the degree: the lowest) |
+    | 0, 1, 2 | drive to the 1st / 2nd / 3rd lowest-index neighbour of the odometry area (past its degree: the lowest) |
     | 3 | stay (the human, if holding a ball in the robot's area, drops it into the container) |
-    | 4 | locate human: ask "Where are you?" and hear the reply (also lets the human drop); absent without communication |
+    | 4 | locate human: ask "Where are you?" and hear the reply (also lets the human drop); not in ``Discrete(4)`` |
 
     ## Observation space
     ``MultiDiscrete([6, 6, 2])`` = ``[robot node, human node, rfid]`` with 5 = unknown/none, exactly the encoding
@@ -81,9 +83,16 @@ class ToxicWasteEnv(gymnasium.Env):
 
     | element | value |
     |---|---|
-    | robot node | the robot's own area reading: the Monte Carlo localiser's area (lidar + odometry against the lab map, ``sim.localisation``), 5 (unknown) when its particles span more than one area; with ``localisation=False`` the wheel-odometry pose's area (5 outside every area). Without a measured ``localisation_model``, also 5 with probability 1 - ``robot_node_accuracy`` (the model's robot-node factor, drawn from its own seeded stream) |
-    | human node | after "locate human": the node recognised from the human's reply through ``speech`` (5 = no location); without communication: the robot's true area when the human is in it; else 5 |
+    | robot node | the robot's own area reading (below) |
+    | human node | after "locate human": the node recognised from the human's reply through ``speech`` (below) |
     | rfid | 1 if the container's reader read a ball entering during this step (missed w.p. ``rfid_miss``) |
+
+    The robot node is the Monte Carlo localiser's area (lidar + odometry against the lab map,
+    ``sim.localisation``), 5 (unknown) when its particles span more than one area; with ``localisation=False`` it
+    is the wheel-odometry pose's area (5 outside every area). Without a measured ``localisation_model`` it is also
+    5 with probability 1 - ``robot_node_accuracy`` (the model's robot-node factor, drawn from its own seeded
+    stream). The human node is 5 when the reply names no location; without communication it is the robot's true
+    area when the human is in it, else 5.
 
     ## Rewards
     From the state before the step (``domains.lab.LabReward``): -1 per ball on the ground, -2 per ball held,
@@ -104,18 +113,22 @@ class ToxicWasteEnv(gymnasium.Env):
     | kwarg | default | meaning |
     |---|---|---|
     | ``task`` | None | fixed task index; None = drawn uniformly at each reset |
-    | ``human`` | "scripted" | the world's human teammate: the library's scripted cleaner, or a plug-in (interface in ``envs.lab_humans``; the agents' models are not told) |
-    | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx on every query), "perfect" |
-    | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig`` defaults) |
-    | ``localisation`` | True | Monte Carlo localisation on the lidar; False: the controller and the robot-node reading use wheel odometry alone |
-    | ``lidar_noise``, ``lidar_dropout`` | None | lidar range noise (m) and per-beam dropout probability (None = ``sim.lidar.LidarConfig`` defaults, 0.015 and 0.01); ``lidar_dropout=1`` is a dead lidar (the localiser falls back to odometry and says so) |
-    | ``speech_failure`` | 0.0 | probability that the human's reply to "locate human" is lost (heard as no location); the agents' model is not told |
-    | ``reader_miss`` | None | the physical RFID reader's miss probability, a fault the agents' model is not told about (None = the model's ``rfid_miss``) |
+    | ``human`` | "scripted" | the world's human teammate: the scripted cleaner, or a plug-in (``envs.lab_humans``) |
+    | ``speech`` | "channel" | "channel" (sample the confusion matrix), "audio" (espeak-ng + pocketsphinx), "perfect" |
+    | ``encoder_noise``, ``wheel_slip`` | None | odometry error model (None = ``sim.odometry.OdometryConfig``'s) |
+    | ``localisation`` | True | Monte Carlo localisation on the lidar; False: the robot uses wheel odometry alone |
+    | ``lidar_noise``, ``lidar_dropout`` | None | lidar range noise (m), per-beam dropout rate (None: 0.015, 0.01) |
+    | ``speech_failure`` | 0.0 | probability that the human's reply to "locate human" is lost (heard as no location) |
+    | ``reader_miss`` | None | the physical RFID reader's miss probability (None = the model's ``rfid_miss``) |
     | ``macro_timeout`` | 60.0 | simulated seconds after which an unfinished macro step ends |
     | ``render_mode`` | None | "rgb_array": ``render()`` returns the overhead camera image |
     | ``width``, ``height`` | 640, 480 | image size of ``render()`` and of recorded frames |
-    | ``render_quality`` | "fast" | "fast" (no shadows, reflections or floor texture: several times faster on CPU) or "high" |
+    | ``render_quality`` | "fast" | "fast" (no shadows, reflections or floor texture: cheap on CPU) or "high" |
     | ``frame_rate`` | 15.0 | frames per *simulated* second passed to the frame sink (see ``set_frame_sink``) |
+
+    A plug-in ``human`` (its interface is in ``envs.lab_humans``), ``speech_failure`` and ``reader_miss`` are faults
+    of the world the agents' models are not told about. ``lidar_dropout=1`` is a dead lidar: the localiser falls
+    back to odometry and says so.
 
     ``reset(seed=..., options={"task": k, "robot_node": i, "human_node": j})`` fixes the episode's start (default:
     task and nodes drawn uniformly, as the abstract env; all balls on the ground).

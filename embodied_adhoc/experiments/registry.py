@@ -31,7 +31,8 @@ which the runner calls once per worker process and caches.
 :class:`TrialSession` (heavy, cached per process and per (domain, backend, options))
     ``task_names``: names of the task library (posterior columns);
     ``make_env(max_steps) -> gymnasium.Env`` (created once per process, reused across trials; it must not
-    truncate episodes before ``max_steps``, the runner's cap; backend chosen here by env id/kwargs: e.g. ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` vs ``EmbodiedAdhoc/ToxicWaste-v0``);
+    truncate episodes before ``max_steps``, the runner's cap; backend chosen here by env id/kwargs: e.g.
+    ``EmbodiedAdhoc/ToxicWasteAbstract-v0`` vs ``EmbodiedAdhoc/ToxicWaste-v0``);
     ``reset_options(spec) -> dict``: the ``options`` of ``env.reset`` that impose the spec;
     ``make_agent(name, spec, seed) -> Agent``: a fresh agent (``spec["task"]`` only for agents defined to know it);
     ``observation_index(observation) -> int``: the flat observation index the agents consume, computed from the

@@ -12,7 +12,8 @@ trials, seeded by ``BOOTSTRAP_SEED``), as rliable's ``get_interval_estimates`` d
 or IQM is itself a mean of observed values, so the interval never leaves ``[min, max]`` of the data: a step count
 cannot get a negative bound, an entropy band stays in [0, 1] (the t-interval ``mean ± t sd / sqrt(n)`` did not on
 skewed or capped data). The Welch t-test (:func:`welch_test_from_stats`, from summary statistics, and
-:func:`welch_test` on samples) is kept for the thesis's claims, which used it. IQM and probability of improvement follow rliable (Agarwal et al. 2021, "Deep RL at the
+:func:`welch_test` on samples) is kept for the thesis's claims, which used it. IQM and probability of
+improvement follow rliable (Agarwal et al. 2021, "Deep RL at the
 Edge of the Statistical Precipice"), written here in numpy.
 """
 

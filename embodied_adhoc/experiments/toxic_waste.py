@@ -343,7 +343,8 @@ class ToxicWasteDomain:
             "--confusion",
             default=DEFAULT_CONFUSION,
             metavar="thesis|measured|PATH",
-            help="speech confusion matrix of 'locate human' (default: measured, our offline pipeline's; 'thesis' = the original's)",
+            help="speech confusion matrix of 'locate human' "
+            "(default: measured, our offline pipeline's; 'thesis' = the original's)",
         )
         group.add_argument(
             "--human",

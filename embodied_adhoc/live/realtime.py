@@ -96,7 +96,7 @@ class RealtimeToxicWasteEnv(ToxicWasteEnv):
     | ``tick_listener`` | None | called with the env after every control tick (simulation thread): live frames |
     | ``stop`` | None | a ``threading.Event`` that ends the loop (:class:`LiveStopped`) |
     | ``question_interval`` | 0.0 | simulated seconds after an answer before the robot asks again (it stays meanwhile) |
-    | ``question_gate`` | None | called when a question is held back: True lets it through at once (the agent's belief moved) |
+    | ``question_gate`` | None | called when a question is held back: True (the agent's belief moved) lets it through |
 
     Contact: a ball the human carries touches nothing (its geoms' collision bits are cleared while its grasp weld
     is active, restored on release), so the kinematic walker cannot push the robot or knock balls out of its

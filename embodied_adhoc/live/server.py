@@ -6,8 +6,19 @@ works offline. Protocol on ``/ws`` (JSON text messages unless said otherwise):
 
 | direction | message |
 |---|---|
-| page -> server | ``{"type": "start"}``; ``{"type": "keys", "held": ["up", "left"], "seq": n}`` (direction keys now held); ``{"type": "act", "seq": n}`` (pick up / drop); ``{"type": "reply", "text": "...", "seq": n}``; ``{"type": "ping", "t": ms}``; a binary message = a spoken reply as a WAV file |
-| server -> page | ``hello``; ``state`` (simulated time, human pose, balls, last input applied, notice, question open, posterior) followed by a binary ``b"F" + JPEG`` overhead frame, ``stream_fps`` times a second, as soon as the simulation thread rendered it; ``question`` followed by ``b"A" + WAV`` (the robot's spoken question); ``heard`` (transcript and node of a reply); ``step``; ``done``; ``error``; ``pong`` |
+| page -> server | ``{"type": "start"}`` |
+| page -> server | ``{"type": "keys", "held": ["up", "left"], "seq": n}``: the direction keys now held |
+| page -> server | ``{"type": "act", "seq": n}``: pick up / drop |
+| page -> server | ``{"type": "reply", "text": "...", "seq": n}``; ``{"type": "ping", "t": ms}`` |
+| page -> server | a binary message: a spoken reply as a WAV file |
+| server -> page | ``hello`` |
+| server -> page | ``state`` (simulated time, human pose, balls, last input applied, notice, question open, posterior) |
+| server -> page | binary ``b"F" + JPEG`` right after each ``state``: the overhead frame |
+| server -> page | ``question``, followed by binary ``b"A" + WAV`` (the robot's spoken question) |
+| server -> page | ``heard`` (transcript and node of a reply); ``step``; ``done``; ``error``; ``pong`` |
+
+``state`` and its frame are sent ``stream_fps`` times a second, as soon as the simulation thread has rendered
+the frame.
 
 Safety: the server binds 127.0.0.1 unless ``--host`` says otherwise, and then the page and the WebSocket need the
 token printed at start-up (``?token=...``); a WebSocket whose ``Origin`` is another site is refused (no

@@ -227,7 +227,8 @@ def test_threads_do_not_change_the_solve(name, update, monkeypatch):
 
 @pytest.mark.parametrize("name", ["sarsop-TagAvoid.pomdp", "single-state"])
 def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
-    """Gauss-Seidel stages (perseus._perseus_iteration with a _Seidel): V_{n+1} >= V_n on B, the stage's values on B are the
+    """Gauss-Seidel stages (perseus._perseus_iteration with a _Seidel): V_{n+1} >= V_n on B, the stage's values on
+    B are the
     products with its vectors, later backups continue with vectors of the same stage, and every vector of the plan
     graph is at most the value of doing its action and then its continuations (equal unless a continuation was
     replaced by a dominating vector): the closed set the lower bound rests on."""

@@ -1,4 +1,5 @@
-"""Chapter 4's pursuit as an env (grid twin and MuJoCo arena) driven by the one episode loop, and ``trials pursuit4``."""
+"""Chapter 4's pursuit as an env (grid twin and MuJoCo arena) driven by the one episode loop, and
+``trials pursuit4``."""
 
 from __future__ import annotations
 

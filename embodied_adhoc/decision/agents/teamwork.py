@@ -212,7 +212,8 @@ class OriginalTeammate(RandomAgent):
 
 class EpisodeSeat(AgentBase):
     """A chapter-4 agent (:class:`TeamworkAgent`) in the project's one episode loop
-    (:func:`embodied_adhoc.experiments.episode.run_episode_loop`), over :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv`
+    (:func:`embodied_adhoc.experiments.episode.run_episode_loop`), over
+    :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv`
     observations ``[state cells..., teammates' last actions...]``.
 
     It declares ``observes_raw`` (it gets those arrays) and ``observes_reward`` (Algorithm 1, line 11 learns the
