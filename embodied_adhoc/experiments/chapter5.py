@@ -3,9 +3,10 @@
 
 Episode spec (drawn once per episode, shared by every agent): ``task`` (the true model, uniform over the library,
 or fixed by ``--task``) and ``start`` (a state drawn from that model's initial belief). The world is the true
-model itself (:class:`LibraryEnv`, a generative POMDP simulator with Gymnasium's ``reset``/``step``); an episode
-ends in the absorbing state (after the +100) or at the cap, which defaults to Table 5.2's horizon ``h``, so the
-trial's total reward is Table 5.5's accumulated reward.
+model itself (:class:`~embodied_adhoc.envs.library_env.LibraryEnv`, a generative POMDP simulator with
+Gymnasium's ``reset``/``step``); an episode ends in the absorbing state (after the +100) or at the cap, which
+defaults to Table 5.2's horizon ``h``, so the trial's total reward is Table 5.5's accumulated reward. The world's
+teammate (``--teammate``) comes from :mod:`embodied_adhoc.domains.chapter5.teammates`.
 
 Agents (section 5.2.4):
 
@@ -36,16 +37,15 @@ import time
 import numpy as np
 
 from embodied_adhoc.decision.agents.baselines import RandomPickerAgent
+from embodied_adhoc.domains.chapter5.teammates import (
+    GENERIC_HELP,
+    TEAMMATE_HELP,
+    world_teammate_names,
+    world_with_teammate,
+)
 from embodied_adhoc.errors import ConfigError
 
-__all__ = [
-    "CHAPTER5_AGENTS",
-    "Chapter5Domain",
-    "LibraryEnv",
-    "RandomPickerAgent",
-    "return_table",
-    "timing_line",
-]
+__all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "return_table", "timing_line"]
 
 CHAPTER5_AGENTS = ("value-iteration", "perseus", "atpo", "random-picker", "bopa", "random")
 TABLE_5_2_HORIZON = {
@@ -63,42 +63,6 @@ SOLVE_STAGES = {
 convergence (hours to days per model, Table 5.3). Perseus stops earlier where Table 5.4's tolerance is met on the
 belief set. The numbers are where the lower bound at b0 of the domain's first model stops moving much, measured
 in CPU seconds per stage (docs/atpo.md, "The solve budget")."""
-
-
-class LibraryEnv:
-    """The true model as an episode simulator (Gymnasium's ``reset``/``step`` signatures).
-
-    ``reset(seed, options={"task": k, "start": x})``; the observation is the model's observation index (-1 at
-    reset: none yet); ``info`` carries ``state`` and ``observation_index`` (ground truth and diagnostics). The
-    episode terminates on entering the model's absorbing state; truncation is the runner's cap.
-    """
-
-    def __init__(self, library, pomdps=None) -> None:
-        self.library = library
-        self.pomdps = library.pomdps if pomdps is None else pomdps  # the world's models (a user's teammate)
-        self.rng = np.random.default_rng(0)
-        self.model, self.state = 0, 0
-
-    def reset(self, seed: int | None = None, options: dict | None = None):
-        options = dict(options or {})
-        self.rng = np.random.default_rng(seed)
-        self.model = int(options["task"])
-        self.pomdp = self.pomdps[self.model]
-        self.state = int(options["start"])
-        return -1, {"state": self.state, "observation_index": -1}  # no observation before the first step
-
-    def step(self, action: int):
-        next_state, observation, reward = self.pomdp.step(self.state, int(action), self.rng)
-        self.state = next_state
-        terminated = next_state == self.library.absorbing(self.model)
-        return observation, reward, terminated, False, {"state": next_state, "observation_index": observation}
-
-    def privileged_state(self) -> int:
-        """The true state: the channel through which the episode loop gives it to ``observes_state`` agents."""
-        return self.state
-
-    def close(self) -> None:
-        return None
 
 
 class Chapter5Session:
@@ -125,7 +89,9 @@ class Chapter5Session:
         self._kernels = None
         self._q = None
 
-    def make_env(self, max_steps: int) -> LibraryEnv:
+    def make_env(self, max_steps: int):
+        from embodied_adhoc.envs.library_env import LibraryEnv
+
         world = None
         if self.options.get("teammate"):
             world = world_with_teammate(self.library, self.options["teammate"])
@@ -244,7 +210,7 @@ class Chapter5Domain:
                 metavar="NAME|MODULE:CALLABLE",
                 help="the world's teammate instead of the library's (the agents keep their library: a "
                 f"model-mismatch test): {', '.join(world_teammate_names(self.name))} "
-                f"({_TEAMMATE_HELP.get(self.name, _GENERIC_HELP)}), or MODULE:CALLABLE, CALLABLE(library, model) "
+                f"({TEAMMATE_HELP.get(self.name, GENERIC_HELP)}), or MODULE:CALLABLE, CALLABLE(library, model) "
                 "returning its policy, an (S x B) array over its B actions",
             )
         group.add_argument(
@@ -361,110 +327,6 @@ def __getattr__(attribute: str):
         if name in _DESCRIPTIONS:
             return domain(name)
     raise AttributeError(attribute)
-
-
-NAMED_TEAMMATES = ("optimal", "random")
-"""World teammates by name in every domain: ``optimal`` (the MMDP's optimal marginal,
-``library.optimal_teammate_policy``) and ``random`` (uniform over its actions). A domain adds its own teammate
-models (``ModelLibrary.teammates``), listed per domain in ``DOMAIN_TEAMMATES`` for ``--help`` (a test checks that
-both agree)."""
-DOMAIN_TEAMMATES = {
-    "gridworld": ("greedy",),
-    "pursuit-task": ("greedy", "aware"),
-    "pursuit-teammate": ("greedy", "aware"),
-    "pursuit-both": ("greedy", "aware"),
-    "overcooked": ("optimal", "upper", "lower", "random"),
-}
-_GENERIC_HELP = "optimal: the MMDP's; random: uniform"
-_TEAMMATE_HELP = {
-    "gridworld": "greedy: to its closest goal cell, the library's; " + _GENERIC_HELP,
-    **dict.fromkeys(
-        ("pursuit-task", "pursuit-teammate", "pursuit-both"),
-        "greedy: columns then rows to its closest capture cell; aware: teammate-aware, a shortest path around "
-        "the agent; " + _GENERIC_HELP,
-    ),
-    "overcooked": "the library's four cooks: optimal; upper / lower: insists on the top / bottom counter w.p. "
-    "0.9; random: uniform",
-    "power-plant": "optimal: the library's human, the MMDP's; random: uniform over its moves and stay; a "
-    "CALLABLE's S is the task's own states, 105 explore / 97 clean",
-}
-
-
-def world_teammate_names(domain_name: str) -> tuple[str, ...]:
-    """The ``--teammate`` names of a domain: its own teammate models, then the generic ones."""
-    own = DOMAIN_TEAMMATES.get(domain_name, ())
-    return own + tuple(name for name in NAMED_TEAMMATES if name not in own)
-
-
-def _named_teammate(name: str):
-    from embodied_adhoc.domains.chapter5.library import optimal_teammate_policy
-
-    def policy(library, model: int) -> np.ndarray:
-        mmdp = library.mmdps[model]
-        n_teammate = mmdp.n_actions // library.n_actions
-        if name == "random":
-            return np.full((mmdp.n_states, n_teammate), 1.0 / n_teammate)
-        return optimal_teammate_policy(mmdp, library.n_actions)
-
-    return policy
-
-
-def world_with_teammate(library, reference: str) -> tuple:
-    """The library's models with the teammate replaced by ``reference``: a name of ``NAMED_TEAMMATES`` or
-    ``module:callable``, where ``CALLABLE(library, m)`` gives ``pi(b | x)`` (S x B, S the states of model ``m``'s
-    MMDP) for model ``m``. Fig. 5.2's reduction turns it into the world's transitions (same rewards, observations
-    and start). The power plant's tasks have their own state spaces (105 and 97 states): the reduction runs on the
-    task's own model, which is then padded as the library's is."""
-    from embodied_adhoc.decision.models import POMDP
-    from embodied_adhoc.domains.chapter5.library import reduce_joint
-    from embodied_adhoc.domains.chapter5.power_plant import pad_pomdp
-
-    if reference in library.teammates:
-        own = library.teammates[reference]
-
-        def factory(_, m: int) -> np.ndarray:
-            return own(m)
-    elif reference in NAMED_TEAMMATES:
-        factory = _named_teammate(reference)
-    else:  # a plug-in: module:callable, path/to/file.py:callable or an embodied_adhoc.teammates entry point
-        from embodied_adhoc.plugins import installed, is_plugin_spec, resolve
-
-        names = (*library.teammates, *(n for n in NAMED_TEAMMATES if n not in library.teammates))
-        if not is_plugin_spec(reference) and reference not in installed("teammate"):
-            raise ConfigError(
-                f"--teammate {reference!r}: unknown teammate of {library.domain}; give one of {', '.join(names)}, "
-                "or MODULE:CALLABLE (e.g. my_teammates:cautious)"
-            )
-        factory = resolve("teammate", reference, builtin=names, flag="--teammate").factory
-    world = []
-    for m, pomdp in enumerate(library.native_pomdps or library.pomdps):
-        mmdp = library.mmdps[m]
-        n_teammate = mmdp.n_actions // pomdp.n_actions
-        policy = np.asarray(factory(library, m), dtype=np.float64)
-        if policy.shape != (pomdp.n_states, n_teammate):
-            raise ConfigError(
-                f"--teammate {reference}: returned shape {policy.shape} for model {m}; expected "
-                f"({pomdp.n_states}, {n_teammate}) = (states, teammate actions)"
-            )
-        if policy.min() < 0.0 or not np.allclose(policy.sum(axis=1), 1.0, atol=1e-9):
-            raise ConfigError(
-                f"--teammate {reference}: model {m}: every row must be a probability distribution"
-            )
-        joint = [
-            [mmdp.transitions[a * n_teammate + b] for b in range(n_teammate)] for a in range(pomdp.n_actions)
-        ]
-        model = POMDP(
-            reduce_joint(joint, policy),
-            pomdp.rewards,
-            pomdp.discount,
-            pomdp.state_names,
-            pomdp.action_names,
-            pomdp.observations,
-            pomdp.initial_belief,
-            pomdp.observation_names,
-        )  # fmt: skip
-        world.append(pad_pomdp(model, library.n_states))
-    return tuple(world)
 
 
 def return_table(summary, markdown: bool = False) -> str:

@@ -142,7 +142,7 @@ def ablation_steps(
     uniformly from its models and starts from their initial beliefs, the same draws for every agent."""
     from embodied_adhoc.decision.agents.factory import make_agent
     from embodied_adhoc.decision.agents.hotspot import HotspotConfig
-    from embodied_adhoc.experiments.chapter5 import LibraryEnv
+    from embodied_adhoc.envs.library_env import LibraryEnv
     from embodied_adhoc.experiments.episode import run_episode_loop
 
     unknown = sorted(set(agents) - set(ABLATION_AGENTS))

@@ -124,8 +124,8 @@ def test_cli_refuses_a_bad_map_with_its_place(tmp_path):
 
 
 def test_a_users_teammate_replaces_the_worlds(tmp_path, monkeypatch):
+    from embodied_adhoc.domains.chapter5.teammates import world_with_teammate
     from embodied_adhoc.errors import ConfigError
-    from embodied_adhoc.experiments.chapter5 import world_with_teammate
 
     (tmp_path / "my_teammates.py").write_text(
         "import numpy as np\n"
@@ -184,8 +184,8 @@ def test_cli_map_domains_take_a_users_teammate(tmp_path):
 def test_power_plant_takes_a_world_teammate(tmp_path, monkeypatch):
     import os
 
+    from embodied_adhoc.domains.chapter5.teammates import world_with_teammate
     from embodied_adhoc.errors import ConfigError
-    from embodied_adhoc.experiments.chapter5 import world_with_teammate
 
     (tmp_path / "plant_humans.py").write_text(
         "import numpy as np\n"
@@ -295,8 +295,8 @@ def _same_world(first, second) -> bool:
 
 
 def test_named_world_teammates_are_the_domains_own_models():
+    from embodied_adhoc.domains.chapter5.teammates import DOMAIN_TEAMMATES, world_with_teammate
     from embodied_adhoc.errors import ConfigError
-    from embodied_adhoc.experiments.chapter5 import DOMAIN_TEAMMATES, world_with_teammate
 
     both = build_library("pursuit-teammate")  # models: greedy and aware, same capture configuration
     assert set(both.teammates) == set(DOMAIN_TEAMMATES["pursuit-teammate"])

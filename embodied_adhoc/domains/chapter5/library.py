@@ -65,7 +65,7 @@ class ModelLibrary:
     absorbing_states: tuple[int, ...] | None = None
     # The domain's own teammate models by name (pursuit's greedy / aware, overcooked's cooks, gridworld's greedy):
     # ``teammates[name](m)`` is that teammate's ``pi(b | x)`` (S x B) in model m's task, for ``--teammate NAME``
-    # (the world's teammate replaced, Fig. 5.2's reduction; ``experiments.chapter5.world_with_teammate``).
+    # (the world's teammate replaced, Fig. 5.2's reduction; ``domains.chapter5.teammates.world_with_teammate``).
     teammates: Mapping[str, Callable[[int], np.ndarray]] = field(default_factory=dict)
 
     def absorbing(self, model: int) -> int:
