@@ -1,5 +1,5 @@
 """Fig. 7.12's gap to the thesis, measured: our model and protocol against the original experiment's, one switch at
-a time (see :mod:`embodied_adhoc.experiments.pursuit_pairs_ablation` for what each switch is and where it comes
+a time (see :mod:`embodied_adhoc.experiments.domains.pursuit_pairs_ablation` for what each switch is and where it comes
 from in the original code).
 
 Every row runs oracle, known-task, HOTSPOT (TEBOPA) and random on the same episode draws of its library (``--seed``,
@@ -19,8 +19,8 @@ import numpy as np
 from scipy import stats
 
 from embodied_adhoc.envs.pursuit_pomdp import pursuit_pair_library
-from embodied_adhoc.experiments.pursuit_pairs import THESIS_FIG_7_12, THESIS_TRIALS
-from embodied_adhoc.experiments.pursuit_pairs_ablation import (
+from embodied_adhoc.experiments.domains.pursuit_pairs import THESIS_FIG_7_12, THESIS_TRIALS
+from embodied_adhoc.experiments.domains.pursuit_pairs_ablation import (
     ABLATION_AGENTS,
     ablation_steps,
     original_library,

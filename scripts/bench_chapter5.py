@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from embodied_adhoc.domains.chapter5 import build_library
-from embodied_adhoc.experiments.chapter5 import (
+from embodied_adhoc.experiments.domains.chapter5 import (
     TABLE_5_5_DOMAINS,
     forget_sessions,
     solver_settings,

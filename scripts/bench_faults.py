@@ -71,7 +71,7 @@ class Args:
 
 
 def parse_row(text: str) -> dict[str, float]:
-    from embodied_adhoc.experiments.toxic_waste import FAULTS
+    from embodied_adhoc.experiments.domains.toxic_waste import FAULTS
 
     if text == "defaults":
         return {}
@@ -94,8 +94,8 @@ def run_one(task: tuple[str, bool, int, int, int]) -> dict:
     import gymnasium
 
     from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     row, localisation, episode, seed, max_steps = task
     # the sweep's rows name faults the agent's model is not told (its RFID model stays a perfect reader)
@@ -159,7 +159,7 @@ TOUR = (1, 2, 1, 3, 4, 3, 1, 0)  # from the door, every edge both ways
 def tour_readings(row: str, seed: int) -> list[tuple[int, int | None]]:
     """(true area, reading) after each macro step of one scripted tour under the row's faults (localiser on)."""
     from embodied_adhoc.envs.toxic_waste_world import make_world
-    from embodied_adhoc.experiments.toxic_waste import fault_env_kwargs
+    from embodied_adhoc.experiments.domains.toxic_waste import fault_env_kwargs
     from embodied_adhoc.sim.lab_world import HumanCommand
 
     kwargs = fault_env_kwargs({"faults": parse_row(row)})

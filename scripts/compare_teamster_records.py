@@ -5,8 +5,8 @@
 
 Runs ``run_trial`` (trial 1) of a short pursuit run and a short ntu run for several agents in each tree, each in a
 subprocess with that tree first on the path, and compares the JSON records field for field (without the timing).
-Each tree's driver is found where it lives (``experiments/teamster_protocol.py``, or ``learning/`` before it moved
-to the episode loop). Exit 0 when every record is identical, 1 otherwise.
+Each tree's driver is found where it lives (``experiments/domains/teamster_protocol.py``, or in an older tree
+``experiments/`` or ``learning/``). Exit 0 when every record is identical, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -44,8 +44,10 @@ print(json.dumps(out))
 
 
 def records(tree: Path) -> dict:
-    where = (
-        "experiments" if (tree / "embodied_adhoc/experiments/teamster_protocol.py").is_file() else "learning"
+    where = next(
+        package
+        for package in ("experiments.domains", "experiments", "learning")
+        if (tree / "embodied_adhoc" / package.replace(".", "/") / "teamster_protocol.py").is_file()
     )
     env = dict(os.environ, PYTHONPATH=str(tree), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     done = subprocess.run(

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc.experiments.chapter5 import (
+from embodied_adhoc.experiments.domains.chapter5 import (
     CHAPTER5_AGENTS,
     SOLVE_STAGES,
     TABLE_5_5_DOMAINS,

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc.experiments.pursuit_pairs import (
+from embodied_adhoc.experiments.domains.pursuit_pairs import (
     THESIS_FIG_7_12,
     THESIS_TRIALS,
     pomdp_options,

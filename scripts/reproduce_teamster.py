@@ -36,9 +36,9 @@ import numpy as np
 
 from embodied_adhoc.cli import main as cli_main
 from embodied_adhoc.domains.pursuit4 import TEAMS, ExactTeam, Pursuit4
+from embodied_adhoc.experiments.domains.teamster_protocol import make_world, play, play_episodes
 from embodied_adhoc.experiments.stats import summarise_sample
 from embodied_adhoc.experiments.tables import format_table
-from embodied_adhoc.experiments.teamster_protocol import make_world, play, play_episodes
 from embodied_adhoc.learning.teamster_agents import build_agent
 
 REFERENCE = {

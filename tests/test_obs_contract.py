@@ -69,8 +69,8 @@ def _options(name: str, flags: list[str]):
 
 def _agents(domain, options) -> tuple[str, ...]:
     if domain.name == "pursuit":  # the grid rules offer the grid agents, the POMDP rules the decision agents
-        from embodied_adhoc.experiments.foraging import GridTrialDomain
-        from embodied_adhoc.experiments.pursuit_pairs import POMDP_AGENTS
+        from embodied_adhoc.experiments.domains.foraging import GridTrialDomain
+        from embodied_adhoc.experiments.domains.pursuit_pairs import POMDP_AGENTS
 
         if options.get("rules") == "pomdp":
             return POMDP_AGENTS + ("random",)

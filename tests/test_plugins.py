@@ -177,8 +177,8 @@ def test_every_shipped_lab_agent_meets_the_protocol():
 
 
 def test_a_plugin_that_breaks_the_protocol_is_refused_before_any_trial(user_folder):
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     config = SweepConfig("toxic-waste", "abstract", DOMAIN.options(), ("helpers:make",), episodes=1)
     with pytest.raises(

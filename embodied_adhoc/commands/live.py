@@ -135,8 +135,8 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     from embodied_adhoc.live.study import StudyRun, load_plan
 
     plan = None if args.study is None else load_plan(args.study)  # a bad plan stops here, before any work
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.experiments.registry import agent_plugin
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     agent_plugin(
         DOMAIN, args.agent, "--agent"

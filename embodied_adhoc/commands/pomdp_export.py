@@ -16,7 +16,7 @@ def register_export(commands) -> None:
     """Add the ``export`` subcommand to the ``pomdp`` command group."""
     from embodied_adhoc.commands.arguments import output_folder
     from embodied_adhoc.domains.chapter5 import CHAPTER5_DOMAINS
-    from embodied_adhoc.domains.chapter5.options import add_library_arguments
+    from embodied_adhoc.experiments.domains.chapter5_options import add_library_arguments
 
     export = commands.add_parser(
         "export",
@@ -45,7 +45,7 @@ def _export(args: argparse.Namespace) -> int:
     from embodied_adhoc.atomic import atomic_write_text
     from embodied_adhoc.decision.pomdp_io import write_pomdp
     from embodied_adhoc.domains.chapter5 import build_library
-    from embodied_adhoc.domains.chapter5.options import library_options
+    from embodied_adhoc.experiments.domains.chapter5_options import library_options
 
     options = library_options(args.domain, args)
     start = time.perf_counter()

@@ -83,7 +83,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     toxic.add_argument(
         "--max-steps", type=int, default=100, help="macro-step cap (default 100, as the thesis)"
     )
-    from embodied_adhoc.experiments.toxic_waste import add_fault_arguments
+    from embodied_adhoc.experiments.domains.toxic_waste import add_fault_arguments
 
     add_fault_arguments(toxic.add_argument_group("faults and localisation"))
     toxic.add_argument(
@@ -135,8 +135,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def handle_toxic_waste(args: argparse.Namespace) -> int:
     choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
     from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.experiments.domains.toxic_waste import fault_options
     from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
-    from embodied_adhoc.experiments.toxic_waste import fault_options
 
     if args.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {args.max_steps}")
@@ -152,8 +152,8 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         from embodied_adhoc.record.video import check_video_settings
 
         check_video_settings(args.width, args.height, args.video_fps)
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.experiments.registry import agent_plugin
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     agent_plugin(
         DOMAIN, args.agent, "--agent"
@@ -243,7 +243,7 @@ def format_summary(summary: dict) -> str:
             f"wrong {localisation['wrong_readings']}"
         )
     if summary.get("faults") is not None:
-        from embodied_adhoc.experiments.toxic_waste import fault_line
+        from embodied_adhoc.experiments.domains.toxic_waste import fault_line
 
         lines.append(f"faults:         {fault_line(summary['faults'])}")
     if summary.get("cap_reason"):

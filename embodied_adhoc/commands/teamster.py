@@ -55,8 +55,8 @@ def handle(args: argparse.Namespace) -> int:
         raise ConfigError(
             f"--changed-steps {args.changed_steps}: must be a multiple of --points {args.points}"
         )
-    from embodied_adhoc.experiments.teamster import final_table, summarise, write_outputs
-    from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, parse_change, run_trial
+    from embodied_adhoc.experiments.domains.teamster import final_table, summarise, write_outputs
+    from embodied_adhoc.experiments.domains.teamster_protocol import ProtocolConfig, parse_change, run_trial
     from embodied_adhoc.learning.teamster_agents import TABLE_4_1
 
     changed = parse_change(args.changed)

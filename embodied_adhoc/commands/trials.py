@@ -258,7 +258,7 @@ def _run_one(args: argparse.Namespace, config, out):
         print()
         print(extras)
     if timing:  # chapter-5 domains: Table 5.5's accumulated reward beside the steps, and where the time went
-        from embodied_adhoc.experiments.chapter5 import return_table, timing_line
+        from embodied_adhoc.experiments.domains.chapter5 import return_table, timing_line
 
         print()
         print(return_table(summary))

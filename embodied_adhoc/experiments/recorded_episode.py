@@ -57,7 +57,7 @@ class EpisodeConfig:
     rerun_camera_hz: float = 2.0
     video_overlay: bool = True  # heads-up text (step, action, what was heard, task belief) on the video
     env_kwargs: dict = field(default_factory=dict)
-    faults: dict = field(default_factory=dict)  # experiments.toxic_waste.FAULTS name -> value
+    faults: dict = field(default_factory=dict)  # experiments.domains.toxic_waste.FAULTS name -> value
     localisation: bool = True  # False: wheel odometry alone
     localisation_model: str | None = None  # the agent's robot-node model: None (thesis), "measured" or a path
     model_rfid_miss: float | None = None  # the agent's RFID miss model: None = the rfid_miss fault's value
@@ -167,7 +167,7 @@ class _Metrics(MetricsObserver):
     def episode_finished(self, trace: EpisodeTrace) -> None:
         super().episode_finished(trace)
         if self.metrics.faults is not None:
-            from embodied_adhoc.experiments.toxic_waste import cap_reason
+            from embodied_adhoc.experiments.domains.toxic_waste import cap_reason
 
             capped = trace.truncated and not trace.success
             code, detail = cap_reason(trace.actions, self.metrics.faults, self.library.action_names, capped)
@@ -466,8 +466,8 @@ def run_episode(config: EpisodeConfig, progress: Callable[[int, dict], None] | N
     env = gymnasium.make(
         ENV_ID, max_episode_steps=int(config.max_steps), disable_env_checker=True, **setup.env_kwargs
     )
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.experiments.registry import build_agent
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     agent = build_agent(
         DOMAIN, session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)

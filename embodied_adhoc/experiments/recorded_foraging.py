@@ -1,7 +1,7 @@
 """One recorded level-based-foraging episode in the MuJoCo arena: what ``embodied-adhoc run foraging`` runs.
 
 Seeds, episode draw, agent and loop are the trial runner's (the ``foraging`` grid-arena domain of
-:mod:`embodied_adhoc.experiments.foraging` and :func:`~embodied_adhoc.experiments.episode.run_episode_loop`), so
+:mod:`embodied_adhoc.experiments.domains.foraging` and :func:`~embodied_adhoc.experiments.episode.run_episode_loop`), so
 ``run foraging --seed S`` replays episode 0 of ``trials foraging --backend mujoco --seed S`` for the same agent
 (same ``--team``/``--task``/``--library``). The default agent is ATLPO-MF (thesis chapter 6) with the library
 shipped in the package: its observations are the egocentric arrays the arena computes from the robots' physical
@@ -55,7 +55,7 @@ class ForagingEpisodeConfig(ArenaVideoConfig):
             "pairs": False,
         }
         if self.library is not None:
-            from embodied_adhoc.experiments.foraging import library_folder
+            from embodied_adhoc.experiments.domains.foraging import library_folder
 
             options["library"] = library_folder("foraging", self.library)
         return options
@@ -179,7 +179,7 @@ def run_foraging_episode(
     import gymnasium
 
     from embodied_adhoc.experiments import seeding
-    from embodied_adhoc.experiments.foraging import DOMAIN
+    from embodied_adhoc.experiments.domains.foraging import DOMAIN
     from embodied_adhoc.experiments.registry import agent_plugin, build_agent
     from embodied_adhoc.experiments.stats import identify_step
     from embodied_adhoc.record.metrics import EpisodeMetrics

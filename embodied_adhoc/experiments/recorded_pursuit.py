@@ -1,7 +1,8 @@
 """One recorded Fig. 7.12 pursuit episode on physics: what ``embodied-adhoc run pursuit`` runs.
 
 Seeds, episode draw, agent and loop are the trial runner's (the ``pursuit --pairs`` POMDP domain of
-:mod:`embodied_adhoc.experiments.pursuit_pairs` and :func:`~embodied_adhoc.experiments.episode.run_episode_loop`),
+:mod:`embodied_adhoc.experiments.domains.pursuit_pairs` and
+:func:`~embodied_adhoc.experiments.episode.run_episode_loop`),
 so ``run pursuit --seed S`` replays episode 0 of ``trials pursuit --pairs --backend mujoco --seed S`` for the same
 agent. With ``record_dir`` it writes ``episode.mp4`` (overhead view with step, action, observation and task
 posterior), ``episode.rrd`` (robot poses, posterior bars, entropy, observations, actions, overhead frames) and
@@ -144,7 +145,7 @@ def run_pursuit_episode(
     import gymnasium
 
     from embodied_adhoc.experiments import seeding
-    from embodied_adhoc.experiments.pursuit_pairs import (
+    from embodied_adhoc.experiments.domains.pursuit_pairs import (
         ENV_IDS,
         POMDP_AGENTS,
         PursuitPairsSession,

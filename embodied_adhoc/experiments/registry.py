@@ -11,7 +11,7 @@ Plugging a domain in
 Register it by name with an import string (so that importing the registry, and ``embodied-adhoc --help``, imports
 nothing heavy)::
 
-    register_trial_domain("foraging", "embodied_adhoc.experiments.foraging:DOMAIN")
+    register_trial_domain("foraging", "embodied_adhoc.experiments.domains.foraging:DOMAIN")
 
 The object behind the string implements :class:`TrialDomain`; its module must import only light modules
 (argparse, dataclasses, numpy) at top level, because the CLI imports it to build ``trials <domain> --help``.
@@ -194,10 +194,10 @@ def get_trial_domain(name: str) -> TrialDomain:
 
 
 # Built-in domains. Other areas append theirs here (one line each) or call register_trial_domain at import.
-register_trial_domain("toxic-waste", "embodied_adhoc.experiments.toxic_waste:DOMAIN")
-register_trial_domain("foraging", "embodied_adhoc.experiments.foraging:DOMAIN")
-register_trial_domain("pursuit", "embodied_adhoc.experiments.pursuit:DOMAIN")
-register_trial_domain("pursuit4", "embodied_adhoc.experiments.teamster_trials:DOMAIN")  # chapter 4
+register_trial_domain("toxic-waste", "embodied_adhoc.experiments.domains.toxic_waste:DOMAIN")
+register_trial_domain("foraging", "embodied_adhoc.experiments.domains.foraging:DOMAIN")
+register_trial_domain("pursuit", "embodied_adhoc.experiments.domains.pursuit:DOMAIN")
+register_trial_domain("pursuit4", "embodied_adhoc.experiments.domains.teamster_trials:DOMAIN")  # chapter 4
 # Chapter 5: one plug-in per library of embodied_adhoc.domains.chapter5
 for _name in (
     "panic-buttons",
@@ -214,4 +214,6 @@ for _name in (
     "overcooked",
     "map",
 ):
-    register_trial_domain(_name, f"embodied_adhoc.experiments.chapter5:DOMAIN_{_name.replace('-', '_')}")
+    register_trial_domain(
+        _name, f"embodied_adhoc.experiments.domains.chapter5:DOMAIN_{_name.replace('-', '_')}"
+    )

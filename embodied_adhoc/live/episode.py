@@ -63,8 +63,8 @@ def open_realtime_episode(
         stop=stop,
         **setup.env_kwargs,
     )
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.experiments.registry import build_agent
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
     agent = build_agent(
         DOMAIN, setup.session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)

@@ -167,8 +167,8 @@ def load_plan(path: Path) -> StudyPlan:
             )
         # a plug-in: an unknown name or an unimportable module stops here, before any work
         if agent not in AGENTS:
+            from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
             from embodied_adhoc.experiments.registry import agent_plugin
-            from embodied_adhoc.experiments.toxic_waste import DOMAIN
 
             agent_plugin(DOMAIN, agent, f"{name}.agent")
         seed = checks.integer(f"{name}.seed", episode.get("seed", 0), 0, 2**31 - 1)

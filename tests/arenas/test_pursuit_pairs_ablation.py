@@ -10,7 +10,7 @@ import pytest
 from embodied_adhoc.domains.chapter5.pursuit import build_pursuit, wrap_offsets
 from embodied_adhoc.envs.pursuit_pomdp import pursuit_pair_library
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.pursuit_pairs_ablation import (
+from embodied_adhoc.experiments.domains.pursuit_pairs_ablation import (
     ablation_steps,
     original_library,
     with_locate,
@@ -98,7 +98,11 @@ def test_locate_reads_the_teammate_direction_at_any_distance():
 
 
 def test_thesis_numbers_convert_to_our_step_count():
-    from embodied_adhoc.experiments.pursuit_pairs import THESIS_FIG_7_12, THESIS_TRIALS, thesis_in_our_count
+    from embodied_adhoc.experiments.domains.pursuit_pairs import (
+        THESIS_FIG_7_12,
+        THESIS_TRIALS,
+        thesis_in_our_count,
+    )
 
     assert thesis_in_our_count("oracle") == pytest.approx(THESIS_FIG_7_12["oracle"][0] - 1.0)
     # random: 9 of the 32 trials hit the cap and count the same either way

@@ -11,7 +11,7 @@ import importlib.metadata
 
 import pytest
 
-from embodied_adhoc.experiments.chapter5 import forget_sessions, sweep_config
+from embodied_adhoc.experiments.domains.chapter5 import forget_sessions, sweep_config
 from embodied_adhoc.experiments.runner import run_sweep
 
 try:

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from embodied_adhoc.domains.chapter5 import build_library
-from embodied_adhoc.experiments.chapter5 import CHAPTER5_AGENTS
+from embodied_adhoc.experiments.domains.chapter5 import CHAPTER5_AGENTS
 from embodied_adhoc.experiments.policy_cache import cache_dir, solve_cached
 from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
 
@@ -243,7 +243,7 @@ def test_a_stage_budget_gives_the_same_policy_on_any_load(tmp_path, monkeypatch)
     import time
 
     from embodied_adhoc.decision.perseus import PerseusConfig, perseus
-    from embodied_adhoc.experiments.chapter5 import SOLVE_STAGES, solver_settings
+    from embodied_adhoc.experiments.domains.chapter5 import SOLVE_STAGES, solver_settings
 
     library = build_library("gridworld", n_models=1)
     settings = solver_settings(library, {"beliefs": 100, "solve_stages": 8})
@@ -335,7 +335,7 @@ def test_a_blind_perseus_policy_is_refused_and_not_cached(private_cache, monkeyp
     from embodied_adhoc.decision.policy import AlphaVectorPolicy, SolverStats
     from embodied_adhoc.errors import ConfigError
     from embodied_adhoc.experiments import policy_cache
-    from embodied_adhoc.experiments.chapter5 import Chapter5Session
+    from embodied_adhoc.experiments.domains.chapter5 import Chapter5Session
 
     solved = []
 

@@ -11,11 +11,11 @@ from fake_trial_domain import GuessDomain, Session
 
 from embodied_adhoc.cli import main
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN as TOXIC
+from embodied_adhoc.experiments.domains.toxic_waste import ToxicWasteSession
 from embodied_adhoc.experiments.registry import register_trial_domain
 from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
 from embodied_adhoc.experiments.summary import extras_table, summary_json
-from embodied_adhoc.experiments.toxic_waste import DOMAIN as TOXIC
-from embodied_adhoc.experiments.toxic_waste import ToxicWasteSession
 
 COLUMNS = ("fault_wrong_actions", "fault_wander_m", "cap_reason")
 

@@ -180,7 +180,7 @@ def test_cli_map_edited_in_place_is_one_line_exit_2_and_new_run_starts_a_sibling
 def test_toxic_waste_confusion_file_edited_in_place_is_refused(tmp_path):
     import json
 
-    from embodied_adhoc.experiments.toxic_waste import DOMAIN
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
     from embodied_adhoc.paths import asset
 
     matrix = tmp_path / "confusion.json"

@@ -12,7 +12,7 @@ import pytest
 
 import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 from embodied_adhoc.envs.toxic_waste import FAULT_COUNTS
-from embodied_adhoc.experiments.toxic_waste import cap_reason
+from embodied_adhoc.experiments.domains.toxic_waste import cap_reason
 from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig
 from embodied_adhoc.sim.odometry import OdometryConfig, WheelOdometry
 

@@ -9,7 +9,7 @@ import torch
 from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.domains.pursuit4 import TEAMS, Pursuit4
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, run_trial
+from embodied_adhoc.experiments.domains.teamster_protocol import ProtocolConfig, run_trial
 from embodied_adhoc.learning.blocks import NumpyMlp
 from embodied_adhoc.learning.dqn import Dqn
 from embodied_adhoc.learning.teamster import Features, LearnedEnvironment, LearnedTeam
@@ -158,7 +158,7 @@ def test_protocol_interaction_runs_the_rules_through_the_episode_loop():
     each capture, drawn when needed)."""
     from embodied_adhoc.decision.agents.teamwork import OriginalTeammate
     from embodied_adhoc.domains.pursuit4 import ExactTeam
-    from embodied_adhoc.experiments.teamster_protocol import play
+    from embodied_adhoc.experiments.domains.teamster_protocol import play
 
     team = ExactTeam(WORLD, "teammate-aware")
     agent = OriginalTeammate({"teammate-aware": team.seat})

@@ -16,7 +16,7 @@ from embodied_adhoc.domains.chapter5.grid_maps import load_map
 from embodied_adhoc.domains.navigation4 import TEAMS, Navigation4
 from embodied_adhoc.domains.pursuit4 import ExactEnvironment, ExactTeam
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.teamster_protocol import ProtocolConfig, run_trial
+from embodied_adhoc.experiments.domains.teamster_protocol import ProtocolConfig, run_trial
 from embodied_adhoc.learning.teamster import LearnedEnvironment, LearnedTeam
 from embodied_adhoc.learning.teamster_navigation import NavigationFeatures
 

@@ -73,7 +73,7 @@ def test_out_resumes_and_json_summary(tmp_path, capsys):
 
 
 def test_changed_environment_table_tests_agents_on_their_trials_after_learning_began(tmp_path):
-    from embodied_adhoc.experiments.teamster import changed_table, plot_changed, summarise
+    from embodied_adhoc.experiments.domains.teamster import changed_table, plot_changed, summarise
 
     config = {"eval_steps": 50, "steps": 100, "points": 2}
     curves = {"teammate-aware": [[0, 1], [50, 2], [100, 3]]}

@@ -10,7 +10,7 @@ generator's ``toroidal_check`` (HOTSPOT platform, ``backend/environments/pursuit
 ``size // 2 < |d| < size`` to ``-d - size // 2`` (d < 0) or ``size // 2 - d`` (d > 0): on the 5 x 5 torus +3
 becomes -1 and +4 becomes -2 instead of -2 and -1, so a teammate or prey crossing the edge lands one cell closer
 than it is and the capture test accepts teammates two cells away (Fig. 7.12's ablation,
-:mod:`embodied_adhoc.experiments.pursuit_pairs_ablation`).
+:mod:`embodied_adhoc.experiments.domains.pursuit_pairs_ablation`).
 
 Tasks: the capture pairs of :func:`~embodied_adhoc.domains.grid_rules.pair_tasks` (N+S, W+E, SW+NE, NW+SE,
 positions interchangeable). A state whose two predators sit on the task's two cells around the prey is a goal

@@ -29,7 +29,7 @@ import argparse
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.foraging import GridTrialDomain
+from embodied_adhoc.experiments.domains.foraging import GridTrialDomain
 
 __all__ = [
     "DOMAIN",
@@ -59,7 +59,8 @@ THESIS_FIG_7_12 = {  # Fig. 7.12, 32 trials, cap 150: (mean, population sd, tria
 """The thesis's Fig. 7.12: exactly the original experiment's four result files (population sds). The original's
 known-task agent is TEBOPA given the true task's model alone, i.e. ``known-task`` here. The original counts the step
 taken from the capture state (its reward ``R(x, a)`` is paid there); ours stops on entering it, so for a captured
-trial its steps are ours + 1 (:func:`thesis_in_our_count`; :mod:`embodied_adhoc.experiments.pursuit_pairs_ablation`)."""
+trial its steps are ours + 1 (:func:`thesis_in_our_count`;
+:mod:`embodied_adhoc.experiments.domains.pursuit_pairs_ablation`)."""
 THESIS_TRIALS = 32
 
 

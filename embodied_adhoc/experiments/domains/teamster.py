@@ -1,4 +1,4 @@
-"""Summaries of the chapter-4 sequential-teams protocol (records of ``experiments/teamster_protocol.py``): per
+"""Summaries of the chapter-4 sequential-teams protocol (records of ``experiments/domains/teamster_protocol.py``): per
 agent and team the accumulated reward (prey captures on pursuit; the mean episode reward on the navigation
 maps, Tables 4.5-4.7) at each evaluation point with percentile-bootstrap CIs over
 trials, the after-learning matrix of Table 4.4, the changed-environment curve, captures per 500 steps, the

@@ -195,7 +195,7 @@ class Chapter5Domain:
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         from embodied_adhoc.checks import bounded, positive_int
-        from embodied_adhoc.domains.chapter5.options import add_library_arguments
+        from embodied_adhoc.experiments.domains.chapter5_options import add_library_arguments
         from embodied_adhoc.experiments.policy_cache import cache_dir
 
         add_library_arguments(parser, self.name)
@@ -240,7 +240,7 @@ class Chapter5Domain:
         parser.set_defaults(max_steps=TABLE_5_2_HORIZON[self.name])
 
     def options_from_args(self, args: argparse.Namespace) -> dict:
-        from embodied_adhoc.domains.chapter5.options import library_options
+        from embodied_adhoc.experiments.domains.chapter5_options import library_options
 
         if args.beliefs is not None and args.beliefs < 1:
             raise ConfigError(f"--beliefs must be >= 1, got {args.beliefs}")
@@ -321,7 +321,7 @@ def domain(name: str) -> Chapter5Domain:
 
 
 def __getattr__(attribute: str):
-    """``embodied_adhoc.experiments.chapter5:DOMAIN_<name>`` import strings for the registry."""
+    """``embodied_adhoc.experiments.domains.chapter5:DOMAIN_<name>`` import strings for the registry."""
     if attribute.startswith("DOMAIN_"):
         name = attribute[len("DOMAIN_") :].replace("_", "-")
         if name in _DESCRIPTIONS:

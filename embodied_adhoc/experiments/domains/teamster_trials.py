@@ -75,7 +75,7 @@ class Pursuit4Session:
         key = (name, int(self.options["learn_steps"]), int(self.options["learn_seed"]))
         if key not in _LEARNED:
             from embodied_adhoc.domains.pursuit4 import ExactTeam, Pursuit4
-            from embodied_adhoc.experiments.teamster_protocol import play
+            from embodied_adhoc.experiments.domains.teamster_protocol import play
             from embodied_adhoc.learning.blocks import one_thread
             from embodied_adhoc.learning.teamster_agents import build_agent
 
