@@ -1,4 +1,4 @@
-"""Fault sweep of the physics lab (issue 17): HOTSPOT in ``EmbodiedAdhoc/ToxicWaste-v0`` under sensor and actuator
+"""Fault sweep of the physics lab: HOTSPOT in ``EmbodiedAdhoc/ToxicWaste-v0`` under sensor and actuator
 faults, with the lidar Monte Carlo localiser on and off (wheel odometry alone), same seeds; and the localiser's
 cost per control step against the physics step, measured in the same run.
 

@@ -1,4 +1,4 @@
-"""Benchmark and odometry report of the MuJoCo lab (issue 4).
+"""Benchmark and odometry report of the MuJoCo lab.
 
 Prints, all measured in this run on this machine:
   1. real-time factor of LabWorld tours (simulated seconds per second of this process's CPU time, headless,

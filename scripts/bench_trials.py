@@ -1,5 +1,5 @@
-"""Benchmark of the trial runner on the abstract toxic-waste lab (issue 3's speed target: 32 trials x 4 agents,
-model building and solving included, in under 10 s on the 2-core development machine).
+"""Benchmark of the trial runner on the abstract toxic-waste lab against its speed target: 32 trials x 4 agents,
+model building and solving included, in under 10 s on a 2-core machine.
 
 Measures, in one run:
 

@@ -69,10 +69,9 @@ def softmax(logits: np.ndarray) -> np.ndarray:
 
 
 def one_thread() -> None:
-    """Run torch on one thread. The chapter-4 networks are small (batches of 32-160 rows): on the shared 2-core
-    machine under load, torch's default thread pool made an Adam step of the TEAMSTER networks about 0.25 s of
-    CPU instead of about 1.5 ms (cProfile of 40 learning steps of a seated agent: 13.5 CPU s, 2.5 s on one
-    thread)."""
+    """Run torch on one thread. The chapter-4 networks are small (batches of 32-160 rows): splitting such a
+    product over torch's default thread pool costs more in synchronisation than it saves, and on a machine whose
+    cores are busy with other processes the pool's threads spin against them."""
     torch.set_num_threads(1)
 
 

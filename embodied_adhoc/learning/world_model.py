@@ -44,7 +44,7 @@ class WorldModelTraining:
         1e-3  # PPO's rate for the actor and critic on the latents (the thesis: 0.001)
     )
     # world-model minibatches on the replay, refilled with the policy's transitions, after each PPO update; 0:
-    # the encoder stays the one pre-trained on random replay (measured as good on LBF task 1, and 40 % cheaper)
+    # the encoder stays the one pre-trained on random replay (as good on LBF task 1, and cheaper to train)
     updates_per_rollout: int = 0
     head_hidden: int = (
         64  # the actor's and critic's hidden width on the latents (the thesis: MLPs); 0: linear

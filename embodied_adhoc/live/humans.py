@@ -1,6 +1,6 @@
 """Who moves the human in the real-time lab (``live.realtime.RealtimeToxicWasteEnv``), tick by tick.
 
-* :class:`ScriptedHuman` — the lab's scripted cleaner (``domains.lab_human.LabHuman``), now asynchronous: it
+* :class:`ScriptedHuman` — the lab's scripted cleaner (``domains.lab_human.LabHuman``), run asynchronously: it
   decides its next command whenever the previous one is done (a "stay" lasts ``pause`` seconds), from the true
   state at that moment, by the model's one transition rule (``domains.lab.apply_step``) with the robot's current
   macro action, and answers "Where are you?" at once through the env's speech channel.

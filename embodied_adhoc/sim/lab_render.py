@@ -90,8 +90,8 @@ class LabRenderer:
         return renderer.render()
 
     def prepare(self, width: int, height: int, high: bool) -> mujoco.Renderer:
-        """The renderer for frames of this size and quality, made now if it is new (its GL context: ~0.1-0.3 s
-        with software EGL)."""
+        """The renderer for frames of this size and quality, made now if it is new (making its GL context is
+        slow with software EGL, so each size and quality gets one, kept for later frames)."""
         renderer = self._renderers.get((width, height, high))
         if renderer is None:
             renderer = self._make_renderer(width, height, high)
@@ -108,11 +108,11 @@ class LabRenderer:
         """An offscreen renderer whose framebuffer is exactly ``width`` x ``height``; "fast" quality also drops
         multisample anti-aliasing and tessellates round shapes more coarsely. MuJoCo sizes the framebuffer from
         ``<global offwidth offheight>`` and ``<quality offsamples>`` (1920x1536 and 4 samples in
-        ``scenes/lab.xml``, for stills) when the context is made; with software EGL clearing and resolving that
-        buffer dominated a small frame (4x the CPU per 640x512 frame, ``scripts/bench_sim.py``). Spheres,
-        capsules and cylinders are drawn with ``FAST_TESSELLATION`` (slices, stacks, quads per plane side)
-        instead of the scene's 28/16/4: at the overhead camera's scale (a ball is ~10 px) it looks the same and
-        software rendering costs ~40 % less a frame. The model's values are restored right after."""
+        ``scenes/lab.xml``, for stills) when the context is made; with software EGL, clearing and resolving that
+        buffer would dominate the cost of a small frame. Spheres, capsules and cylinders are drawn with
+        ``FAST_TESSELLATION`` (slices, stacks, quads per plane side) instead of the scene's 28/16/4: at the
+        overhead camera's scale (a ball is ~10 px) it looks the same and software rendering has fewer triangles
+        to draw. The model's values are restored right after."""
         visual = self.model.vis
         settings = [(visual.global_, "offwidth", width), (visual.global_, "offheight", height)]
         if not high:
