@@ -47,7 +47,7 @@ class EpisodeConfig:
     max_steps: int = 100
     record_dir: Path | None = None
     # 10 frames per 4 simulated seconds: the robot moves ~20 cm a frame, each macro step's heads-up text stays
-    # ~2 s on screen, and recording costs at most ~3x the bare episode (scripts/bench_sim.py)
+    # ~2 s on screen, and recording costs a small multiple of the bare episode (scripts/bench_sim.py)
     video_fps: float = 10.0
     video_speed: float = 4.0  # simulated seconds per second of video (time-lapse keeps rendering affordable)
     video_hold: float = 1.0  # seconds of video that show the final state
@@ -179,7 +179,7 @@ class LabFrames:
     simulation thread takes (``LabWorld.snapshot_renderer``): a frame goes to ``video`` (with ``overlay`` lines,
     ``repeat`` times) and/or to ``rerun`` as ``camera/<name>`` at a given step and time. Frames are rendered in the
     order they were taken. The render thread makes its GL context as soon as it starts, not at the first frame
-    (``prepared`` is set then; making it holds the GIL for ~0.1-0.3 s with software EGL, once per recording). At
+    (``prepared`` is set then; making it holds the GIL, which is slow with software EGL, once per recording). At
     most ``max_queued`` snapshots wait (an ``MjData`` copy each, ~40 kB for the lab; the simulation waits only when
     rendering falls that far behind). :meth:`close` renders what is queued and releases the GL context (the
     recorders are closed after it)."""

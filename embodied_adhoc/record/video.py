@@ -70,10 +70,9 @@ class VideoWriter:
             quality=None,
             macro_block_size=1,
             ffmpeg_log_level="error",
-            # x264's "ultrafast" preset on one thread at constant quality ``crf``: ffmpeg's CPU per 640x512 lab
-            # frame 1.95 ms instead of 2.48 ms with "veryfast" (of which ~1.1 ms are the pipe and the RGB to
-            # YUV conversion; one loaded run of 133 frames), for files ~2.5x larger (1.6 kB a frame at crf 20).
-            # One encoder thread: on a busy machine more threads only add synchronisation.
+            # x264's "ultrafast" preset on one thread at constant quality ``crf``: the least CPU per lab frame,
+            # for files a few times larger than the slower presets give. One encoder thread: on a busy machine
+            # more threads only add synchronisation.
             output_params=["-preset", "ultrafast", "-crf", str(crf), "-x264-params", "threads=1"],
         )
         self._writer.send(None)  # start the ffmpeg process
