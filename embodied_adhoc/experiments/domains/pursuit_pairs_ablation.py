@@ -16,7 +16,7 @@ The thesis's Fig. 7.12 numbers are exactly the four result files of the original
   ``wrap="original"``, :func:`~embodied_adhoc.domains.chapter5.pursuit.wrap_offsets`), so the wrap is the only
   model difference (:func:`original_library`).
 * **tasks** 2: the original built ``pomdps = [... for i in range(2)]``: the library and the draws are N+S and W+E
-  only (the issue, and our figure, use all four).
+  only (our figure uses all four).
 * **count**: the original stops when the reward 1 arrives, and its reward ``R(x, a)`` is paid in the step taken
   *from* the capture state, so its steps are ours + 1. The ablation runs on the chapter-5 ``LibraryEnv`` (episode
   over on entering the absorbing state), which counts the original's way; our Fig. 7.12 env ends on entering the
