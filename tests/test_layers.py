@@ -191,3 +191,56 @@ def test_the_checker_sees_hidden_imports(relative, source, expected):
 def test_the_checker_accepts_allowed_imports():
     source = "from embodied_adhoc.domains.lab import x\ndef f():\n    from embodied_adhoc.errors import ConfigError\n"
     assert violations(source, PACKAGE_ROOT / "teammates" / "x.py") == []
+
+
+def envs_and_agents(source: str, path: Path) -> list[str]:
+    """Classes in ``source`` that are an env (Gymnasium's ``reset`` and ``step``, or an ``*Env`` base) or an agent
+    (``act``, or an ``*Agent``/``AgentBase`` base): ``experiments/`` runs them and defines neither."""
+    found = []
+    for node in ast.walk(ast.parse(source, filename=str(path))):
+        if not isinstance(node, ast.ClassDef):
+            continue
+        methods = {
+            item.name for item in node.body if isinstance(item, ast.FunctionDef | ast.AsyncFunctionDef)
+        }
+        bases = [ast.unparse(base).rpartition(".")[2] for base in node.bases]
+        where = f"{path.relative_to(PACKAGE_ROOT.parent)}:{node.lineno}"
+        if {"reset", "step"} <= methods or any(base.endswith("Env") for base in bases):
+            found.append(f"{where}: class {node.name} is an env (its home is envs/)")
+        elif "act" in methods or any(base.endswith("Agent") or base == "AgentBase" for base in bases):
+            found.append(
+                f"{where}: class {node.name} is an agent (its home is decision/agents/ or learning/)"
+            )
+    return found
+
+
+def test_experiments_define_no_env_and_no_agent():
+    problems = [
+        problem
+        for path in sorted((PACKAGE_ROOT / "experiments").rglob("*.py"))
+        for problem in envs_and_agents(path.read_text(), path)
+    ]
+    assert not problems, "\n".join(problems)
+
+
+@pytest.mark.parametrize(
+    ("source", "expected"),
+    [
+        ("class W:\n    def reset(self): ...\n    def step(self, a): ...\n", "is an env"),
+        ("class W(gymnasium.Env):\n    pass\n", "is an env"),
+        ("class A(AgentBase):\n    pass\n", "is an agent"),
+        ("class A:\n    def act(self): ...\n", "is an agent"),
+        ("def f():\n    class A(base.RandomAgent):\n        pass\n", "is an agent"),
+    ],
+)
+def test_the_checker_sees_envs_and_agents(source, expected):
+    problems = envs_and_agents(source, PACKAGE_ROOT / "experiments" / "x.py")
+    assert len(problems) == 1 and expected in problems[0], problems
+
+
+def test_the_checker_lets_sessions_and_observers_be():
+    source = (
+        "class Session:\n    def make_env(self): ...\n    def make_agent(self): ...\n    def reset_options(self): ...\n"
+        "class Observer(EpisodeObserver):\n    def step_finished(self): ...\n"
+    )
+    assert envs_and_agents(source, PACKAGE_ROOT / "experiments" / "x.py") == []

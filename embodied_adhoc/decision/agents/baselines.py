@@ -1,4 +1,5 @@
-"""Reference agents: ``oracle`` (sees the state, knows the task), ``random`` and ``random-picker`` (chapter 5).
+"""Reference agents: ``oracle`` (sees the state, knows the task), ``random``, ``random-picker`` (chapter 5) and
+:class:`StatePolicyAgent` (a given policy of the true state, e.g. the team's own policy in the robot's seat).
 
 The third baseline, ``known-task`` (optimal under partial observability), is TEBOPA given the true task: a
 :class:`~embodied_adhoc.decision.agents.hotspot.HotspotAgent` whose prior is one-hot on it (see ``factory``).
@@ -12,7 +13,7 @@ from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import pick_best
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["OracleAgent", "RandomAgent", "RandomPickerAgent"]
+__all__ = ["OracleAgent", "RandomAgent", "RandomPickerAgent", "StatePolicyAgent"]
 
 
 class OracleAgent(AgentBase):
@@ -101,3 +102,25 @@ class RandomPickerAgent(AgentBase):
     @property
     def task_posterior(self):
         return None  # it keeps no posterior of its own: the picked model is not an inference
+
+
+class StatePolicyAgent(AgentBase):
+    """Acts by ``policy(state, rng) -> action`` on the true state (privileged: ``observes_state``), the state as
+    the env's privileged channel gives it. The grid arenas' ``original`` agent is one: the team's own policy in
+    the ad hoc robot's seat (thesis section 6.2.4), which knows the task and the team."""
+
+    observes_state = True
+    task_posterior = None
+
+    def __init__(self, policy, name: str) -> None:
+        self.policy, self.name = policy, name
+        self.rng, self.state = np.random.default_rng(0), None
+
+    def reset(self, rng: np.random.Generator, state=None) -> None:
+        self.rng, self.state = rng, state
+
+    def act(self) -> int:
+        return int(self.policy(self.state, self.rng))
+
+    def observe(self, action: int, observation, state=None) -> None:
+        self.state = state

@@ -16,13 +16,13 @@ have no finite observation library).
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import zlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.errors import ConfigError
 
 ENV_IDS = {
@@ -35,29 +35,16 @@ ENV_IDS = {
 }
 
 
-class OriginalTeammateAgent(AgentBase):
-    """The team's own policy in the ad hoc robot's seat (thesis section 6.2.4): knows task and team and sees
-    the full state (``info['state']``), hence ``observes_state``."""
+def original_action(rules, task, team_spec, state: dict, rng: np.random.Generator) -> int:
+    """The team's own action for the ad hoc robot's seat in ``state`` (``info['state']``'s form): the
+    ``original`` agent's policy (a :class:`~embodied_adhoc.decision.agents.baselines.StatePolicyAgent`)."""
+    from embodied_adhoc.domains.grid_rules_team import TeamSpec, team_actions
+    from embodied_adhoc.envs.grid_world_env import state_from_dict
 
-    name, observes_state, task_posterior = "original", True, None
-
-    def __init__(self, rules, task, team_spec) -> None:
-        self.rules, self.task, self.team_spec = rules, task, team_spec
-
-    def reset(self, rng: np.random.Generator, state=None) -> None:
-        self.rng, self.state = rng, state
-
-    def act(self) -> int:
-        from embodied_adhoc.domains.grid_rules_team import TeamSpec, team_actions
-        from embodied_adhoc.envs.grid_world_env import state_from_dict
-
-        state = state_from_dict(self.state, self.rules)
-        if not isinstance(self.team_spec, TeamSpec):  # a user's team policy (teammates.grid_plugins)
-            return int(self.team_spec.actions(state, self.task, self.rng, [0])[0])
-        return int(team_actions(self.rules, state, self.task, self.team_spec, self.rng, [0])[0])
-
-    def observe(self, action: int, observation: int, state=None) -> None:
-        self.state = state
+    grid_state = state_from_dict(state, rules)
+    if not isinstance(team_spec, TeamSpec):  # a user's team policy (teammates.grid_plugins)
+        return int(team_spec.actions(grid_state, task, rng, [0])[0])
+    return int(team_actions(rules, grid_state, task, team_spec, rng, [0])[0])
 
 
 @dataclass(frozen=True)
@@ -104,7 +91,10 @@ class GridTrialSession:
 
             return RandomAgent(5, name=name)
         if name == "original":
-            return OriginalTeammateAgent(self.rules, self.tasks[int(spec["task"])], self.teams[spec["team"]])
+            from embodied_adhoc.decision.agents.baselines import StatePolicyAgent
+
+            task, team = self.tasks[int(spec["task"])], self.teams[spec["team"]]
+            return StatePolicyAgent(functools.partial(original_action, self.rules, task, team), name=name)
         if name == "atlpo-mf":
             from embodied_adhoc.learning.atlpo import library_agent
 
