@@ -9,17 +9,20 @@ from __future__ import annotations
 
 import re
 
-NODE_NAMES: tuple[str, ...] = ("door", "open space", "robot station", "single workbench", "double workbench")
-"""Canonical name of each node, indexed by node id (the same order as a confusion matrix's rows)."""
+from embodied_adhoc.domains.lab_facts import NODE_NAMES
 
-PLACE_SYNONYMS: tuple[tuple[str, ...], ...] = (
-    ("door", "entrance", "exit"),
-    ("open space", "middle of the room", "centre"),
-    ("robot station", "charging station", "docking station"),
-    ("single workbench", "small workbench", "single bench"),
-    ("double workbench", "big workbench", "double bench"),
+_OTHER_WORDS: tuple[tuple[str, ...], ...] = (
+    ("entrance", "exit"),
+    ("middle of the room", "centre"),
+    ("charging station", "docking station"),
+    ("small workbench", "single bench"),
+    ("big workbench", "double bench"),
 )
-"""The place expressions (named entities) of each node; the first one is the canonical name."""
+PLACE_SYNONYMS: tuple[tuple[str, ...], ...] = tuple(
+    (name, *others) for name, others in zip(NODE_NAMES, _OTHER_WORDS, strict=True)
+)
+"""The place expressions (named entities) of each node; the first one is the canonical name
+(``domains.lab_facts.NODE_NAMES``)."""
 
 PLACE_TO_NODE: dict[str, int] = {
     place: node for node, places in enumerate(PLACE_SYNONYMS) for place in places

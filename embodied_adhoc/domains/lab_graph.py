@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from embodied_adhoc import checks
+from embodied_adhoc.domains.lab_facts import EDGES, N_AREAS, NODE_NAMES
 from embodied_adhoc.errors import ConfigError
 
 __all__ = [
@@ -34,11 +35,12 @@ GROUND, HELD, DISPOSED = 0, 1, 2
 
 @dataclass(frozen=True)
 class LabGraph:
-    """An undirected connected graph of ``n_nodes`` areas with ``edges`` (pairs of node indices) and ``names``."""
+    """An undirected connected graph of ``n_nodes`` areas with ``edges`` (pairs of node indices) and ``names``;
+    the default is the lab's map (:mod:`embodied_adhoc.domains.lab_facts`)."""
 
-    n_nodes: int = 5
-    edges: tuple[tuple[int, int], ...] = ((0, 1), (1, 2), (1, 3), (3, 4))
-    names: tuple[str, ...] = ("door", "open space", "robot station", "single workbench", "double workbench")
+    n_nodes: int = N_AREAS
+    edges: tuple[tuple[int, int], ...] = EDGES
+    names: tuple[str, ...] = NODE_NAMES
     neighbours: tuple[tuple[int, ...], ...] = field(init=False, repr=False, compare=False)
     distances: np.ndarray = field(init=False, repr=False, compare=False)
     max_degree: int = field(init=False, repr=False, compare=False)

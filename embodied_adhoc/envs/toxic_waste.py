@@ -16,7 +16,7 @@ from embodied_adhoc.domains.lab import (
     apply_step,
     library_from_config,
 )
-from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND, HELD
+from embodied_adhoc.domains.lab_graph import DEFAULT_GRAPH, DISPOSED, GROUND, HELD
 from embodied_adhoc.domains.lab_human import HumanOutcome
 from embodied_adhoc.envs import contract
 from embodied_adhoc.envs.toxic_waste_speech import SPEECH_KINDS, SpeechTurn, make_speech
@@ -181,6 +181,11 @@ class ToxicWasteEnv(gymnasium.Env):
         self.render_mode = contract.render_mode(render_mode)
         speech = checks.choice("speech", speech, SPEECH_KINDS)
         config = LabConfig.from_kwargs(type(self).__name__, lab)
+        if config.graph != DEFAULT_GRAPH:  # the arena is built from the lab's map (domains.lab_facts)
+            raise ConfigError(
+                f"{type(self).__name__}: graph= must be the MuJoCo lab's map (domains.lab_facts); a graph of "
+                "your own runs on EmbodiedAdhoc/ToxicWasteAbstract-v0"
+            )
         self.library = library_from_config(config)
         self._humans = lab_humans(self.library, human)  # the world's human; the agents' models keep theirs
         self.task = None if task is None else checks.integer("task", task, 0, self.library.n_tasks - 1)
@@ -216,13 +221,6 @@ class ToxicWasteEnv(gymnasium.Env):
             lidar_dropout=lidar_dropout,
         )
         self.layout = self.world.layout
-        if (
-            self.layout.edges != self.library.graph.edges
-            or len(self.layout.nodes) != self.library.graph.n_nodes
-        ):
-            raise ConfigError(
-                "the MuJoCo lab layout and the lab model's graph differ; they must be the same map"
-            )
         self.speech: SpeechTurn | None = (
             make_speech(speech, config.confusion) if config.communication else None
         )

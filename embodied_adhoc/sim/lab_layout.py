@@ -2,9 +2,10 @@
 
 The one place that says where the five areas of the toxic-waste lab are (thesis section 7.1, Fig. 7.4):
 0 door, 1 open space, 2 robot station, 3 single workbench, 4 double workbench, with passages (graph edges)
-0-1, 1-2, 1-3, 3-4. The waypoint controller, the odometry-to-node mapping, the human walker and recordings read
-it from here; ``scenes/lab.xml`` builds the walls and furniture at these coordinates (a test checks that every
-route keeps its clearance from every wall geom of the scene).
+0-1, 1-2, 1-3, 3-4; their names and the passages themselves come from :mod:`embodied_adhoc.domains.lab_facts`,
+which the abstract model's graph reads too. The waypoint controller, the odometry-to-node mapping, the human
+walker and recordings read the geometry from here; ``scenes/lab.xml`` builds the walls and furniture at these
+coordinates (a test checks that every route keeps its clearance from every wall geom of the scene).
 
 World frame: metres, x east, y north, origin at the centre of a 10 m x 8 m room (x in [-5, 5], y in [-4, 4]).
 Partition walls lie on the area borders; a passage is a 1.2 m gap in a partition.
@@ -18,12 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from embodied_adhoc.domains.lab_facts import EDGES, N_AREAS, NODE_NAMES
 from embodied_adhoc.errors import SceneError
 
 XY = tuple[float, float]
-
-NODE_NAMES = ("door", "open space", "robot station", "single workbench", "double workbench")
-EDGES = ((0, 1), (1, 2), (1, 3), (3, 4))
 
 
 @dataclass(frozen=True)
@@ -47,7 +46,7 @@ class LabLayout:
 
     Attributes:
         nodes: node ids 0..4 (index into ``node_names``).
-        edges: undirected passages between areas, same graph as the abstract lab model.
+        edges: undirected passages between areas (``domains.lab_facts.EDGES``, the abstract model's too).
         area_polygons: per node, a simple polygon (counter-clockwise xy vertices) covering that area.
         node_waypoints: per node, where the robot parks (area centre, clear of furniture and props).
         human_spots: per node, where the human stands while in that area.
@@ -59,7 +58,7 @@ class LabLayout:
         room_extent: (x_min, x_max, y_min, y_max) of the room interior.
     """
 
-    nodes: tuple[int, ...] = (0, 1, 2, 3, 4)
+    nodes: tuple[int, ...] = tuple(range(N_AREAS))
     node_names: tuple[str, ...] = NODE_NAMES
     edges: tuple[tuple[int, int], ...] = EDGES
     area_polygons: tuple[tuple[XY, ...], ...] = (
