@@ -23,7 +23,7 @@ from embodied_adhoc import __version__
 from embodied_adhoc.errors import EmbodiedAdhocError
 
 # Order = order in --help. A module listed here that is missing is a packaging bug, not a user error.
-COMMAND_MODULES = ("run", "trials", "envs", "pomdp", "speech", "render", "train", "live", "teamster")
+COMMAND_MODULES = ("run", "trials", "envs", "pomdp", "speech", "render", "train", "live", "teamster", "bench")
 
 
 class OneLineParser(argparse.ArgumentParser):

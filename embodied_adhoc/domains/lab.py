@@ -172,6 +172,8 @@ def apply_step(
         if robot_node == human_node and robot_action >= stay:  # stay or locate human: the hand-over
             status[status.index(HELD)] = DISPOSED
             disposed = True
+        elif human.dropped:  # a human that lets the ball fall: on the ground again, where it was picked up
+            status[status.index(HELD)] = GROUND
         return next_robot, human_node, tuple(status), disposed
     if human.picked_ball >= 0:
         status[human.picked_ball] = HELD

@@ -32,11 +32,14 @@ __all__ = ["HumanOutcome", "LabHuman"]
 
 @dataclass(frozen=True)
 class HumanOutcome:
-    """One possible result of the human's step: probability, the human's next node, the ball picked (-1: none)."""
+    """One possible result of the human's step: probability, the human's next node, the ball picked (-1: none),
+    and whether a human holding a ball drops it on the floor (it lies on the ground again, outside the container).
+    """
 
     probability: float
     next_node: int
     picked_ball: int = -1
+    dropped: bool = False
 
 
 @dataclass(frozen=True, eq=False)

@@ -115,7 +115,15 @@ class ToxicWasteAbstractEnv(gymnasium.Env):
 
     def _observe(self, action: int, disposed: bool):
         model = self.library.observation_model
-        index = model.sample_index(self.np_random, self._robot, self._human, disposed, action)
+        said, asked = self._human, action
+        answer = getattr(self._humans[self._task], "answer", None)
+        if answer is not None and action == model.locate_action:
+            # A human with an answer of its own (envs.lab_humans) says a node, or nothing: the speech channel then
+            # carries what was said, and no reply reads as a question never asked.
+            said = answer(self.np_random, self._human)
+            if said is None:
+                said, asked = self._human, self.library.stay_action
+        index = model.sample_index(self.np_random, self._robot, said, disposed, asked)
         info = {
             "state": self.library.states.fast_index(self._robot, self._human, self._status, disposed),
             "task": self._task,

@@ -1,0 +1,176 @@
+"""Per-member bounds of the benchmark: a random ego (lower) and the exact best response (upper), computed and cached.
+
+The world a member makes is a finite MDP for the ego once the member's policy is folded into the joint
+transitions (the lab: the human's step distribution through the lab's transition rule ``domains.lab.apply_step``;
+chapter 5: Fig. 5.2's reduction, ``domains.chapter5.teammates.world_with_teammate``). A trial's return is the
+undiscounted sum of rewards up to the trial cap ``H`` (the episode ends earlier in the absorbing state, whose
+reward is 0), so both bounds are exact finite-horizon values from the episode's start distribution:
+
+* ``best``: ``H`` backups of value iteration (``decision.value_iteration``, discount 1), the best response of an
+  ego that observes the state and knows the member: no agent does better in expectation;
+* ``random``: the same ``H`` steps evaluating the uniform ego.
+
+The normalised score of a return ``R`` is ``(R - random) / (best - random)``: 0 for the random ego and 1 for the
+best response by construction; a score above 1 is reported as it is. Bounds are cached as JSON under
+``$XDG_CACHE_HOME/embodied-adhoc/bench/``, keyed by the SHA-256 of the world's arrays, the start distribution, the
+horizon and this module's source, so a changed member, model or code never serves an old bound.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import scipy.sparse as sp
+
+from embodied_adhoc.errors import ConfigError
+
+__all__ = ["Bounds", "bounds_cache_dir", "member_bounds", "normalise", "world_mdps"]
+
+
+@dataclass(frozen=True)
+class Bounds:
+    """A member's expected returns: ``random`` (uniform ego) and ``best`` (exact best response)."""
+
+    random: float
+    best: float
+    horizon: int
+
+    @property
+    def span(self) -> float:
+        return self.best - self.random
+
+
+def normalise(returns, bounds: Bounds) -> np.ndarray:
+    """``(R - random) / (best - random)``; a member where the best response does no better than random has no
+    scale (refused: no score can be read off it)."""
+    if not bounds.span > 1e-9:
+        raise ConfigError(
+            f"a member whose best response ({bounds.best:.4g}) is no better than a random ego ({bounds.random:.4g}) "
+            "cannot normalise scores; drop it from the suite"
+        )
+    return (np.asarray(returns, dtype=np.float64) - bounds.random) / bounds.span
+
+
+def bounds_cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "embodied-adhoc" / "bench"
+
+
+# ----------------------------------------------------------------------------------------------- worlds
+
+
+def _lab_world(library, human, task: int) -> list[sp.csr_matrix]:
+    """Per robot action, ``P(x' | x, a)`` of task ``task`` with ``human`` (``policy_outcomes``) in the world."""
+    from embodied_adhoc.domains.lab import apply_step
+
+    outcomes_of = getattr(human, "policy_outcomes", None)
+    if outcomes_of is None:
+        raise ConfigError(
+            f"{type(human).__name__}: an exact best response needs the human's step distribution, "
+            "policy_outcomes(human_node, ball_status) -> [HumanOutcome, ...]; add it (see embodied_adhoc.bench)"
+        )
+    states, graph = library.states, library.graph
+    n_states, n_actions = library.n_states, library.n_actions
+    rows, cols, probs = ([[] for _ in range(n_actions)] for _ in range(3))
+    for s in range(n_states):
+        if not states.valid[task, s]:
+            for a in range(n_actions):
+                rows[a].append(s), cols[a].append(s), probs[a].append(1.0)
+            continue
+        robot, human_node, status, _ = states.describe(s)
+        outcomes = outcomes_of(human_node, status)
+        for a in range(n_actions):
+            for outcome in outcomes:
+                nr, nh, ns, disposed = apply_step(graph, robot, human_node, status, a, outcome)
+                target = states.fast_index(nr, nh, ns, disposed)
+                if target < 0:
+                    raise ConfigError(
+                        f"{type(human).__name__}: step from {states.names()[s]} leads outside the lab's states "
+                        f"(robot {nr}, human {nh}, balls {ns})"
+                    )
+                rows[a].append(s), cols[a].append(target), probs[a].append(outcome.probability)
+    return [
+        sp.csr_matrix((probs[a], (rows[a], cols[a])), shape=(n_states, n_states)) for a in range(n_actions)
+    ]
+
+
+def world_mdps(member, library) -> tuple[list, list[np.ndarray]]:
+    """``(mdps, starts)``: per task, the ego's undiscounted MDP with ``member`` (a ``TeammateSpec``) in the world and
+    the episode's start distribution over its states (the trial domain's draw: uniform over the tasks)."""
+    from embodied_adhoc.decision.models import MDP
+
+    mdps, starts = [], []
+    if member.domain == "toxic-waste":
+        factory = member.factory()
+        states = library.states
+        n = library.graph.n_nodes
+        ground = (0,) * len(library.tasks[0])
+        for task in range(library.n_tasks):
+            human = factory(library, task)
+            mdps.append(MDP(_lab_world(library, human, task), library.mdps[task].rewards, 1.0))
+            start = np.zeros(library.n_states)
+            for robot in range(n):
+                for human_node in range(n):
+                    start[states.fast_index(robot, human_node, ground, False)] += 1.0 / (n * n)
+            starts.append(start)
+        return mdps, starts
+    from embodied_adhoc.domains.chapter5.teammates import world_with_teammate
+
+    for m, world in enumerate(world_with_teammate(library, member.plugin)):
+        mdps.append(MDP(world.transitions, world.rewards, 1.0))
+        starts.append(np.asarray(library.pomdps[m].initial_belief, dtype=np.float64))
+    return mdps, starts
+
+
+# ----------------------------------------------------------------------------------------------- values
+
+
+def _random_values(mdp, horizon: int) -> np.ndarray:
+    """``H``-step values of the uniform ego."""
+    values = np.zeros(mdp.n_states)
+    for _ in range(horizon):
+        values = (mdp.rewards + mdp.expected_next_values(values)).mean(axis=1)
+    return values
+
+
+def _digest(mdps, starts, horizon: int) -> str:
+    digest = hashlib.sha256()
+    digest.update(Path(__file__).read_bytes())
+    digest.update(np.asarray([horizon, len(mdps)]).tobytes())
+    for mdp, start in zip(mdps, starts, strict=True):
+        for matrix in mdp.transitions:
+            for array in (matrix.indptr, matrix.indices, matrix.data):
+                digest.update(np.ascontiguousarray(array).tobytes())
+        digest.update(np.ascontiguousarray(mdp.rewards).tobytes())
+        digest.update(np.ascontiguousarray(start).tobytes())
+    return digest.hexdigest()
+
+
+def member_bounds(member, library, horizon: int, cache: bool = True) -> Bounds:
+    """The :class:`Bounds` of ``member`` (a ``TeammateSpec``) in ``library``'s domain at trial cap ``horizon``
+    (cached; see the module docstring)."""
+    from embodied_adhoc.atomic import atomic_write_text
+    from embodied_adhoc.decision.value_iteration import value_iteration
+
+    mdps, starts = world_mdps(member, library)
+    path = bounds_cache_dir() / f"{_digest(mdps, starts, horizon)}.json"
+    if cache and path.is_file():
+        try:
+            stored = json.loads(path.read_text())
+            return Bounds(float(stored["random"]), float(stored["best"]), int(stored["horizon"]))
+        except (ValueError, KeyError, TypeError):
+            pass  # a damaged entry is computed again and overwritten
+    best = random = 0.0
+    for mdp, start in zip(mdps, starts, strict=True):
+        best += float(start @ value_iteration(mdp, horizon=horizon).values) / len(mdps)
+        random += float(start @ _random_values(mdp, horizon)) / len(mdps)
+    bounds = Bounds(random, best, horizon)
+    if cache:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(path, json.dumps({"random": random, "best": best, "horizon": horizon}))
+    return bounds

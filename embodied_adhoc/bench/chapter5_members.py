@@ -1,0 +1,111 @@
+"""The chapter-5 domains' benchmark teammates: ``--teammate`` plug-ins (``domains.chapter5.teammates``).
+
+A member is ``factory(library, m)`` returning the teammate's policy ``pi(b | x)`` (S x B) in model ``m``'s task,
+built from its :class:`~embodied_adhoc.bench.populations.TeammateSpec` parameters (``family``):
+
+* ``named``: a teammate of the thesis: the library's own (``greedy``; pursuit's ``aware``) or ``optimal`` (the
+  MMDP's optimal marginal, ``domains.chapter5.library.optimal_teammate_policy``);
+* ``softmax``: softmax-rational over the task's Q-values, ``pi(b | x) ∝ exp(Q(x, b) / temperature)`` with
+  ``Q(x, b) = max_a Q*(x, (a, b))`` of the task's MMDP (the teammate expects the agent to play its part);
+* ``epsilon``: the ``base`` teammate, with probability ``epsilon`` a uniformly drawn action instead;
+* ``lazy``: the ``base`` teammate, with probability ``p`` the stay action instead;
+* ``goal-mix``: each step, with probability ``other`` the ``base`` teammate of the next task's goal (model
+  ``(m + 1) mod M``), else its own: a teammate the library does not hold (``other = 1``: it pursues another goal).
+
+Every policy is a function of the state, so the world's model (Fig. 5.2's reduction) is exact and its best
+response is value iteration (:mod:`embodied_adhoc.bench.bounds`). A plug-in spec
+``embodied_adhoc.bench.chapter5_members:<domain>/<member name>`` names a member.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from embodied_adhoc.errors import ConfigError
+
+__all__ = ["FAMILIES", "Chapter5MemberFactory"]
+
+FAMILIES = ("named", "softmax", "epsilon", "lazy", "goal-mix")
+
+
+def _n_teammate(library, m: int) -> int:
+    return library.mmdps[m].n_actions // library.n_actions
+
+
+def _named(library, m: int, name: str) -> np.ndarray:
+    from embodied_adhoc.domains.chapter5.library import optimal_teammate_policy
+
+    if name in library.teammates:
+        return np.asarray(library.teammates[name](m), dtype=np.float64)
+    if name == "optimal":
+        return optimal_teammate_policy(library.mmdps[m], library.n_actions)
+    raise ConfigError(
+        f"benchmark teammate base {name!r}: {library.domain} has {', '.join(library.teammates) or 'none'} "
+        "and 'optimal'"
+    )
+
+
+def _softmax(library, m: int, temperature: float) -> np.ndarray:
+    from embodied_adhoc.decision.value_iteration import value_iteration
+
+    mmdp = library.mmdps[m]
+    q = value_iteration(mmdp, tolerance=1e-8).q_values
+    per_teammate = q.reshape(mmdp.n_states, library.n_actions, _n_teammate(library, m)).max(axis=1)
+    logits = (per_teammate - per_teammate.max(axis=1, keepdims=True)) / temperature
+    weights = np.exp(logits)
+    return weights / weights.sum(axis=1, keepdims=True)
+
+
+def _stay(library, m: int) -> int:
+    names = library.pomdps[m].action_names
+    if _n_teammate(library, m) != library.n_actions or "stay" not in names:
+        raise ConfigError(
+            f"benchmark family 'lazy' needs a 'stay' action shared by both agents in {library.domain}"
+        )
+    return names.index("stay")
+
+
+class Chapter5MemberFactory:
+    """``factory(library, m) -> pi (S x B)`` of one member (the chapter-5 teammate plug-in interface)."""
+
+    def __init__(self, name: str, params: dict) -> None:
+        self.name = name
+        self.params = dict(params)
+        family = self.params.get("family")
+        if family not in FAMILIES:
+            raise ConfigError(
+                f"benchmark teammate {name}: family {family!r}; choose from {', '.join(FAMILIES)}"
+            )
+
+    def __call__(self, library, m: int) -> np.ndarray:
+        params = self.params
+        family = params["family"]
+        if family == "named":
+            return _named(library, m, params["teammate"])
+        if family == "softmax":
+            return _softmax(library, m, float(params["temperature"]))
+        base = _named(library, m, params.get("base", "greedy"))
+        if family == "epsilon":
+            epsilon = float(params["epsilon"])
+            return (1.0 - epsilon) * base + epsilon / base.shape[1]
+        if family == "lazy":
+            stay = np.zeros_like(base)
+            stay[:, _stay(library, m)] = 1.0
+            return (1.0 - float(params["p"])) * base + float(params["p"]) * stay
+        other = float(params["other"])
+        elsewhere = _named(library, (m + 1) % library.n_models, params.get("base", "greedy"))
+        return (1.0 - other) * base + other * elsewhere
+
+    def __repr__(self) -> str:
+        return f"Chapter5MemberFactory({self.name!r})"
+
+
+def __getattr__(name: str) -> Chapter5MemberFactory:
+    """``embodied_adhoc.bench.chapter5_members:<domain>/<member>``: the factory of that member (any split)."""
+    from embodied_adhoc.bench.populations import find_member
+
+    domain, _, member = name.partition("/")
+    spec = find_member(domain, member) if member else None
+    if spec is None:
+        raise AttributeError(name)
+    return Chapter5MemberFactory(spec.name, spec.params)
