@@ -225,3 +225,16 @@ def write_wav(path: str | os.PathLike, audio: np.ndarray, sample_rate: int = SAM
     with atomic_path(path) as temporary:
         soundfile.write(temporary, audio, sample_rate, subtype="PCM_16", format="WAV")
     return Path(path)
+
+
+def wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
+    """16-bit PCM WAV of ``audio`` in memory (the physics env's ``info["speech_audio"]``, the live page's
+    sounds). Samples beyond full scale (low-SNR mixtures) saturate at +-1, exactly as the recogniser's 16-bit
+    input does (``comms.recognition.Recognizer.transcribe``): the recording is what was heard."""
+    import soundfile
+
+    buffer = io.BytesIO()
+    soundfile.write(
+        buffer, np.asarray(audio, dtype=np.float32), int(sample_rate), format="WAV", subtype="PCM_16"
+    )
+    return buffer.getvalue()

@@ -3,7 +3,6 @@ speech channel (``comms.channels``), and the lines of the dialogue are kept for 
 
 from __future__ import annotations
 
-import io
 import os
 
 import numpy as np
@@ -23,6 +22,7 @@ class SpeechTurn:
         self, true_human_node: int, rng: np.random.Generator
     ) -> tuple[int | None, list[str], bytes | None]:
         from embodied_adhoc.comms.robot_speech import WHERE_ARE_YOU
+        from embodied_adhoc.comms.synthesis import wav_bytes
         from embodied_adhoc.comms.vocabulary import NODE_NAMES
 
         reply = self.channel.reply(int(true_human_node), rng)
@@ -33,7 +33,7 @@ class SpeechTurn:
         if reply.transcript is not None:
             lines.append(f'recognised: "{reply.transcript}"')
         lines.append(f"heard node: {heard} ({self.kind}; true node {true_human_node})")
-        wav = _wav_bytes(reply.audio, reply.sample_rate) if reply.audio is not None else None
+        wav = None if reply.audio is None else wav_bytes(reply.audio, reply.sample_rate)
         return reply.node, lines, wav
 
 
@@ -46,15 +46,3 @@ def make_speech(kind: str, confusion: str | os.PathLike) -> SpeechTurn:
         raise ConfigError(f"speech={kind!r} unknown; use one of {', '.join(SPEECH_KINDS)}")
     channel = make_channel(kind, confusion=str(confusion)) if kind == "channel" else make_channel(kind)
     return SpeechTurn(channel, kind)
-
-
-def _wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
-    """16-bit PCM WAV of ``audio``. Samples beyond full scale (low-SNR mixtures) saturate at +-1, exactly as the
-    recogniser's 16-bit input does (``comms.recognition.Recognizer.transcribe``): the recording is what was heard."""
-    import soundfile
-
-    buffer = io.BytesIO()
-    soundfile.write(
-        buffer, np.asarray(audio, dtype=np.float32), int(sample_rate), format="WAV", subtype="PCM_16"
-    )
-    return buffer.getvalue()
