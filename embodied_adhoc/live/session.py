@@ -32,6 +32,7 @@ import numpy as np
 
 from embodied_adhoc import checks
 from embodied_adhoc.atomic import atomic_write_bytes, atomic_write_text
+from embodied_adhoc.comms.synthesis import wav_bytes
 from embodied_adhoc.errors import ConfigError, SpeechError
 from embodied_adhoc.experiments.episode import EpisodeObserver, StepRecord
 from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, action_label, describe_observation
@@ -74,16 +75,6 @@ def next_participant_id(out: Path) -> str:
     """``P001`` for an empty study folder, else one more than the highest ``P###`` run folder in it."""
     numbers = [int(m.group(1)) for p in out.glob("P*_*") if (m := PARTICIPANT_PATTERN.match(p.name))]
     return f"P{max(numbers, default=0) + 1:03d}"
-
-
-def wav_bytes(audio: np.ndarray, sample_rate: int) -> bytes:
-    import soundfile
-
-    buffer = io.BytesIO()
-    soundfile.write(
-        buffer, np.asarray(audio, dtype=np.float32), int(sample_rate), format="WAV", subtype="PCM_16"
-    )
-    return buffer.getvalue()
 
 
 class _PageObserver(EpisodeObserver):
