@@ -93,9 +93,9 @@ def run_one(task: tuple[str, bool, int, int, int]) -> dict:
     """One episode: (row, localisation on, episode, seed, max_steps) -> outcome and per-step readings."""
     import gymnasium
 
+    from embodied_adhoc.episodes.loop import EpisodeObserver, run_episode_loop
     from embodied_adhoc.experiments import seeding
     from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
-    from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
 
     row, localisation, episode, seed, max_steps = task
     # the sweep's rows name faults the agent's model is not told (its RFID model stays a perfect reader)

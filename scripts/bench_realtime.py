@@ -41,7 +41,7 @@ class BenchArgs:
 
 
 def run_mode(mode: str, args: BenchArgs, episodes: int) -> list[dict]:
-    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
     from embodied_adhoc.live.episode import open_realtime_episode, run_realtime_episode
 
     rows = []

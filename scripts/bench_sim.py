@@ -32,10 +32,12 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 
 import mujoco  # noqa: E402
 
-from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, LabFrames  # noqa: E402
+from embodied_adhoc.episodes.frames import LabFrameSource  # noqa: E402
+from embodied_adhoc.episodes.loop import EpisodeTrace, StepRecord  # noqa: E402
+from embodied_adhoc.episodes.presenters import LabPresenter  # noqa: E402
+from embodied_adhoc.episodes.recording import Presenter, Recording  # noqa: E402
+from embodied_adhoc.experiments.recorded import EpisodeConfig  # noqa: E402
 from embodied_adhoc.experiments.script_args import parse_dataclass_args  # noqa: E402
-from embodied_adhoc.record.rerun_recorder import RerunRecorder  # noqa: E402
-from embodied_adhoc.record.video import VideoWriter  # noqa: E402
 from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld, LabWorldConfig  # noqa: E402
 from embodied_adhoc.sim.odometry import OdometryConfig  # noqa: E402
 
@@ -137,15 +139,49 @@ EPISODE = (
 )
 
 
-def hud(step: int, sim_time: float) -> list[str]:
-    """Heads-up lines as long as ``run toxic-waste``'s (balls, action, observation, belief, time)."""
-    return [
-        f"hotspot | balls in container {min(3, step // 3)}/3",
-        f"step {step}: move to {step % 5} open space",
-        f"observed: robot at {step % 5} open space; human at none; rfid no",
-        f"P(task): [0, 1, 2] {0.5 + step / 40:.2f}  [2, 1, 0] {0.5 - step / 40:.2f}",
-        f"t = {sim_time:.1f} s",
-    ]
+class ScriptedPresenter(Presenter):
+    """Heads-up lines as long as ``run toxic-waste``'s (balls, action, observation, belief; the time is the
+    recorder's), the lab's poses and localiser per frame, the robot camera each macro step."""
+
+    hud_keys = ("balls", "action", "heard", "belief")
+    step_cameras = ("robot",)
+    log_frame = LabPresenter.log_frame
+
+    def action_label(self, action: int) -> str:
+        return f"move to {action % 5} open space"
+
+    def stepped(self, rerun, record, description: str) -> dict:
+        step = record.step
+        return {
+            "balls": f"hotspot | balls in container {min(3, step // 3)}/3",
+            "heard": f"observed: robot at {step % 5} open space; human at none; rfid no",
+            "belief": f"P(task): [0, 1, 2] {0.5 + step / 40:.2f}  [2, 1, 0] {0.5 - step / 40:.2f}",
+        }
+
+
+class ScriptedEnv:
+    """What the lab's frame source reads of the physics env: the world, and a frame sink the episode feeds."""
+
+    def __init__(self, world: LabWorld):
+        self.world, self.sink = world, None
+
+    def set_frame_sink(self, sink) -> None:
+        self.sink = sink
+
+    def frame(self, lab: LabWorld, step: int) -> None:
+        truth = lab.ground_truth()
+        self.sink(
+            {
+                "step": step,
+                "sim_time": truth.time,
+                "robot_pose": truth.robot_pose,
+                "odometry_pose": lab.odometry_pose(),
+                "estimated_pose": lab.pose_estimate(),
+                "particles": lab.localiser.particles[:, :2].copy(),
+                "human_position": truth.human_pose[:2],
+                "ball_positions": np.array(truth.ball_positions),
+            }
+        )
 
 
 def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple:
@@ -153,64 +189,42 @@ def run_episode(world: LabWorld, args: Args, folder: Path | None) -> tuple:
     encoding count), simulated seconds, frames and final ball states of the scripted episode, and the wall and CPU
     seconds of opening the recorders (0 without ``folder``): the video writer (ffmpeg started), the rerun file and
     the render thread with its GL context, timed apart as a one-off per recording. With ``folder`` it is
-    recorded as ``run --record`` records (``experiments.recorded_episode``): the overhead camera with the belief
-    markers at the rate the video keeps, each frame with five heads-up lines, rendered on the render thread
-    (``LabFrames``) into the mp4 writer; poses and the localiser's estimate into the rerun recording, its particles
-    and the overhead image at ``rerun_camera_hz`` of simulated time, the robot camera after each macro step; the
-    final state held for ``video_hold`` (``EpisodeConfig``'s defaults)."""
+    recorded by ``run --record``'s recorder (``episodes.recording.Recording`` over the lab's frame source): the
+    overhead camera with the belief markers at the rate the video keeps, each frame with five heads-up lines,
+    rendered on the render thread into the mp4 writer; poses and the localiser's estimate into the rerun
+    recording, its particles and the overhead image at ``rerun_camera_hz`` of simulated time, the robot camera
+    after each macro step; the final state held for ``video_hold`` (``EpisodeConfig``'s defaults)."""
     count = [0]
-    step = [0]
-    video = rerun = frames = None
-    next_camera = [0.0]
-
-    def record(lab: LabWorld) -> None:
-        truth = lab.ground_truth()
-        due = truth.time + 1e-9 >= next_camera[0]
-        frames.submit(
-            "overhead",
-            markers=True,
-            overlay=hud(step[0], truth.time),
-            camera_log=("overhead", step[0], truth.time) if due else None,
-        )
-        rerun.set_time(step[0], truth.time)
-        rerun.log_poses(
-            truth.robot_pose, lab.odometry_pose(), truth.human_pose[:2], np.array(truth.ball_positions)
-        )
-        rerun.log_localisation(lab.pose_estimate(), lab.localiser.particles[:, :2].copy() if due else None)
-        if due:
-            while next_camera[0] <= truth.time + 1e-9:  # the camera's own clock, as the recorder keeps it
-                next_camera[0] += 1.0 / EpisodeConfig.rerun_camera_hz
-        count[0] += 1
+    env, recording = ScriptedEnv(world), None
 
     world.reset(seed=0, robot_node=0, human_node=1, ball_nodes=(0, 1, 2))
     start, cpu_start, sim = time.perf_counter(), cpu_seconds(), 0.0
     if folder is not None:
-        video = VideoWriter(folder / "episode.mp4", args.width, args.height, fps=args.video_fps)
-        rerun = RerunRecorder(folder / "episode.rrd")
-        frames = LabFrames(world, args.width, args.height, video, rerun)
-        frames.prepared.wait(timeout=60)
+        settings = EpisodeConfig(
+            width=args.width, height=args.height, video_fps=args.video_fps, video_speed=args.video_speed
+        ).video()
+        source = LabFrameSource(env, args.width, args.height)
+        recording = Recording(source, ScriptedPresenter(), settings, folder, "bench", {})
+        recording.prepared.wait(timeout=60)
     opening, opening_cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
     start, cpu_start = time.perf_counter(), cpu_seconds()
+
+    def frame(lab: LabWorld) -> None:
+        env.frame(lab, recording.step)
+        count[0] += 1
+
     try:
         for index, (target, command) in enumerate(EPISODE, start=1):
-            step[0] = index
-            sim += world.step_macro(target, command, record if folder is not None else None).sim_seconds
-            if frames is not None:
-                frames.submit("robot", markers=False, repeat=0, camera_log=("robot", index, world.data.time))
-        if frames is not None:
-            frames.submit(
-                "overhead",
-                markers=False,
-                overlay=hud(len(EPISODE), world.data.time),
-                repeat=max(1, round(EpisodeConfig.video_hold * args.video_fps)),
-            )
+            if recording is not None:
+                recording.action_chosen(index, index)
+            sim += world.step_macro(target, command, frame if recording is not None else None).sim_seconds
+            if recording is not None:
+                recording.step_finished(StepRecord(index, index, 0, 0.0, False, False, {}, None))
+        if recording is not None:
+            recording.episode_finished(EpisodeTrace(actions=list(range(len(EPISODE))), terminated=True))
     finally:
-        if frames is not None:
-            try:
-                frames.close()
-            finally:
-                video.close()
-                rerun.close()
+        if recording is not None:
+            recording.close()
     wall, cpu = time.perf_counter() - start, cpu_seconds() - cpu_start
     return wall, cpu, sim, count[0], world.ground_truth().ball_states, opening, opening_cpu
 

@@ -31,8 +31,8 @@ def abstract_step_seconds(episodes: int) -> float:
     import gymnasium
 
     import embodied_adhoc.envs  # noqa: F401
+    from embodied_adhoc.episodes.loop import run_episode_loop
     from embodied_adhoc.experiments import seeding
-    from embodied_adhoc.experiments.episode import run_episode_loop
     from embodied_adhoc.experiments.registry import get_trial_domain
 
     domain = get_trial_domain("toxic-waste")
@@ -60,7 +60,7 @@ def abstract_step_seconds(episodes: int) -> float:
 
 def physics_step_seconds(episodes: int, record: bool, args: BenchArgs) -> tuple[float, float]:
     """Mean wall seconds per macro step and simulated seconds per macro step of ``run toxic-waste``."""
-    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
 
     wall = sim = steps = 0.0
     with tempfile.TemporaryDirectory() as folder:

@@ -32,12 +32,37 @@ ALLOWED: dict[str, frozenset[str]] = {
         {"decision", "control", "domains", "teammates", "comms", "sim", "envs"}
     ),  # trains on envs
     "record": frozenset(),
+    # the episode loop, the recorders' observers and the recorded-run driver: above envs/ and record/, below
+    # the trial infrastructure that runs it
+    "episodes": frozenset({"decision", "control", "domains", "teammates", "comms", "sim", "envs", "record"}),
     "experiments": frozenset(
-        {"decision", "control", "domains", "teammates", "comms", "sim", "learning", "envs", "record"}
+        {
+            "decision",
+            "control",
+            "domains",
+            "teammates",
+            "comms",
+            "sim",
+            "learning",
+            "envs",
+            "record",
+            "episodes",
+        }
     ),
     # the real-time lab and the browser live mode: an env subclass plus the episode loop and recorders
     "live": frozenset(
-        {"decision", "control", "domains", "teammates", "comms", "sim", "envs", "record", "experiments"}
+        {
+            "decision",
+            "control",
+            "domains",
+            "teammates",
+            "comms",
+            "sim",
+            "envs",
+            "record",
+            "episodes",
+            "experiments",
+        }
     ),
     "commands": frozenset(
         {
@@ -51,6 +76,7 @@ ALLOWED: dict[str, frozenset[str]] = {
             "learning",
             "envs",
             "record",
+            "episodes",
             "experiments",
         }
     ),
@@ -71,6 +97,8 @@ FORBIDDEN_THIRD_PARTY: dict[str, frozenset[str]] = {
     "decision": frozenset({"mujoco", "dm_control", "gymnasium", "torch"}),
     "control": frozenset({"mujoco", "dm_control", "gymnasium", "torch"}),
     "record": frozenset({"mujoco", "dm_control", "gymnasium", "torch"}),
+    # the episode layer drives envs and worlds through the objects it is given, never through the simulators
+    "episodes": frozenset({"mujoco", "dm_control", "gymnasium", "torch"}),
 }
 TORCH_LAYERS = frozenset({"learning"})
 
@@ -181,6 +209,15 @@ def test_imports_follow_the_layer_table():
         ("decision/x.py", "def f():\n    import mujoco\n", "decision imports mujoco"),
         ("record/x.py", "def f():\n    import torch\n", "record imports torch"),
         ("experiments/x.py", "import torch.nn\n", "experiments imports torch"),
+        # the episode layer sits above envs/ and record/, below the trial infrastructure
+        ("envs/x.py", "def f():\n    from embodied_adhoc.episodes.loop import x\n", "envs -> episodes"),
+        ("record/x.py", "from embodied_adhoc.episodes import recording\n", "record -> episodes"),
+        (
+            "episodes/x.py",
+            "def f():\n    from embodied_adhoc.experiments import seeding\n",
+            "episodes -> experiments",
+        ),
+        ("episodes/x.py", "def f():\n    import gymnasium\n", "episodes imports gymnasium"),
     ],
 )
 def test_the_checker_sees_hidden_imports(relative, source, expected):

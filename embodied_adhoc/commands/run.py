@@ -93,7 +93,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="DIR",
         help="write episode.mp4/.rrd, metrics.json",
     )
-    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig
+    from embodied_adhoc.experiments.recorded import EpisodeConfig
 
     toxic.add_argument(
         "--video-fps",
@@ -136,7 +136,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
     choose_gl_platform()  # headless by default: MuJoCo picks its GL platform when first imported
     from embodied_adhoc.errors import ConfigError
     from embodied_adhoc.experiments.domains.toxic_waste import fault_options
-    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
 
     if args.max_steps < 1:
         raise ConfigError(f"--max-steps must be >= 1, got {args.max_steps}")

@@ -59,7 +59,7 @@ def register_arena_runs(domains: argparse._SubParsersAction) -> None:
     _recording_arguments(pursuit)
     pursuit.set_defaults(func=handle_pursuit)
 
-    from embodied_adhoc.experiments.recorded_foraging import FORAGING_AGENTS
+    from embodied_adhoc.experiments.recorded import FORAGING_AGENTS
 
     foraging = domains.add_parser(
         "foraging",
@@ -171,7 +171,7 @@ def _play(args: argparse.Namespace, domain: str, run, postfix) -> dict:
 
 def handle_pursuit(args: argparse.Namespace) -> int:
     choose_gl_platform()
-    from embodied_adhoc.experiments.recorded_pursuit import PursuitEpisodeConfig, run_pursuit_episode
+    from embodied_adhoc.experiments.recorded import PursuitEpisodeConfig, run_pursuit_episode
 
     config = PursuitEpisodeConfig(
         agent=args.agent,
@@ -216,7 +216,7 @@ def handle_foraging(args: argparse.Namespace) -> int:
     choose_gl_platform()
     from pathlib import Path
 
-    from embodied_adhoc.experiments.recorded_foraging import ForagingEpisodeConfig, run_foraging_episode
+    from embodied_adhoc.experiments.recorded import ForagingEpisodeConfig, run_foraging_episode
 
     config = ForagingEpisodeConfig(
         agent=args.agent,

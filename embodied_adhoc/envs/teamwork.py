@@ -3,7 +3,7 @@
 :mod:`embodied_adhoc.domains.pursuit4` (the ones TEAMSTER and PLASTIC-Model plan with) executed by robots through
 the shared waypoint controller; any other chapter-4 world object (``world=``) on the abstract backend. The
 sequential-teams protocol and the ``trials pursuit4`` sweep both run their episodes in it through the one
-episode loop (:mod:`embodied_adhoc.experiments.episode`).
+episode loop (:mod:`embodied_adhoc.episodes.loop`).
 """
 
 from __future__ import annotations

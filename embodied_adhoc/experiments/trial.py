@@ -1,6 +1,6 @@
 """One trial: drive a Gymnasium env with an agent for one episode and record what the statistics need.
 
-The loop is the project's one episode loop, :func:`embodied_adhoc.experiments.episode.run_episode_loop` (see
+The loop is the project's one episode loop, :func:`embodied_adhoc.episodes.loop.run_episode_loop` (see
 :mod:`embodied_adhoc.experiments.registry` for the domain protocol that supplies env, agent and reset options).
 
 ``steps`` counts the env steps taken (the original implementation counted one extra; see docs/hotspot-original.md); a
@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from embodied_adhoc.episodes.loop import EpisodeObserver, run_episode_loop
 from embodied_adhoc.experiments import seeding
-from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
 from embodied_adhoc.experiments.registry import build_agent, get_trial_domain
 from embodied_adhoc.experiments.stats import identify_step, normalised_entropies
 

@@ -1,8 +1,8 @@
 """One real-time toxic-waste episode: ``run toxic-waste``'s episode on :class:`RealtimeToxicWasteEnv`.
 
-Same seeds, episode draw (task, start nodes), agent construction, loop (``experiments.episode.run_episode_loop``)
+Same seeds, episode draw (task, start nodes), agent construction, loop (``episodes.loop.run_episode_loop``)
 and observers (``metrics.json``; with a record folder the video and the rerun recording) as
-``experiments.recorded_episode.run_episode``, so a real-time episode and a turn-based one of the same seed start
+``experiments.recorded.run_episode``, so a real-time episode and a turn-based one of the same seed start
 from the same state with the same agent: the comparison of ``scripts/bench_realtime.py``. Extra observers (the
 live server's) are attached after the recorders.
 """
@@ -12,16 +12,9 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Sequence
 
-from embodied_adhoc.experiments.episode import EpisodeObserver
-from embodied_adhoc.experiments.recorded_episode import (
-    EpisodeConfig,
-    EpisodeOutcome,
-    _Metrics,
-    _Recording,
-    episode_metrics,
-    play_recorded_episode,
-    prepare_episode,
-)
+from embodied_adhoc.episodes.loop import EpisodeObserver
+from embodied_adhoc.episodes.recorded import EpisodeOutcome, run_recorded
+from embodied_adhoc.experiments.recorded import EpisodeConfig, lab_presenter, prepare_lab_episode
 from embodied_adhoc.live.realtime import LiveStopped, RealtimeToxicWasteEnv
 
 __all__ = ["RealtimeEpisode", "open_realtime_episode", "run_realtime_episode"]
@@ -30,15 +23,10 @@ __all__ = ["RealtimeEpisode", "open_realtime_episode", "run_realtime_episode"]
 class RealtimeEpisode:
     """The pieces of one real-time episode, built before it runs (the live server shows the env while it runs)."""
 
-    def __init__(self, config: EpisodeConfig, env, agent, session, spec, metrics):
-        self.config, self.env, self.agent, self.session, self.spec, self.metrics = (
-            config,
-            env,
-            agent,
-            session,
-            spec,
-            metrics,
-        )
+    def __init__(self, config: EpisodeConfig, prepared):
+        self.config, self.prepared = config, prepared
+        self.env, self.agent, self.session = prepared.env, prepared.agent, prepared.session
+        self.spec, self.metrics = prepared.spec, prepared.metrics
 
 
 def open_realtime_episode(
@@ -52,50 +40,36 @@ def open_realtime_episode(
     command: str = "live toxic-waste",
 ) -> RealtimeEpisode:
     """Build env, agent and metrics for ``config`` exactly as ``run toxic-waste`` does (module docstring)."""
-    from embodied_adhoc.experiments import seeding
+    made = []
 
-    setup = prepare_episode(config)
-    env = RealtimeToxicWasteEnv(
-        human=human,
-        speed=speed,
-        reply_timeout=reply_timeout,
-        tick_listener=tick_listener,
-        stop=stop,
-        **setup.env_kwargs,
-    )
-    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
-    from embodied_adhoc.experiments.registry import build_agent
+    def realtime_env(env_kwargs: dict) -> RealtimeToxicWasteEnv:
+        env = RealtimeToxicWasteEnv(
+            human=human,
+            speed=speed,
+            reply_timeout=reply_timeout,
+            tick_listener=tick_listener,
+            stop=stop,
+            **env_kwargs,
+        )
+        made.append(env)
+        return env
 
-    agent = build_agent(
-        DOMAIN, setup.session, config.agent, setup.spec, seeding.agent_seed(config.seed, 0, config.agent)
-    )
-    metrics = episode_metrics(
-        config,
-        setup,
-        command,
-        speed=speed,
-        reply_timeout=reply_timeout,
-        human=type(env.human_driver).__name__,
-    )
-    return RealtimeEpisode(config, env, agent, setup.session, setup.spec, metrics)
+    prepared = prepare_lab_episode(config, command, realtime_env, speed=speed, reply_timeout=reply_timeout)
+    prepared.metrics.config["human"] = type(made[0].human_driver).__name__
+    return RealtimeEpisode(config, prepared)
 
 
 def run_realtime_episode(
     episode: RealtimeEpisode, observers: Sequence[EpisodeObserver] = ()
 ) -> EpisodeOutcome:
-    """Run (and, with a record folder, record) the episode through ``run toxic-waste``'s player, ``observers``
+    """Run (and, with a record folder, record) the episode through ``run toxic-waste``'s driver, ``observers``
     after the recorders; a :class:`LiveStopped` ends it as interrupted, with everything finished so far written."""
-    config, env, session = episode.config, episode.env, episode.session
-    recording = config.record_dir is not None
-    return play_recorded_episode(
-        env,
-        episode.agent,
-        session,
-        episode.spec,
-        config,
-        episode.metrics,
-        [_Metrics(episode.metrics, session.library)],
-        (lambda files: _Recording(config, env, session.library, episode.spec, files)) if recording else None,
+    config, prepared = episode.config, episode.prepared
+    return run_recorded(
+        prepared,
+        lab_presenter(prepared, config.agent),
+        config.record_dir,
+        config.video(),
         later=observers,
         interruptions=(LiveStopped,),
     )

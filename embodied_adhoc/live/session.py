@@ -33,9 +33,10 @@ import numpy as np
 from embodied_adhoc import checks
 from embodied_adhoc.atomic import atomic_write_bytes, atomic_write_text
 from embodied_adhoc.comms.synthesis import wav_bytes
+from embodied_adhoc.episodes.loop import EpisodeObserver, StepRecord
+from embodied_adhoc.episodes.presenters import action_label, describe_observation
 from embodied_adhoc.errors import ConfigError, SpeechError
-from embodied_adhoc.experiments.episode import EpisodeObserver, StepRecord
-from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, action_label, describe_observation
+from embodied_adhoc.experiments.recorded import EpisodeConfig
 from embodied_adhoc.live.humans import Participant, Reply, heard_line
 
 __all__ = ["FRAME_READY", "LiveSession", "LiveSettings", "next_participant_id"]

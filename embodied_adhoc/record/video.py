@@ -2,7 +2,7 @@
 
 Frames are encoded off the caller's thread: :meth:`VideoWriter.write` checks a frame and puts it on a bounded
 queue; a writer thread (``record.worker``) draws the heads-up text (``record.overlay``) and streams the frames to
-ffmpeg, so the caller (for the lab, the render thread of ``experiments.recorded_episode.LabFrames``) only hands
+ffmpeg, so the caller (for the lab, the render thread of ``episodes.recording.Recording``) only hands
 frames over. The queue bound (``queue_frames``) keeps memory flat: when ffmpeg falls behind, ``write`` waits.
 The file is written under a temporary name and renamed to its final name by
 :meth:`VideoWriter.close`, so an mp4 that exists is complete; closing after an interruption keeps the frames

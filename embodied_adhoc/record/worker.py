@@ -6,7 +6,7 @@ queue is full (then it waits: memory stays bounded when the encoder falls behind
 ``close`` drains the queue and joins the thread; ``finish()``, if given, runs last on the worker thread (e.g. to
 release a GL context made there), after an error too. Used by ``record.video.VideoWriter`` (overlay + H.264),
 ``record.rerun_recorder.RerunRecorder`` (JPEG camera frames) and the recorded episodes' render thread
-(``experiments.recorded_episode.LabFrames``).
+(``episodes.recording.Recording``).
 """
 
 from __future__ import annotations

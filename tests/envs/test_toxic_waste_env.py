@@ -98,7 +98,7 @@ def test_without_communication_the_human_is_seen_only_when_co_located():
 
 
 def test_a_hotspot_episode_succeeds():
-    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
 
     outcome = run_episode(
         EpisodeConfig(agent="hotspot", seed=0, task=1, robot_node=1, human_node=1, max_steps=40)

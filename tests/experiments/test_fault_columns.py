@@ -156,7 +156,7 @@ def test_physics_sweep_counts_faults_in_the_csv_and_the_json(tmp_path, capsys):
 
 
 def test_run_metrics_hold_the_fault_counts_and_the_cap_reason():
-    from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+    from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
 
     metrics = run_episode(EpisodeConfig(seed=100, max_steps=2, faults={"rfid_miss": 1.0})).metrics
     assert metrics["outcome"] == "truncated"

@@ -81,7 +81,7 @@ def test_the_episode_loop_hands_atlpo_the_arrays_and_the_first_observation(tmp_p
     import gymnasium
 
     import embodied_adhoc.envs  # noqa: F401
-    from embodied_adhoc.experiments.episode import run_episode_loop
+    from embodied_adhoc.episodes.loop import run_episode_loop
 
     agent = library_agent("foraging", _tiny_library(tmp_path), GridConfig())
     seen = []
@@ -171,7 +171,7 @@ def test_run_foraging_records_atlpo_in_the_arena(tmp_path):
     from embodied_adhoc.gl import choose_gl_platform
 
     choose_gl_platform()
-    from embodied_adhoc.experiments.recorded_foraging import ForagingEpisodeConfig, run_foraging_episode
+    from embodied_adhoc.experiments.recorded import ForagingEpisodeConfig, run_foraging_episode
 
     config = ForagingEpisodeConfig(
         seed=1, library=_tiny_library(tmp_path / "lib"), max_steps=3, record_dir=tmp_path / "rec", size=64

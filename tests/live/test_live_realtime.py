@@ -7,8 +7,8 @@ import threading
 import numpy as np
 import pytest
 
-from embodied_adhoc.experiments.episode import EpisodeObserver
-from embodied_adhoc.experiments.recorded_episode import EpisodeConfig
+from embodied_adhoc.episodes.loop import EpisodeObserver
+from embodied_adhoc.experiments.recorded import EpisodeConfig
 from embodied_adhoc.live.episode import open_realtime_episode, run_realtime_episode
 from embodied_adhoc.live.humans import Participant, Reply, ScriptedHuman, walkable
 from embodied_adhoc.live.realtime import LiveStopped, RealtimeClock, RealtimeToxicWasteEnv

@@ -7,7 +7,7 @@ import sys
 import imageio.v2 as imageio
 import numpy as np
 
-from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, run_episode
+from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
 from embodied_adhoc.record.rerun_recorder import ENTITY_PATHS
 
 
@@ -156,7 +156,7 @@ def test_move_actions_are_labelled_by_the_node_the_env_drives_to():
     import gymnasium
 
     import embodied_adhoc.envs  # noqa: F401
-    from embodied_adhoc.experiments.recorded_episode import action_label
+    from embodied_adhoc.episodes.presenters import action_label
 
     env = gymnasium.make("EmbodiedAdhoc/ToxicWaste-v0", disable_env_checker=True)
     try:

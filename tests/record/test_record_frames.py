@@ -1,13 +1,16 @@
-"""Frames rendered off the simulation thread (``LabFrames`` over ``LabWorld.snapshot_renderer``): the picture of a
-snapshot is the one the world renders at that instant; frames reach the video and rerun in order; a recorded run
-takes the same trajectory as a bare one."""
+"""Frames rendered off the simulation thread (``Recording`` over the lab's frame source, whose pictures come from
+``LabWorld.snapshot_renderer``): the picture of a snapshot is the one the world renders at that instant; frames
+reach the video and rerun in order; a recorded run takes the same trajectory as a bare one."""
 
 import threading
 
 import numpy as np
 import pytest
 
-from embodied_adhoc.experiments.recorded_episode import EpisodeConfig, LabFrames, run_episode
+from embodied_adhoc.episodes.frames import LabFrameSource
+from embodied_adhoc.episodes.loop import EpisodeTrace
+from embodied_adhoc.episodes.recording import Presenter, Recording, VideoSettings
+from embodied_adhoc.experiments.recorded import EpisodeConfig, run_episode
 from embodied_adhoc.sim.lab_world import HumanCommand, LabWorld
 
 
@@ -52,54 +55,90 @@ def test_a_snapshot_renders_on_another_thread_as_the_world_rendered_it():
 
 
 class _Sink:
-    def __init__(self, fail_at: int | None = None):
+    """Stands in for the video writer and the rerun recorder: keeps what reaches them, and on which thread."""
+
+    def __init__(self, *args, fail_at: int | None = None, **kwargs):
         self.frames, self.cameras, self.threads, self.fail_at = [], [], set(), fail_at
-        self.path = type("P", (), {"name": "sink"})()
+        self.frame_count = 0
 
     def write(self, frame, overlay=None, repeat=1):
         if self.fail_at is not None and len(self.frames) == self.fail_at:
             raise ValueError("encoder gone")
         self.threads.add(threading.current_thread().name)
         self.frames.extend([(frame, overlay)] * repeat)
+        self.frame_count += repeat
 
     def log_camera(self, name, frame, step=None, sim_time=None):
         self.cameras.append((name, step, sim_time, frame.shape))
 
+    def set_time(self, step, sim_time):
+        pass
 
-def test_lab_frames_reach_the_video_and_rerun_in_order_off_the_calling_thread():
+    def log_text(self, channel, text, level="INFO"):
+        pass
+
+    def close(self):
+        pass
+
+
+class _Env:
+    """The part of the physics env a lab frame source uses: its world and its frame sink."""
+
+    def __init__(self, world):
+        self.world, self.sink = world, None
+
+    def set_frame_sink(self, sink):
+        self.sink = sink
+
+
+def _recording(world, sink, tmp_path, monkeypatch, max_queued=128):
+    import embodied_adhoc.record.video as video
+
+    monkeypatch.setattr(video, "VideoWriter", lambda *args, **kwargs: sink)
+    presenter = Presenter()
+    presenter.hud_keys = ("action",)
+    presenter.open_rerun = lambda path, name: sink
+    env = _Env(world)
+    settings = VideoSettings(64, 48, fps=10.0, speed=4.0, hold=0.3, overlay=True, camera_hz=1e6)
+    recording = Recording(LabFrameSource(env, 64, 48), presenter, settings, tmp_path, "test", {}, max_queued)
+    return env, recording
+
+
+def test_lab_frames_reach_the_video_and_rerun_in_order_off_the_calling_thread(tmp_path, monkeypatch):
     sink = _Sink()
     with _moving_world() as world:
-        frames = LabFrames(world, 64, 48, sink, sink, max_queued=2)
+        env, recording = _recording(world, sink, tmp_path, monkeypatch, max_queued=2)
         expected = []
 
         def frame(lab):
             expected.append(lab.render("overhead", 64, 48, markers=True))
-            frames.submit(
-                "overhead", overlay=[f"frame {len(expected)}"], camera_log=("overhead", 1, lab.data.time)
-            )
+            env.sink({"sim_time": lab.data.time, "step": 1})
 
         world.step_macro(1, HumanCommand.stay(), frame)
-        frames.submit("robot", markers=False, repeat=0, camera_log=("robot", 1, world.data.time))
-        frames.submit("overhead", markers=False, overlay=["done"], repeat=3)
-        frames.close()
+        recording.episode_finished(EpisodeTrace(actions=[0], terminated=True))
+        recording.close()
         final = world.render("overhead", 64, 48)
-    assert len(sink.frames) == len(expected) + 3 and len(expected) > 5
-    for (got, overlay), want, index in zip(sink.frames, expected, range(1, len(expected) + 1), strict=False):
+    hold = 3  # 0.3 s at 10 fps
+    assert len(sink.frames) == len(expected) + hold and len(expected) > 5
+    for (got, overlay), want in zip(sink.frames, expected, strict=False):
         np.testing.assert_array_equal(got, want)
-        assert overlay == (f"frame {index}",)
-    assert all(np.array_equal(got, final) and overlay == ("done",) for got, overlay in sink.frames[-3:])
-    assert [name for name, *_ in sink.cameras] == ["overhead"] * len(expected) + ["robot"]
+        assert overlay[-1].startswith("t = ")
+    assert all(np.array_equal(got, final) for got, _ in sink.frames[-hold:])
+    assert sink.frames[-1][1][0] == "done after 1 steps: success"
+    # every frame instant logs the overhead camera at camera_hz = 1e6, and so does the final frame
+    assert [name for name, *_ in sink.cameras] == ["overhead"] * (len(expected) + 1)
     assert threading.current_thread().name not in sink.threads and len(sink.threads) == 1
+    assert env.sink is None  # the recording detaches from the world when it closes
 
 
-def test_an_error_on_the_render_thread_reaches_the_simulation_thread():
+def test_an_error_on_the_render_thread_reaches_the_simulation_thread(tmp_path, monkeypatch):
     sink = _Sink(fail_at=2)
     with _moving_world() as world:
-        frames = LabFrames(world, 64, 48, sink, sink, max_queued=1)
+        env, recording = _recording(world, sink, tmp_path, monkeypatch, max_queued=1)
         with pytest.raises(RuntimeError, match="encoder gone"):
             for _ in range(50):
-                frames.submit("overhead")
-        frames.close()  # already reported; the GL context is released on the render thread
+                env.sink({"sim_time": world.data.time})
+        recording.close()  # already reported; the GL context is released on the render thread
 
 
 def test_a_recorded_run_takes_the_bare_run_trajectory(tmp_path):

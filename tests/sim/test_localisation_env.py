@@ -12,8 +12,8 @@ import pytest
 import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 from embodied_adhoc.cli import main
 from embodied_adhoc.domains.lab import build_lab_library
+from embodied_adhoc.episodes.presenters import localisation_events, localisation_fields
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.recorded_episode import localisation_events, localisation_fields
 from embodied_adhoc.record.metrics import _localisation_summary
 from embodied_adhoc.sim.lab_world import LabWorld
 

@@ -15,8 +15,8 @@ import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 from embodied_adhoc.decision.agents.teamwork import EpisodeSeat
 from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.pursuit4 import TEAMS, Pursuit4
+from embodied_adhoc.episodes.loop import EpisodeObserver, run_episode_loop
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
 from embodied_adhoc.learning.blocks import one_thread
 from embodied_adhoc.learning.teamster_agents import build_agent
 

@@ -1,7 +1,7 @@
 """The agent interface shared by every domain, backend, the trial runner and the recorded runs.
 
 An ad hoc agent sees only its own actions and observations. It never sees the state, the task or the teammates'
-actions. The episode loop (:func:`embodied_adhoc.experiments.episode.run_episode_loop`) drives it::
+actions. The episode loop (:func:`embodied_adhoc.episodes.loop.run_episode_loop`) drives it::
 
     agent.reset(rng, state=s0 if agent.observes_state else None)
     agent.start(obs0)                                 # every agent; a no-op unless it reads raw observations

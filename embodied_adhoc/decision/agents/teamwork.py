@@ -212,7 +212,7 @@ class OriginalTeammate(RandomAgent):
 
 class EpisodeSeat(AgentBase):
     """A chapter-4 agent (:class:`TeamworkAgent`) in the project's one episode loop
-    (:func:`embodied_adhoc.experiments.episode.run_episode_loop`), over
+    (:func:`embodied_adhoc.episodes.loop.run_episode_loop`), over
     :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv`
     observations ``[state cells..., teammates' last actions...]``.
 

@@ -143,7 +143,7 @@ def ablation_steps(
     from embodied_adhoc.decision.agents.factory import make_agent
     from embodied_adhoc.decision.agents.hotspot import HotspotConfig
     from embodied_adhoc.envs.library_env import LibraryEnv
-    from embodied_adhoc.experiments.episode import run_episode_loop
+    from embodied_adhoc.episodes.loop import run_episode_loop
 
     unknown = sorted(set(agents) - set(ABLATION_AGENTS))
     if unknown:

@@ -1,7 +1,7 @@
 """The sequential-teams protocol of thesis section 4.1.4 on chapter-4 pursuit and the navigation maps, one
 (agent, trial) at a time. Every step runs in the project's one episode loop: the interaction and the evaluations
 are :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv` episodes through
-:func:`~embodied_adhoc.experiments.episode.run_episode_loop`, the agent seated by
+:func:`~embodied_adhoc.episodes.loop.run_episode_loop`, the agent seated by
 :class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`.
 
 For each team tau_i in order (teammate-aware, greedy, probabilistic destinations):
@@ -46,8 +46,8 @@ from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.navigation4 import MAPS, Navigation4
 from embodied_adhoc.domains.pursuit4 import N_ACTIONS, ExactTeam, Pursuit4
 from embodied_adhoc.envs.teamwork import TeamworkEnv
+from embodied_adhoc.episodes.loop import run_episode_loop
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.episode import run_episode_loop
 from embodied_adhoc.learning.blocks import one_thread
 from embodied_adhoc.learning.teamster_agents import build_agent
 
@@ -157,7 +157,7 @@ def _episodes(
     episodes: int | None = None,
 ) -> list:
     """The agent with ``team`` in ``world`` as :class:`~embodied_adhoc.envs.teamwork.TeamworkEnv` episodes through
-    the one episode loop (:func:`~embodied_adhoc.experiments.episode.run_episode_loop`, the agent seated by
+    the one episode loop (:func:`~embodied_adhoc.episodes.loop.run_episode_loop`, the agent seated by
     :class:`~embodied_adhoc.decision.agents.teamwork.EpisodeSeat`): episode after episode, each from a random
     configuration, until ``steps`` steps have been taken (the last episode cut there) or ``episodes`` episodes
     have ended; an episode stops at its end (a capture, everyone out) or after the world's ``episode_cap``

@@ -1,8 +1,8 @@
 """The one episode loop: an agent acting in any env of the project, step by step, with observers attached.
 
-Shared by the trial runner (``experiments.trial.run_trial``: ``trials``), the recorded physics run
-(``experiments.recorded_episode``: ``run toxic-waste``) and the live mode, so that every command runs an episode
-the same way::
+Shared by the trial runner (``experiments.trial.run_trial``: ``trials``), the recorded runs
+(:func:`embodied_adhoc.episodes.recorded.run_recorded`: ``run toxic-waste|foraging|pursuit``) and the live mode, so
+that every command runs an episode the same way::
 
     obs, info = env.reset(seed=env_seed, options=reset_options)
     agent.reset(agent_rng, state=env.unwrapped.privileged_state() if agent.observes_state else None)
@@ -21,7 +21,7 @@ that declare ``observes_state`` (the oracle, value iteration, BOPA; see
 ``reward=r, terminated=...`` in ``observe``.
 
 Recorders and progress bars are :class:`EpisodeObserver` objects: the loop calls them, they never drive the
-episode. Envs stay pure Gymnasium and ``record/`` never imports this layer (``tests/test_layers.py``).
+episode. Envs stay pure Gymnasium and neither ``envs/`` nor ``record/`` imports this layer (``tests/test_layers.py``).
 ``steps`` counts the env steps taken; an episode that hits the cap (or that the env truncates) reports the steps
 it took and ``success = False``.
 """

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from embodied_adhoc.experiments.episode import EpisodeObserver, run_episode_loop
+from embodied_adhoc.episodes.loop import EpisodeObserver, run_episode_loop
 
 
 class CountdownEnv:
