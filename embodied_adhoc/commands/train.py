@@ -39,10 +39,77 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     return 0
 
 
+def handle_generalist(args: argparse.Namespace) -> int:
+    for name in ("steps", "envs", "rollout", "threads"):
+        if getattr(args, name) < 1:
+            raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
+    from tqdm import tqdm
+
+    from embodied_adhoc.learning.generalist import GeneralistTraining, train_generalist_run
+    from embodied_adhoc.learning.ppo import pick_device
+
+    pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
+    settings = GeneralistTraining(
+        args.domain, str(args.out), args.steps, args.seed, args.envs, args.rollout, args.device, args.threads
+    )
+    settings.config()  # settings that do not fit together are refused before training starts
+    with tqdm(
+        total=settings.steps, unit="step", desc=f"ppo-generalist {args.domain}", disable=args.quiet
+    ) as bar:
+
+        def progress(steps: int, row: dict) -> None:
+            length, solved = row["mean_episode_length"], row["solved"]
+            bar.set_postfix_str(
+                f"episode length {'-' if length is None else f'{length:.1f}'} "
+                f"solved {'-' if solved is None else f'{solved:.2f}'}"
+            )
+            bar.update(steps - bar.n)
+
+        report = train_generalist_run(settings, progress)
+    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain)
+    final = report["final"] or {}
+    print(
+        f"ppo-generalist {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
+        f"({report['steps_per_second']} steps/s) -> {args.out}; last update: mean episode length "
+        f"{final.get('mean_episode_length')}, solved {final.get('solved')}"
+    )
+    return 0
+
+
+def _plot_curve(csv_path, png_path, domain: str) -> None:
+    """Episode length and solved fraction against env steps, from the training curve's CSV."""
+    import csv
+
+    import matplotlib
+
+    from embodied_adhoc.atomic import atomic_path
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    with open(csv_path, newline="") as handle:
+        rows = [r for r in csv.DictReader(handle) if r["mean_episode_length"]]
+    figure, (left, right) = plt.subplots(1, 2, figsize=(9, 3.2))
+    steps = [int(r["env_steps"]) for r in rows]
+    left.plot(steps, [float(r["mean_episode_length"]) for r in rows])
+    left.set_ylabel("mean episode length (steps)")
+    right.plot(steps, [float(r["solved"]) for r in rows])
+    right.set_ylabel("episodes solved (fraction)")
+    for axis in (left, right):
+        axis.set_xlabel("env steps")
+        axis.grid(alpha=0.3)
+    figure.suptitle(f"ppo-generalist {domain}: training episodes (teams drawn from the train population)")
+    try:
+        with atomic_path(png_path) as temporary:
+            figure.savefig(temporary, format="png", dpi=110, bbox_inches="tight")
+    finally:
+        plt.close(figure)
+
+
 def register(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
         "train",
-        help="train learned agents (ATLPO-MF library and classifier)",
+        help="train learned agents (ATLPO-MF library and classifier, the recurrent PPO generalist)",
         description=__doc__.split("\n\n")[0],
     )
     kinds = parser.add_subparsers(dest="kind", metavar="KIND")
@@ -98,3 +165,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="folder for the weights, library.json and training.json (not an existing file)",
     )
     atlpo.set_defaults(func=handle_atlpo)
+    generalist = kinds.add_parser(
+        "ppo-generalist",
+        help="one recurrent (GRU) PPO policy against teams drawn from the train population",
+        description="The library-free ad hoc agent: a GRU actor-critic trained with PPO on the vector grid env, "
+        "each episode's task and team drawn from the train population (tau0-tau2, tasks 1-4). Writes the "
+        "weights (safetensors), curve.csv, curve.png and training.json to --out; an interrupted run resumes from "
+        "the checkpoint there (same settings, same result).",
+    )
+    generalist.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
+    generalist.add_argument("--steps", type=int, default=500_000, help="env steps in all (default 500000)")
+    generalist.add_argument("--seed", type=int, default=0)
+    generalist.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
+    generalist.add_argument(
+        "--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length (default 64)"
+    )
+    generalist.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
+    generalist.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    generalist.add_argument("--quiet", action="store_true", help="no progress bar")
+    generalist.add_argument(
+        "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
+    )
+    generalist.set_defaults(func=handle_generalist)

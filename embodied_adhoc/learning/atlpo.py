@@ -444,6 +444,24 @@ _LOADED: dict[tuple[str, float], tuple[PolicyLibrary, RecurrentBayesianClassifie
 _GRID_FIELDS = ("rows", "cols", "n_agents", "n_targets", "toroidal", "max_agent_level")
 
 
+def grid_differences(domain: str, env_kwargs: dict, grid, label: str) -> list[str]:
+    """How the grid ``grid`` (a ``GridConfig``) differs from the one ``env_kwargs`` make for ``domain`` in size,
+    agents, targets, walls and levels, each as ``"field value (label trained value)"``; empty when it fits."""
+    import gymnasium
+
+    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    from embodied_adhoc.learning.vector_grid import GRID_IDS
+
+    probe = gymnasium.make(GRID_IDS[domain], **env_kwargs)
+    trained = probe.unwrapped.core.rules.config
+    probe.close()
+    return [
+        f"{field} {getattr(grid, field)} ({label} {getattr(trained, field)})"
+        for field in _GRID_FIELDS
+        if getattr(grid, field) != getattr(trained, field)
+    ]
+
+
 def library_agent(
     domain: str, folder: str | Path | None, grid, name: str = "atlpo-mf", known: int | None = None
 ) -> AtlpoAgent:
@@ -451,11 +469,6 @@ def library_agent(
     episode on the grid ``grid`` (a ``GridConfig``): the library must be of ``domain``, have its classifier and
     have been trained on the same grid (size, agents, targets, walls, levels), else one line saying which.
     Libraries are loaded once per process (the trial runner asks for one agent per trial)."""
-    import gymnasium
-
-    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
-    from embodied_adhoc.learning.vector_grid import GRID_IDS
-
     folder = shipped_library(domain) if folder is None else Path(folder)
     manifest = folder / "library.json"
     key = (str(folder.resolve()), manifest.stat().st_mtime if manifest.exists() else 0.0)
@@ -470,14 +483,7 @@ def library_agent(
         raise ConfigError(
             f"{manifest}: the library has no classifier yet; rerun `embodied-adhoc train atlpo` on it"
         )
-    probe = gymnasium.make(GRID_IDS[domain], **library.env_kwargs)
-    trained = probe.unwrapped.core.rules.config
-    probe.close()
-    differ = [
-        f"{field} {getattr(grid, field)} (library {getattr(trained, field)})"
-        for field in _GRID_FIELDS
-        if getattr(grid, field) != getattr(trained, field)
-    ]
+    differ = grid_differences(domain, library.env_kwargs, grid, "library")
     if differ:
         raise ConfigError(
             f"{manifest}: trained on another grid: {', '.join(differ)}; use the library's grid or "

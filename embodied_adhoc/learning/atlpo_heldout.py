@@ -121,7 +121,8 @@ def play(
     seed: int,
     max_steps: int,
 ) -> tuple[int, bool]:
-    """One episode of ``agent`` with ``team`` on ``task`` (1-based): (steps, finished)."""
+    """One episode of ``agent`` with ``team`` on ``task`` (1-based): (steps, finished). ``agent`` is one of
+    :data:`AGENTS` or an Agent that reads the egocentric arrays (``observes_raw``: a learned agent)."""
     import embodied_adhoc.envs  # noqa: F401
 
     env = gymnasium.make(GRID_IDS[library.domain], **{**library.env_kwargs, "tasks": (task,)})
@@ -135,6 +136,9 @@ def play(
             library.environments.index(LibraryEnvironment(task, "tau1")) if agent == "known-task" else None
         )
         learned = AtlpoAgent(library, classifier, known=known)
+    elif not isinstance(agent, str):
+        learned = agent
+    if learned is not None:
         learned.reset(rng)
         learned.start(observation)
     try:
@@ -165,17 +169,21 @@ def evaluate_held_out(
     episodes: int,
     seed: int,
     max_steps: int = 200,
+    extra_agents: dict[str, Callable[[], object]] | None = None,
 ) -> dict:
     """Per team and agent: steps and finished flags of ``episodes`` episodes (task ``1 + e % 4``), the same
-    episodes (seeds) for every agent."""
+    episodes (seeds) for every agent. ``extra_agents`` (name -> factory of an ``observes_raw`` Agent) are played
+    beside :data:`AGENTS`, a fresh agent per episode."""
+    extra_agents = dict(extra_agents or {})
     results = {}
     for t, team in enumerate(teams):
-        rows = {name: {"steps": [], "finished": []} for name in AGENTS}
+        rows = {name: {"steps": [], "finished": []} for name in (*AGENTS, *extra_agents)}
         for episode in range(episodes):
             episode_seed = seed * 1_000_003 + 50_021 * (t + 1) + episode
-            for name in AGENTS:
+            for name in rows:
+                agent = extra_agents[name]() if name in extra_agents else name
                 steps, finished = play(
-                    library, classifier, team, name, 1 + episode % 4, episode_seed, max_steps
+                    library, classifier, team, agent, 1 + episode % 4, episode_seed, max_steps
                 )
                 rows[name]["steps"].append(steps)
                 rows[name]["finished"].append(finished)
@@ -191,13 +199,14 @@ def normalised_scores(cells: list[dict], summarise: Callable) -> dict:
     and mean with percentile-bootstrap intervals."""
     scores = {}
     for team in dict.fromkeys(name for cell in cells for name in cell):
+        agents = tuple(dict.fromkeys(agent for c in cells if team in c for agent in c[team]))
         pooled = {
             agent: np.concatenate([np.asarray(c[team][agent]["steps"], float) for c in cells if team in c])
-            for agent in AGENTS
+            for agent in agents
         }
         solved = {
             agent: float(np.mean(np.concatenate([c[team][agent]["finished"] for c in cells if team in c])))
-            for agent in AGENTS
+            for agent in agents
         }
         random_mean, original_mean = pooled["random"].mean(), pooled["original"].mean()
         span = random_mean - original_mean
@@ -206,7 +215,7 @@ def normalised_scores(cells: list[dict], summarise: Callable) -> dict:
             "steps": {a: float(v.mean()) for a, v in pooled.items()},
             "solved": solved,
         }
-        for agent in ("known-task", "atlpo-mf"):
+        for agent in (a for a in agents if a not in ("original", "random")):
             if span <= 0:  # the team does no better than random: no scale to normalise on
                 row[agent] = {"iqm": float("nan"), "ci": [float("nan")] * 2, "mean": float("nan")}
                 continue

@@ -73,6 +73,11 @@ def pick_device(name: str) -> torch.device:
 def ppo_loss(model: ActorCritic, observations, actions, old_logprobs, advantages, returns, config: PpoConfig):
     """The clipped PPO objective to minimise and its parts (policy, value, entropy)."""
     logits, values = model(observations)
+    return clipped_objective(logits, values, actions, old_logprobs, advantages, returns, config)
+
+
+def clipped_objective(logits, values, actions, old_logprobs, advantages, returns, config: PpoConfig):
+    """The clipped PPO objective of given action logits and values (any network's) and its parts."""
     distribution = torch.distributions.Categorical(logits=logits)
     ratio = torch.exp(distribution.log_prob(actions) - old_logprobs)
     policy = torch.max(
@@ -81,6 +86,39 @@ def ppo_loss(model: ActorCritic, observations, actions, old_logprobs, advantages
     value = 0.5 * ((values - returns) ** 2).mean()
     entropy = distribution.entropy().mean()
     return policy - config.entropy_coef * entropy + config.value_coef * value, policy, value, entropy
+
+
+def advantages_and_returns(rewards, values, next_value, ended, terminal, config: PpoConfig):
+    """GAE over a (steps, envs) rollout: ``values[t]`` is V of the observation step ``t`` acted on, ``next_value``
+    V of the observation the last step returned; it never flows across an episode end (``ended``), and a
+    terminated step bootstraps from 0, a truncated one from the value of its last observation."""
+    steps = rewards.shape[0]
+    advantages = torch.zeros_like(rewards)
+    running = torch.zeros_like(next_value)
+    for t in reversed(range(steps)):
+        following = values[t + 1] if t + 1 < steps else next_value  # V of the obs step t returned
+        delta = rewards[t] + config.gamma * following * (~terminal[t]) - values[t]
+        running = delta + config.gamma * config.gae_lambda * (~ended[t]) * running
+        advantages[t] = running
+    return advantages, advantages + values
+
+
+def start_training(domain: str, env_kwargs: dict, config: PpoConfig):
+    """What every PPO run begins with, in this order (the seeds' use depends on it): torch seeded, the minibatch
+    Generator, the device, the vector env reset with the seed, and the network sizes its observations give."""
+    torch.manual_seed(config.seed)
+    rng = np.random.default_rng(config.seed)
+    device = pick_device(config.device)
+    env = GridVectorEnv(domain, config.num_envs, **env_kwargs)
+    observation, _ = env.reset(seed=config.seed)
+    network = NetworkConfig(
+        channels=observation.shape[1],
+        view=observation.shape[2],
+        hidden_channels=config.hidden_channels,
+        features=config.features,
+        head_hidden=config.head_hidden,
+    )
+    return rng, device, env, observation, network
 
 
 @dataclass
@@ -110,18 +148,7 @@ def train_ppo(
     ``after_update(model, transitions)``, if given, is called after every update with the rollout's transitions
     ``(observations, actions, rewards, next_observations)`` as numpy arrays (reset steps left out); ATLPO-MB
     trains its world model on them there and copies the new encoder into ``model``."""
-    torch.manual_seed(config.seed)
-    rng = np.random.default_rng(config.seed)
-    device = pick_device(config.device)
-    env = GridVectorEnv(domain, config.num_envs, **env_kwargs)
-    observation, _ = env.reset(seed=config.seed)
-    network = NetworkConfig(
-        channels=observation.shape[1],
-        view=observation.shape[2],
-        hidden_channels=config.hidden_channels,
-        features=config.features,
-        head_hidden=config.head_hidden,
-    )
+    rng, device, env, observation, network = start_training(domain, env_kwargs, config)
     model = ActorCritic(network)
     if encoder is not None:
         model.encoder.load_state_dict(encoder.state_dict())
@@ -168,14 +195,9 @@ def train_ppo(
             resetting = ended_buf[t].clone()
         with torch.no_grad():
             _, next_value = model(next_obs)
-            advantages = torch.zeros_like(reward_buf)
-            running = torch.zeros(envs, device=device)
-            for t in reversed(range(steps)):
-                following = value_buf[t + 1] if t + 1 < steps else next_value  # V of the obs step t returned
-                delta = reward_buf[t] + config.gamma * following * (~terminal_buf[t]) - value_buf[t]
-                running = delta + config.gamma * config.gae_lambda * (~ended_buf[t]) * running
-                advantages[t] = running
-            returns = advantages + value_buf
+            advantages, returns = advantages_and_returns(
+                reward_buf, value_buf, next_value, ended_buf, terminal_buf, config
+            )
         valid = valid_buf.reshape(-1)
         flat = [
             b.reshape(-1, *b.shape[2:])[valid]

@@ -1,0 +1,268 @@
+"""``ppo-generalist``: the library-free ad hoc agent, one recurrent (GRU) policy trained with PPO against teammates
+drawn per episode from a train population (:mod:`embodied_adhoc.learning.recurrent_ppo`).
+
+Unlike ATLPO it holds no library of (task, team) models and no classifier: whatever it infers about its
+teammates and the task lives in its GRU state, updated from its own observations and actions. It follows the
+project's Agent protocol with ``observes_raw`` (the egocentric arrays of the grid env, the episode's first one
+through :meth:`GeneralistAgent.start`) and keeps no task posterior.
+
+The train population of the grid domains is the thesis's teams tau0-tau2 on the four tasks (:data:`TRAIN_TEAMS`):
+the held-out teams of :mod:`embodied_adhoc.learning.atlpo_heldout` (noisy and mixed teams) are never seen in
+training. ``train_generalist_run`` is the ``embodied-adhoc train ppo-generalist`` pipeline; the package ships one
+agent per trained domain in ``assets/generalist/<domain>/`` (:func:`shipped_weights`, made by
+:data:`SHIPPED_COMMAND`), so ``trials`` and ``run`` use it without training.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from embodied_adhoc.atomic import atomic_write_text
+from embodied_adhoc.decision.agents.base import AgentBase
+from embodied_adhoc.decision.agents.selection import draw_action
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.networks import NetworkConfig
+from embodied_adhoc.learning.recurrent_ppo import (
+    CHECKPOINT,
+    RecurrentActorCritic,
+    RecurrentPpoConfig,
+    generalist_metadata,
+    train_recurrent_ppo,
+)
+from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights, save_weights
+from embodied_adhoc.paths import assets_dir
+
+TRAIN_TEAMS = ("tau0", "tau1", "tau2")
+DOMAINS = ("foraging", "pursuit")
+SHIPPED_FOLDER = "generalist"
+SHIPPED_COMMAND = (
+    "embodied-adhoc train ppo-generalist --domain {domain} --steps 300000 --seed 0 --threads 1 "
+    "--out assets/generalist/{domain}"
+)
+CURVE_FIELDS = (
+    "update",
+    "env_steps",
+    "seconds",
+    "episodes",
+    "mean_episode_length",
+    "solved",
+    "loss_before",
+    "loss_after",
+    "policy_loss",
+    "value_loss",
+    "entropy",
+)
+
+
+def weights_name(domain: str) -> str:
+    return f"{domain}-ppo-generalist.safetensors"
+
+
+def shipped_weights(domain: str) -> Path:
+    """The pre-trained agent of ``domain`` shipped in the package's data, made by :data:`SHIPPED_COMMAND`."""
+    path = assets_dir() / SHIPPED_FOLDER / domain / weights_name(domain)
+    if not path.is_file():
+        raise ConfigError(
+            f"no pre-trained ppo-generalist for {domain!r} in {path.parent}; train one with "
+            f"`{SHIPPED_COMMAND.format(domain=domain)}`"
+        )
+    return path
+
+
+def load_generalist(path: str | Path) -> tuple[RecurrentActorCritic, dict]:
+    """(network in eval mode, metadata) of a weights file written by :func:`train_generalist_run` (safetensors:
+    tensors only, nothing executable is read)."""
+    _, metadata = load_weights(path)
+    if metadata.get("kind") != "ppo-generalist":
+        raise WeightsError(f"{path}: not a ppo-generalist (kind={metadata.get('kind')!r})")
+    model = RecurrentActorCritic(NetworkConfig(**metadata["network"]), int(metadata["recurrent"]))
+    load_into(model, path)
+    return model.eval(), metadata
+
+
+class GeneralistAgent(AgentBase):
+    """The recurrent policy as an ad hoc agent: its GRU state starts at zero with each episode and takes in each
+    observation with the action that led to it; ``act`` draws from the policy (its argmax with ``greedy``)
+    with the episode's ``rng``."""
+
+    observes_raw = True
+
+    def __init__(
+        self, model: RecurrentActorCritic, name: str = "ppo-generalist", greedy: bool = False
+    ) -> None:
+        self.model, self.name, self.greedy = model.eval(), name, greedy
+        self.rng = np.random.default_rng(0)
+        self._hidden: torch.Tensor | None = None
+        self._probabilities: np.ndarray | None = None
+
+    def reset(self, rng: np.random.Generator, state: int | None = None) -> None:
+        self.rng, self._hidden, self._probabilities = rng, None, None
+
+    @torch.no_grad()
+    def _advance(self, observation, previous: int, first: bool) -> None:
+        observation = self._checked(observation)
+        if self._hidden is None:
+            self._hidden = self.model.initial_state(1)
+        logits, _, self._hidden = self.model.step(
+            torch.as_tensor(observation)[None],
+            torch.tensor([previous]),
+            self._hidden,
+            torch.tensor([first]),
+        )
+        self._probabilities = torch.softmax(logits[0], -1).double().numpy()
+
+    def start(self, observation) -> None:
+        """The episode's first observation (the GRU state is zeroed)."""
+        self._advance(observation, self.model.no_action, True)
+
+    def _checked(self, observation) -> np.ndarray:
+        config = self.model.config
+        expected = (config.channels, config.view, config.view)
+        if np.shape(observation) != expected:
+            raise ConfigError(
+                f"ppo-generalist observation of shape {np.shape(observation)}: it was trained on the "
+                f"egocentric {expected} arrays of its grid env (not observation indices, nor another grid's)"
+            )
+        return np.asarray(observation, dtype=np.float32)
+
+    def action_distribution(self) -> np.ndarray:
+        if self._probabilities is None:
+            raise ConfigError("ppo-generalist: call start(observation) after reset() before acting")
+        return self._probabilities.copy()
+
+    def act(self) -> int:
+        return draw_action(self.action_distribution(), self.rng, self.greedy)
+
+    def observe(self, action: int, observation, state: int | None = None, **outcome) -> None:
+        self._advance(observation, int(action), False)
+
+
+_LOADED: dict[tuple[str, float], tuple[RecurrentActorCritic, dict]] = {}
+
+
+def generalist_agent(
+    domain: str, path: str | Path | None, grid, name: str = "ppo-generalist"
+) -> GeneralistAgent:
+    """The agent of the weights at ``path`` (None: the shipped ones, :func:`shipped_weights`) for an episode on
+    ``grid`` (a ``GridConfig``): the weights must be of ``domain`` and trained on the same grid, else one line
+    saying which. Weights are read once per process; each call gets its own agent (its own GRU state)."""
+    from embodied_adhoc.learning.atlpo import grid_differences
+
+    path = shipped_weights(domain) if path is None else Path(path)
+    key = (str(path.resolve()), path.stat().st_mtime if path.exists() else 0.0)
+    if key not in _LOADED:
+        _LOADED[key] = load_generalist(path)
+    model, metadata = _LOADED[key]
+    if metadata["domain"] != domain:
+        raise ConfigError(
+            f"{path}: a {metadata['domain']} agent; {domain} needs one trained with --domain {domain}"
+        )
+    differ = grid_differences(domain, metadata["env_kwargs"], grid, "trained")
+    if differ:
+        raise ConfigError(
+            f"{path}: trained on another grid: {', '.join(differ)}; use its grid or train one on this grid"
+        )
+    return GeneralistAgent(model, name=name)
+
+
+def train_teams(domain: str) -> tuple:
+    """The train population as teams of the held-out protocol (``atlpo_heldout.HeldOutTeam``): each thesis team
+    of :data:`TRAIN_TEAMS` in every teammate seat, without noise, for scoring on the teams it was trained with."""
+    import gymnasium
+
+    import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    from embodied_adhoc.learning.atlpo_heldout import HeldOutTeam, thesis_team
+    from embodied_adhoc.learning.vector_grid import GRID_IDS
+
+    probe = gymnasium.make(GRID_IDS[domain])
+    specs = probe.unwrapped.core.teams
+    probe.close()
+    return tuple(HeldOutTeam(tau, thesis_team(specs, (tau,))) for tau in TRAIN_TEAMS)
+
+
+@dataclass(frozen=True)
+class GeneralistTraining:
+    """The ``train ppo-generalist`` settings (CLI flags map one to one)."""
+
+    domain: str
+    out: str
+    steps: int = 500_000
+    seed: int = 0
+    envs: int = 32
+    rollout: int = 64
+    device: str = "cpu"
+    threads: int = 1
+
+    def __post_init__(self) -> None:
+        if self.domain not in DOMAINS:
+            raise ConfigError(f"--domain {self.domain}: use one of {', '.join(DOMAINS)}")
+
+    def config(self) -> RecurrentPpoConfig:
+        minibatches = 4 if self.envs % 4 == 0 else 1
+        return RecurrentPpoConfig(
+            total_steps=self.steps,
+            num_envs=self.envs,
+            rollout_steps=self.rollout,
+            minibatches=minibatches,
+            seed=self.seed,
+            device=self.device,
+        )
+
+    def env_kwargs(self) -> dict:
+        return {"teams": list(TRAIN_TEAMS)}
+
+
+def curve_csv(history: list[dict]) -> str:
+    """The training curve, one row per update (:data:`CURVE_FIELDS`)."""
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=CURVE_FIELDS, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for row in history:
+        writer.writerow({k: "" if row.get(k) is None else row[k] for k in CURVE_FIELDS})
+    return buffer.getvalue()
+
+
+def train_generalist_run(
+    settings: GeneralistTraining,
+    progress: Callable[[int, dict], None] | None = None,
+    stop_after: int | None = None,
+) -> dict:
+    """Train (resuming a checkpoint in ``settings.out`` of the same settings) and write the weights
+    (:func:`weights_name`), ``curve.csv`` and ``training.json``; the checkpoint is removed once the weights are
+    written. A folder whose weights exist already is not retrained: its report is returned. With ``stop_after``
+    the run stops after that many updates in all, checkpointed."""
+    if settings.threads:
+        torch.set_num_threads(settings.threads)
+    out = Path(settings.out)
+    weights, report_path = out / weights_name(settings.domain), out / "training.json"
+    if weights.exists() and report_path.exists() and not (out / CHECKPOINT).exists():
+        return json.loads(report_path.read_text())
+    config, env_kwargs = settings.config(), settings.env_kwargs()
+    started = time.perf_counter()
+    result = train_recurrent_ppo(settings.domain, env_kwargs, config, out, progress, stop_after)
+    atomic_write_text(out / "curve.csv", curve_csv(result.history))
+    report = {
+        "settings": asdict(settings),
+        "finished": result.finished,
+        "updates": result.updates,
+        "total_updates": result.total_updates,
+        "env_steps": result.env_steps,
+        "train_seconds": round(result.seconds, 1),
+        "steps_per_second": round(result.steps_per_second, 1),
+        "call_seconds": round(time.perf_counter() - started, 1),
+        "final": result.history[-1] if result.history else None,
+    }
+    if result.finished:
+        save_weights(weights, result.model, generalist_metadata(settings.domain, env_kwargs, config, result))
+        atomic_write_text(report_path, json.dumps(report, indent=1) + "\n")
+        (out / CHECKPOINT).unlink(missing_ok=True)
+    return report

@@ -1,0 +1,398 @@
+"""Recurrent PPO: a GRU actor-critic trained with PPO over rollout segments (truncated backpropagation through
+time), the library-free ``ppo-generalist`` ego agent's learner (:mod:`embodied_adhoc.learning.generalist`).
+
+The network is the ATLPO encoder (:class:`~embodied_adhoc.learning.networks.Encoder`, a small CNN over the
+egocentric window) followed by a GRU cell whose input is the encoding and the ego's previous action (one-hot,
+"none" at an episode's first step), and linear actor and critic heads on the GRU state. The GRU state is the
+agent's memory of the episode: what it has seen of its teammates' moves, from which it can infer who they are and
+which task they pursue, without a library of either.
+
+Training follows :mod:`embodied_adhoc.learning.ppo` (CleanRL style) on the same
+:class:`~embodied_adhoc.learning.vector_grid.GridVectorEnv`: NEXT_STEP autoreset, reset steps masked out of the
+loss, GAE that never crosses an episode end (:func:`~embodied_adhoc.learning.ppo.advantages_and_returns`), the
+clipped objective (:func:`~embodied_adhoc.learning.ppo.clipped_objective`). Recurrence adds: the GRU state is
+zeroed at every episode's first observation; each update re-runs the GRU over the whole rollout segment from the
+state it had when the segment began (minibatches are sets of whole sub-env sequences); the state carries across
+segments without gradient. Each episode draws its task and its team from the train population given in
+``env_kwargs`` (``teams``, ``tasks``), as the vector env does.
+
+Every random source is seeded (torch for the action samples, a numpy Generator for the minibatch order, the
+env's seeds), so one seed gives the same weights. Training is resumable: every ``checkpoint_every`` updates (and
+when a call stops) ``checkpoint.safetensors`` holds the network, Adam's moments, the torch RNG, the rollout's
+carried state and the vector env's per-sub-env state, with a JSON header of counters, Generator states and the
+curve so far; a resumed run continues exactly where the uninterrupted one would be.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import torch
+from torch import nn
+
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning.networks import Encoder, NetworkConfig, _layer
+from embodied_adhoc.learning.ppo import (
+    PpoConfig,
+    PpoResult,
+    advantages_and_returns,
+    clipped_objective,
+    start_training,
+)
+from embodied_adhoc.learning.vector_grid import GridVectorEnv
+from embodied_adhoc.learning.weights import WeightsError, load_weights, save_weights
+
+CHECKPOINT = "checkpoint.safetensors"
+
+
+@dataclass(frozen=True)
+class RecurrentPpoConfig(PpoConfig):
+    """PPO settings plus the GRU's size; minibatches split the sub-envs (whole sequences), so they divide
+    ``num_envs``; ``rollout_steps`` is the truncated-BPTT length."""
+
+    total_steps: int = 300_000
+    num_envs: int = 32
+    rollout_steps: int = 64
+    learning_rate: float = 5e-4
+    recurrent: int = 64  # GRU state size
+    checkpoint_every: int = 25  # updates between checkpoints
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.num_envs % self.minibatches:
+            raise ConfigError(
+                f"RecurrentPpoConfig.minibatches={self.minibatches}: must divide num_envs={self.num_envs} "
+                "(a minibatch is a set of whole sub-env sequences)"
+            )
+        for name in ("recurrent", "checkpoint_every"):
+            if getattr(self, name) < 1:
+                raise ConfigError(f"RecurrentPpoConfig.{name}={getattr(self, name)}: give a positive integer")
+
+
+class RecurrentActorCritic(nn.Module):
+    """Encoder ``q``, a GRU cell over (encoding, previous action) and linear actor and critic heads."""
+
+    def __init__(self, network: NetworkConfig, recurrent: int) -> None:
+        super().__init__()
+        self.config, self.recurrent = network, recurrent
+        self.encoder = Encoder(network)
+        self.gru = nn.GRUCell(network.features + network.actions + 1, recurrent)
+        self.actor = _layer(nn.Linear(recurrent, network.actions), 0.01)
+        self.critic = _layer(nn.Linear(recurrent, 1), 1.0)
+
+    @property
+    def no_action(self) -> int:
+        """The previous-action index of an episode's first step."""
+        return self.config.actions
+
+    def initial_state(self, batch: int, device=None) -> torch.Tensor:
+        return torch.zeros(batch, self.recurrent, device=device)
+
+    def _cell(self, latent, previous, hidden, starts):
+        previous = torch.where(starts, torch.full_like(previous, self.no_action), previous)
+        inputs = torch.cat([latent, nn.functional.one_hot(previous, self.no_action + 1).to(latent.dtype)], -1)
+        return self.gru(inputs, hidden * (~starts).unsqueeze(-1).to(hidden.dtype))
+
+    def step(self, observations, previous, hidden, starts):
+        """One step of B sequences: (logits (B, A), values (B,), new state (B, H)); ``starts`` (B,) bool marks an
+        episode's first observation (the state is zeroed and the previous action is "none" there)."""
+        hidden = self._cell(self.encoder(observations), previous, hidden, starts)
+        return self.actor(hidden), self.critic(hidden).squeeze(-1), hidden
+
+    def unroll(self, observations, previous, hidden, starts):
+        """T steps of B sequences from state ``hidden``: (logits (T, B, A), values (T, B))."""
+        steps, batch = starts.shape
+        latent = self.encoder(observations.reshape(steps * batch, *observations.shape[2:]))
+        latent = latent.reshape(steps, batch, -1)
+        states = []
+        for t in range(steps):
+            hidden = self._cell(latent[t], previous[t], hidden, starts[t])
+            states.append(hidden)
+        states = torch.stack(states)
+        return self.actor(states), self.critic(states).squeeze(-1)
+
+
+@dataclass
+class RecurrentPpoResult(PpoResult):
+    """:class:`~embodied_adhoc.learning.ppo.PpoResult` of a run that may stop before its last update."""
+
+    updates: int = 0  # done so far
+    total_updates: int = 0
+
+    @property
+    def finished(self) -> bool:
+        return self.updates >= self.total_updates
+
+
+_BATCH_FIELDS = ("agents", "agent_levels", "targets", "target_levels", "alive")
+_ENV_ARRAYS = ("task_index", "team_index", "steps", "needs_reset", "uniforms", "used")
+
+
+def _env_state(env: GridVectorEnv) -> tuple[dict[str, torch.Tensor], dict]:
+    """Everything a :class:`GridVectorEnv` carries from one step to the next: its state arrays (tensors) and its
+    Generators' states (JSON). The episode's offsets and team table follow from the task and team indices."""
+    tensors = {f"env.batch.{n}": torch.from_numpy(getattr(env.batch, n).copy()) for n in _BATCH_FIELDS}
+    tensors.update({f"env.{n}": torch.from_numpy(getattr(env, n).copy()) for n in _ENV_ARRAYS})
+    header = {"rngs": [rng.bit_generator.state for rng in env.rngs], "block_states": env.block_states}
+    return tensors, header
+
+
+def _restore_env(env: GridVectorEnv, tensors: dict, header: dict) -> None:
+    for name in _BATCH_FIELDS:
+        getattr(env.batch, name)[...] = tensors[f"env.batch.{name}"].numpy()
+    for name in _ENV_ARRAYS:
+        getattr(env, name)[...] = tensors[f"env.{name}"].numpy()
+    env.rngs = []
+    for state in header["rngs"]:
+        rng = np.random.Generator(np.random.PCG64())
+        rng.bit_generator.state = state
+        env.rngs.append(rng)
+    env.block_states = list(header["block_states"])
+    env.episode_offsets = env.offsets[env.task_index]
+    env.episode_teams = env.team_table.take(env.team_index)
+
+
+def _save_checkpoint(
+    path: Path, model, optimiser, carried: dict, env, rng, result, config, env_kwargs
+) -> None:
+    tensors = {f"model.{k}": v for k, v in model.state_dict().items()}
+    optimiser_state = optimiser.state_dict()
+    for index, slots in optimiser_state["state"].items():
+        tensors.update({f"optimiser.{index}.{k}": v for k, v in slots.items()})
+    tensors.update({f"carried.{k}": v for k, v in carried.items()})
+    tensors["torch_rng"] = torch.get_rng_state()
+    device = next(model.parameters()).device
+    if device.type == "cuda":  # the action samples are drawn on the device
+        tensors["cuda_rng"] = torch.cuda.get_rng_state(device)
+    env_tensors, env_header = _env_state(env)
+    tensors.update(env_tensors)
+    header = {
+        "kind": "ppo-generalist-checkpoint",
+        "config": asdict(config),
+        "env_kwargs": env_kwargs,
+        "param_groups": _json_ready(optimiser_state["param_groups"]),
+        "optimiser_slots": sorted(optimiser_state["state"]),
+        "rng": rng.bit_generator.state,
+        "env": env_header,
+        "history": result.history,
+        "seconds": result.seconds,
+        "env_steps": result.env_steps,
+        "updates": result.updates,
+    }
+    tensors = {k: v.detach().cpu().contiguous() for k, v in tensors.items()}
+    save_weights(path, SimpleNamespace(state_dict=lambda: tensors), header)
+
+
+def _load_checkpoint(path: Path, config: RecurrentPpoConfig, env_kwargs: dict):
+    tensors, header = load_weights(path)
+    if header.get("kind") != "ppo-generalist-checkpoint":
+        raise WeightsError(f"{path}: not a ppo-generalist checkpoint (kind={header.get('kind')!r})")
+    wanted = asdict(config)
+    stored = header["config"]
+    differ = [k for k in wanted if k != "device" and stored.get(k) != wanted[k]]
+    if differ or header["env_kwargs"] != json.loads(json.dumps(env_kwargs)):
+        names = ", ".join(f"{k} {stored.get(k)!r} (now {wanted[k]!r})" for k in differ) or "env settings"
+        raise ConfigError(
+            f"{path}: a checkpoint of another run ({names}); resume with its settings or use another --out"
+        )
+    return tensors, header
+
+
+def _json_ready(state: list[dict]) -> list[dict]:
+    """Adam's param groups as JSON (tuples become lists, which it accepts back)."""
+    return [{k: list(v) if isinstance(v, tuple) else v for k, v in group.items()} for group in state]
+
+
+def segment_loss(model: RecurrentActorCritic, segment: dict, index: torch.Tensor, config: RecurrentPpoConfig):
+    """The clipped PPO objective of the sub-envs ``index`` of a rollout segment: the GRU re-run over their whole
+    sequences from the state it had when the segment began, the reset steps left out."""
+    logits, values = model.unroll(
+        segment["observations"][:, index],
+        segment["previous"][:, index],
+        segment["hidden"][index],
+        segment["starts"][:, index],
+    )
+    mask = segment["valid"][:, index]
+    return clipped_objective(
+        logits[mask],
+        values[mask],
+        *(segment[name][:, index][mask] for name in ("actions", "logprobs", "advantages", "returns")),
+        config,
+    )
+
+
+def train_recurrent_ppo(
+    domain: str,
+    env_kwargs: dict,
+    config: RecurrentPpoConfig,
+    folder: str | Path | None = None,
+    progress: Callable[[int, dict], None] | None = None,
+    stop_after: int | None = None,
+) -> RecurrentPpoResult:
+    """Train on ``GridVectorEnv(domain, config.num_envs, **env_kwargs)`` for ``config.total_steps`` env steps.
+
+    With ``folder`` the run checkpoints there (:data:`CHECKPOINT`) and, if a checkpoint of the same settings is
+    there, resumes from it; ``stop_after`` ends this call after that many updates in all (checkpointed), so a
+    later call continues. ``progress(env_steps, row)`` is called after every update."""
+    env_kwargs = dict(env_kwargs)
+    rng, device, env, observation, network = start_training(domain, env_kwargs, config)
+    model = RecurrentActorCritic(network, config.recurrent).to(device)
+    optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate, eps=1e-5)
+    steps, envs = config.rollout_steps, config.num_envs
+    result = RecurrentPpoResult(model, total_updates=max(1, config.total_steps // (steps * envs)))
+    carried = {
+        "observation": torch.as_tensor(observation),
+        "hidden": model.initial_state(envs),
+        "previous": torch.full((envs,), model.no_action, dtype=torch.long),
+        "fresh": torch.ones(envs, dtype=torch.bool),  # the observation is an episode's first
+        "resetting": torch.zeros(envs, dtype=torch.bool),  # the next step only resets the sub-env
+        "lengths": torch.zeros(envs, dtype=torch.long),
+    }
+    checkpoint = None if folder is None else Path(folder) / CHECKPOINT
+    if checkpoint is not None and checkpoint.exists():
+        tensors, header = _load_checkpoint(checkpoint, config, env_kwargs)
+        model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
+        optimiser.load_state_dict(
+            {
+                "state": {
+                    i: {
+                        k.split(".", 2)[2]: v.to(device)
+                        for k, v in tensors.items()
+                        if k.startswith(f"optimiser.{i}.")
+                    }
+                    for i in header["optimiser_slots"]
+                },
+                "param_groups": header["param_groups"],
+            }
+        )
+        carried = {k[8:]: v for k, v in tensors.items() if k.startswith("carried.")}
+        torch.set_rng_state(tensors["torch_rng"])
+        if "cuda_rng" in tensors and device.type == "cuda":
+            torch.cuda.set_rng_state(tensors["cuda_rng"], device)
+        rng.bit_generator.state = header["rng"]
+        _restore_env(env, tensors, header["env"])
+        result.history, result.seconds = header["history"], header["seconds"]
+        result.env_steps, result.updates = header["env_steps"], header["updates"]
+    carried = {k: v.to(device) for k, v in carried.items()}
+    last = result.total_updates if stop_after is None else min(result.total_updates, stop_after)
+    obs_buf = torch.zeros((steps, envs, *observation.shape[1:]), device=device)
+    action_buf, previous_buf = (torch.zeros((steps, envs), dtype=torch.long, device=device) for _ in range(2))
+    logprob_buf, value_buf, reward_buf = (torch.zeros((steps, envs), device=device) for _ in range(3))
+    start_buf, ended_buf, terminal_buf, valid_buf = (
+        torch.zeros((steps, envs), dtype=torch.bool, device=device) for _ in range(4)
+    )
+    while result.updates < last:
+        began = time.perf_counter()
+        update = result.updates
+        if config.anneal_lr:
+            optimiser.param_groups[0]["lr"] = config.learning_rate * (1.0 - update / result.total_updates)
+        first_hidden = carried["hidden"].clone()
+        next_obs, hidden, previous = carried["observation"], carried["hidden"], carried["previous"]
+        fresh, resetting, lengths = carried["fresh"], carried["resetting"], carried["lengths"]
+        finished, solved = [], []
+        for t in range(steps):
+            obs_buf[t], previous_buf[t], start_buf[t], valid_buf[t] = next_obs, previous, fresh, ~resetting
+            with torch.no_grad():
+                logits, value, hidden = model.step(next_obs, previous, hidden, fresh)
+                distribution = torch.distributions.Categorical(logits=logits)
+                action = distribution.sample()
+            action_buf[t], logprob_buf[t], value_buf[t] = action, distribution.log_prob(action), value
+            observation, reward, terminated, truncated, _ = env.step(action.cpu().numpy())
+            result.env_steps += envs
+            ended = torch.as_tensor(terminated | truncated, device=device)
+            lengths = lengths + (~resetting).long()
+            finished.extend(lengths[ended].tolist())
+            solved.extend(terminated[(terminated | truncated)].tolist())
+            lengths = torch.where(ended, torch.zeros_like(lengths), lengths)
+            reward_buf[t] = torch.as_tensor(reward, dtype=torch.float32, device=device)
+            ended_buf[t], terminal_buf[t] = ended, torch.as_tensor(terminated, device=device)
+            next_obs = torch.as_tensor(observation, device=device)
+            previous, fresh, resetting = action, resetting, ended
+        with torch.no_grad():
+            _, next_value, _ = model.step(next_obs, previous, hidden, fresh)
+            advantages, returns = advantages_and_returns(
+                reward_buf, value_buf, next_value, ended_buf, terminal_buf, config
+            )
+            valid_advantages = advantages[valid_buf]
+            if valid_advantages.numel() > 1:
+                advantages = (advantages - valid_advantages.mean()) / (valid_advantages.std() + 1e-8)
+        carried = {
+            "observation": next_obs,
+            "hidden": hidden,
+            "previous": previous,
+            "fresh": fresh,
+            "resetting": resetting,
+            "lengths": lengths,
+        }
+
+        segment = {
+            "observations": obs_buf,
+            "previous": previous_buf,
+            "hidden": first_hidden,
+            "starts": start_buf,
+            "valid": valid_buf,
+            "actions": action_buf,
+            "logprobs": logprob_buf,
+            "advantages": advantages,
+            "returns": returns,
+        }
+        every = torch.arange(envs, device=device)
+        with torch.no_grad():
+            loss_before = segment_loss(model, segment, every, config)[0].item()
+        for _ in range(config.epochs):
+            order = rng.permutation(envs)
+            for chunk in np.array_split(order, config.minibatches):
+                loss = segment_loss(model, segment, torch.as_tensor(chunk, device=device), config)[0]
+                optimiser.zero_grad()
+                loss.backward()
+                nn.utils.clip_grad_norm_(model.parameters(), config.max_grad_norm)
+                optimiser.step()
+        with torch.no_grad():
+            after = segment_loss(model, segment, every, config)
+        result.updates += 1
+        result.seconds += time.perf_counter() - began
+        row = {
+            "update": result.updates,
+            "env_steps": result.env_steps,
+            "seconds": round(result.seconds, 3),
+            "episodes": len(finished),
+            "mean_episode_length": float(np.mean(finished)) if finished else None,
+            "solved": float(np.mean(solved)) if solved else None,
+            "loss_before": loss_before,
+            "loss_after": after[0].item(),
+            "policy_loss": after[1].item(),
+            "value_loss": after[2].item(),
+            "entropy": after[3].item(),
+        }
+        result.history.append(row)
+        if checkpoint is not None and (
+            result.updates % config.checkpoint_every == 0 or result.updates == last
+        ):
+            _save_checkpoint(checkpoint, model, optimiser, carried, env, rng, result, config, env_kwargs)
+        if progress is not None:
+            progress(result.env_steps, row)
+    env.close()
+    model.eval()
+    return result
+
+
+def generalist_metadata(domain: str, env_kwargs: dict, config: RecurrentPpoConfig, result) -> dict:
+    """What to store beside the trained weights: network sizes, env, settings and the training cost."""
+    return {
+        "kind": "ppo-generalist",
+        "domain": domain,
+        "env_kwargs": env_kwargs,
+        "network": result.model.config.as_dict(),
+        "recurrent": result.model.recurrent,
+        "ppo": asdict(config),
+        "env_steps": result.env_steps,
+        "updates": result.updates,
+        "seconds": round(result.seconds, 3),
+        "final": result.history[-1] if result.history else None,
+    }
