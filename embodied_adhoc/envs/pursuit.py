@@ -3,6 +3,7 @@ and the two-predator variant of Fig. 7.12 (``EmbodiedAdhoc/PursuitPairGrid-v0``,
 
 from __future__ import annotations
 
+import gymnasium
 import numpy as np
 
 from embodied_adhoc import checks
@@ -39,6 +40,16 @@ class PursuitEnv(AdhocGridEnv):
     ``obs_mode="grid"``: ``Box(0, 1, (C, f, f), float32)``, egocentric ``f x f`` view with
     ``C = (N-1) + M + 1`` channels: one per teammate, one per prey and the boundary.
     ``obs_mode="image"`` (``backend="mujoco"`` only): ``Box(0, 255, (image_size, image_size, 3), uint8)``.
+    With ``pairs=True`` the observation is ``Dict({"view": <that space>, "observation_index": Discrete(81)})``:
+    ``view`` as above, and ``observation_index`` the flat observation ``z = 9 t + p`` of the two-predator pursuit
+    POMDP (thesis 5.2.5; :func:`~embodied_adhoc.domains.chapter5.pursuit.observation_distribution`, the function
+    its ``O`` is built from): the teammate's (t) and the prey's (p) cell in the ad hoc robot's 3x3 neighbourhood,
+    each seen with probability ``1 - observation_noise``, else 4; 40 (nothing seen) at reset. It is drawn from a
+    generator spawned from the episode's, so it leaves every other draw of the env unchanged. Any agent of
+    :mod:`embodied_adhoc.decision.agents` over a pursuit library can act on it; note that these envs keep the
+    arena's rules (walls, collisions, the greedy/aware teams of ``grid_rules_team``), so for a planner they are
+    a model mismatch; ``EmbodiedAdhoc/PursuitPairPomdpGrid-v0`` / ``PursuitPairPomdp-v0`` run the POMDP's own
+    rules.
 
     ## Rewards
     Sparse: 1.0 on the step the last prey is captured, else 0.0.
@@ -54,21 +65,12 @@ class PursuitEnv(AdhocGridEnv):
     ``gymnasium.make("EmbodiedAdhoc/PursuitGrid-v0", tasks=None, teams=None, rows=5, cols=5, n_agents=4,
     n_prey=1, pairs=False, toroidal=False, prey_stay_probability=0.2, view=5, backend="abstract",
     obs_mode="grid", image_size=64, render_mode=None, physics=None, observation_noise=0.2)``
-    (``observation_noise``: eps of ``info["observation_index"]``, pairs only; 0.2 as pursuit-task, Table 5.2);
+    (``observation_noise``: eps of ``obs["observation_index"]``, pairs only; 0.2 as pursuit-task, Table 5.2);
     ``reset(options={"task", "team", "state"})``.
 
     ## Info
     ``task`` (1-based), ``task_name``, ``team``, ``state`` (ground truth, evaluation only), ``steps``,
-    ``remaining``; after a step ``completed`` and ``teammate_actions``. With ``pairs=True`` also
-    ``observation_index``: the flat observation ``z = 9 t + p`` of the two-predator pursuit POMDP (thesis 5.2.5;
-    :func:`~embodied_adhoc.domains.chapter5.pursuit.observation_distribution`, the function its ``O`` is built
-    from): the teammate's (t) and the prey's (p) cell in the ad hoc robot's 3x3 neighbourhood, each seen with
-    probability ``1 - observation_noise``, else 4; 40 (nothing seen) at reset. It is drawn from a generator spawned
-    from the episode's, so it leaves every other draw of the env unchanged. Any agent of
-    :mod:`embodied_adhoc.decision.agents` over a pursuit library can act on it; note that these envs keep the
-    arena's rules (walls, collisions, the greedy/aware teams of ``grid_rules_team``), so for a planner they are
-    a model mismatch; ``EmbodiedAdhoc/PursuitPairPomdpGrid-v0`` / ``PursuitPairPomdp-v0`` run the POMDP's own
-    rules.
+    ``remaining``; after a step ``completed`` and ``teammate_actions``.
 
     ## Version history
     v0: initial release.
@@ -125,6 +127,10 @@ class PursuitEnv(AdhocGridEnv):
             render_mode,
             physics,
         )
+        if self.pairs:  # the POMDP's observation travels in obs, beside the view
+            self.observation_space = gymnasium.spaces.Dict(
+                {"view": self.observation_space, "observation_index": gymnasium.spaces.Discrete(81)}
+            )
 
     @property
     def pairs(self) -> bool:
@@ -135,13 +141,13 @@ class PursuitEnv(AdhocGridEnv):
         observation, info = super().reset(seed=seed, options=options)
         if self.pairs:
             self._observation_rng = self.np_random.spawn(1)[0]
-            info["observation_index"] = 9 * 4 + 4  # nothing seen before the first step
+            observation = {"view": observation, "observation_index": 9 * 4 + 4}  # nothing seen yet
         return observation, info
 
     def step(self, action):
         observation, reward, terminated, truncated, info = super().step(action)
         if self.pairs:
-            info["observation_index"] = self._pair_observation()
+            observation = {"view": observation, "observation_index": self._pair_observation()}
         return observation, reward, terminated, truncated, info
 
     def _pair_observation(self) -> int:

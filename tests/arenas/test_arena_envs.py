@@ -15,13 +15,20 @@ GRID_IDS = [
 ]
 
 
+def flat(obs) -> np.ndarray:
+    """One array per observation (the pursuit pairs' Dict: the view, then the POMDP's observation index)."""
+    if isinstance(obs, dict):
+        return np.concatenate([np.ravel(obs["view"]), [obs["observation_index"]]])
+    return np.ravel(obs).copy()
+
+
 def rollout(env, seed, steps):
     obs, info = env.reset(seed=seed)
-    trace = [obs.copy()]
+    trace = [flat(obs)]
     actions = np.random.default_rng(seed).integers(0, 5, size=steps)
     for action in actions:
         obs, reward, terminated, truncated, info = env.step(int(action))
-        trace.append(obs.copy())
+        trace.append(flat(obs))
         if terminated or truncated:
             obs, info = env.reset()
     return np.stack(trace), info

@@ -59,10 +59,13 @@ def test_mujoco_env_checks_and_determinism(env_id):
     traces = []
     for seed in (3, 3):
         obs, info = env.reset(seed=seed)
-        trace = [obs]
+        space = (
+            env.observation_space
+        )  # the pursuit pairs' is a Dict (view and POMDP index): compared flattened
+        trace = [gymnasium.spaces.flatten(space, obs)]
         for action in (0, 3, 1, 4):
             obs, *_, info = env.step(action)
-            trace.append(obs)
+            trace.append(gymnasium.spaces.flatten(space, obs))
         traces.append((np.stack(trace), info["state"]))
     assert np.array_equal(traces[0][0], traces[1][0]) and traces[0][1] == traces[1][1]
     env.close()

@@ -331,7 +331,13 @@ def test_sb3_make_vec_env_works_with_its_default_render_mode(env_id):
     vec = env_util.make_vec_env(env_id, n_envs=2, seed=0, env_kwargs=SMALL.get(env_id))
     try:
         observations = vec.reset()
-        assert observations.shape == (2, *vec.observation_space.shape)
+        if isinstance(
+            vec.observation_space, gymnasium.spaces.Dict
+        ):  # the pursuit pairs: view and POMDP index
+            for key, space in vec.observation_space.spaces.items():
+                assert observations[key].shape == (2, *space.shape), key
+        else:
+            assert observations.shape == (2, *vec.observation_space.shape)
         vec.step(np.array([vec.action_space.sample() for _ in range(2)]))
         assert vec.get_attr("render_mode") == ["rgb_array", "rgb_array"]  # SB3's default, accepted
     finally:
@@ -349,7 +355,9 @@ def test_ppo_smoke_run(env_id):
     from stable_baselines3.common.env_util import make_vec_env
 
     vec = make_vec_env(env_id, n_envs=2, seed=0)
-    model = PPO("MlpPolicy", vec, n_steps=64, batch_size=64, n_epochs=2, seed=0, device="cpu")
+    # the pursuit pairs' Dict observation (view and POMDP index) takes SB3's multi-input policy
+    policy = "MultiInputPolicy" if isinstance(vec.observation_space, gymnasium.spaces.Dict) else "MlpPolicy"
+    model = PPO(policy, vec, n_steps=64, batch_size=64, n_epochs=2, seed=0, device="cpu")
     model.learn(total_timesteps=256)
     assert model.num_timesteps >= 256
     observation = vec.reset()

@@ -10,7 +10,8 @@ hoc robot's seat), ``random`` (uniform over the 5 actions) and ``atlpo-mf`` (the
 the pre-trained library shipped with the package, or of ``--library DIR``; it reads the egocentric arrays
 themselves, ``observes_raw``, and its task posterior is the classifier's marginal over the tasks). The
 observation index reported to the runner is a CRC-32 fingerprint of the egocentric observation (these domains
-have no finite observation library).
+have no finite observation library), or on the pair variant (``--pairs``) the pursuit POMDP's index that its
+``obs["observation_index"]`` holds.
 """
 
 from __future__ import annotations
@@ -102,6 +103,8 @@ class GridTrialSession:
         raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
 
     def observation_index(self, observation) -> int:
+        if isinstance(observation, dict):  # the pair variant: the pursuit POMDP's observation index
+            return int(observation["observation_index"])
         return zlib.crc32(np.ascontiguousarray(observation).tobytes())
 
 
