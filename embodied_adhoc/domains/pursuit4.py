@@ -14,7 +14,9 @@ Predator actions (B, 4): 0 up, 1 down, 2 left, 3 right, 4 stay. The prey moves u
 neighbours (it never stays on purpose). Reward 1 on a capture (terminal), else 0.
 
 Teams (section 4.1.1), each given as the exact per-predator action distribution ``pi^n(a | x)`` (Eq. 4.2's
-factors), so that PLASTIC-Model's planner can use them and the team belief can score observed actions:
+factors), so that PLASTIC-Model's planner can use them and the team belief can score observed actions (the
+arenas' and chapter 5's teammates of the same names are other policies, for other rules:
+:mod:`embodied_adhoc.teammates.pursuit_teams` says how they differ):
 
 * ``teammate-aware`` (tau1): the four cells around the prey are assigned to the predators by the least total
   toroidal distance (ties: the first permutation), and each walks a shortest path (breadth-first search) to its

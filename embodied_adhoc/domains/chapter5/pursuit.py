@@ -16,7 +16,8 @@ Tasks: the capture pairs of :func:`~embodied_adhoc.domains.grid_rules.pair_tasks
 positions interchangeable). A state whose two predators sit on the task's two cells around the prey is a goal
 state: +100 in the step taken from it, then the absorbing state (``library.step_rewards``).
 
-Teammates (each a deterministic function of the state):
+Teammates (each a deterministic function of the state; the arenas' and chapter 4's teammates of the same
+names are other policies, for other rules: :mod:`embodied_adhoc.teammates.pursuit_teams` says how they differ):
 
 * ``greedy``: picks its closest capture cell (Manhattan on the torus, ties to the task's first cell) and steps
   along columns first, then rows, ignoring the agent;
