@@ -11,7 +11,7 @@ reward is 0), so both bounds are exact finite-horizon values from the episode's 
 * ``random``: the same ``H`` steps evaluating the uniform ego.
 
 The normalised score of a return ``R`` is ``(R - random) / (best - random)``: 0 for the random ego and 1 for the
-best response by construction; a score above 1 is reported as it is. Bounds are cached as JSON under
+best response by construction; a score above 1 is reported as it is. Bounds (per state) are cached as ``.npz`` under
 ``$XDG_CACHE_HOME/embodied-adhoc/bench/``, keyed by the SHA-256 of the world's arrays, the start distribution, the
 horizon and this module's source, so a changed member, model or code never serves an old bound.
 """
@@ -19,9 +19,8 @@ horizon and this module's source, so a changed member, model or code never serve
 from __future__ import annotations
 
 import hashlib
-import json
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,20 +28,42 @@ import scipy.sparse as sp
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["Bounds", "bounds_cache_dir", "member_bounds", "normalise", "world_mdps"]
+__all__ = ["Bounds", "bounds_cache_dir", "member_bounds", "normalise", "start_state", "world_mdps"]
 
 
 @dataclass(frozen=True)
 class Bounds:
-    """A member's expected returns: ``random`` (uniform ego) and ``best`` (exact best response)."""
+    """A member's expected returns from the episode's start distribution: ``random`` (uniform ego) and ``best``
+    (exact best response); ``best_values[m]`` and ``random_values[m]`` are the same from every state of task ``m``.
+    """
 
     random: float
     best: float
     horizon: int
+    best_values: tuple = field(default=(), compare=False, repr=False)
+    random_values: tuple = field(default=(), compare=False, repr=False)
 
     @property
     def span(self) -> float:
         return self.best - self.random
+
+    def on_starts(self, starts) -> tuple[float, float]:
+        """``(best, random)`` expected returns averaged over the given ``(task, start state)`` pairs: the bounds on
+        a run's own episodes, which an agent's mean over those episodes is compared with."""
+        best = float(np.mean([self.best_values[task][state] for task, state in starts]))
+        random = float(np.mean([self.random_values[task][state] for task, state in starts]))
+        return best, random
+
+
+def start_state(domain: str, library, spec: dict) -> tuple[int, int]:
+    """``(task, state index)`` where an episode of the trial domain's ``spec`` starts."""
+    task = int(spec["task"])
+    if domain == "toxic-waste":
+        ground = (0,) * len(library.tasks[task])
+        return task, library.states.fast_index(
+            int(spec["robot_node"]), int(spec["human_node"]), ground, False
+        )
+    return task, int(spec["start"])
 
 
 def normalise(returns, bounds: Bounds) -> np.ndarray:
@@ -154,23 +175,28 @@ def _digest(mdps, starts, horizon: int) -> str:
 def member_bounds(member, library, horizon: int, cache: bool = True) -> Bounds:
     """The :class:`Bounds` of ``member`` (a ``TeammateSpec``) in ``library``'s domain at trial cap ``horizon``
     (cached; see the module docstring)."""
-    from embodied_adhoc.atomic import atomic_write_text
+    from embodied_adhoc.atomic import atomic_open
     from embodied_adhoc.decision.value_iteration import value_iteration
 
     mdps, starts = world_mdps(member, library)
-    path = bounds_cache_dir() / f"{_digest(mdps, starts, horizon)}.json"
+    path = bounds_cache_dir() / f"{_digest(mdps, starts, horizon)}.npz"
+    best_values = random_values = None
     if cache and path.is_file():
         try:
-            stored = json.loads(path.read_text())
-            return Bounds(float(stored["random"]), float(stored["best"]), int(stored["horizon"]))
-        except (ValueError, KeyError, TypeError):
-            pass  # a damaged entry is computed again and overwritten
-    best = random = 0.0
-    for mdp, start in zip(mdps, starts, strict=True):
-        best += float(start @ value_iteration(mdp, horizon=horizon).values) / len(mdps)
-        random += float(start @ _random_values(mdp, horizon)) / len(mdps)
-    bounds = Bounds(random, best, horizon)
-    if cache:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(path, json.dumps({"random": random, "best": best, "horizon": horizon}))
-    return bounds
+            with np.load(path, allow_pickle=False) as stored:
+                best_values = tuple(stored[f"best_{m}"] for m in range(len(mdps)))
+                random_values = tuple(stored[f"random_{m}"] for m in range(len(mdps)))
+        except (OSError, ValueError, KeyError, EOFError):
+            best_values = None  # a damaged entry is computed again and overwritten
+    if best_values is None:
+        best_values = tuple(value_iteration(mdp, horizon=horizon).values for mdp in mdps)
+        random_values = tuple(_random_values(mdp, horizon) for mdp in mdps)
+        if cache:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            arrays = {f"best_{m}": v for m, v in enumerate(best_values)}
+            arrays |= {f"random_{m}": v for m, v in enumerate(random_values)}
+            with atomic_open(path) as stream:
+                np.savez(stream, **arrays)
+    best = float(np.mean([start @ v for start, v in zip(starts, best_values, strict=True)]))
+    random = float(np.mean([start @ v for start, v in zip(starts, random_values, strict=True)]))
+    return Bounds(random, best, horizon, best_values, random_values)

@@ -104,7 +104,7 @@ def __getattr__(name: str) -> Chapter5MemberFactory:
     """``embodied_adhoc.bench.chapter5_members:<domain>/<member>``: the factory of that member (any split)."""
     from embodied_adhoc.bench.populations import find_member
 
-    domain, _, member = name.partition("/")
+    domain, _, member = name.partition("/")  # the member, or SUITE/NAME of a population file
     spec = find_member(domain, member) if member else None
     if spec is None:
         raise AttributeError(name)

@@ -123,11 +123,12 @@ def evaluate(
 ) -> dict:
     """Run (or resume) the suite for ``agents`` and write ``OUT/summary.json`` (returned) and the plots."""
     from embodied_adhoc.atomic import atomic_write_text
-    from embodied_adhoc.bench.bounds import member_bounds, normalise
+    from embodied_adhoc.bench.bounds import member_bounds, normalise, start_state
     from embodied_adhoc.bench.scores import BENCH_REPS
     from embodied_adhoc.experiments.executors import close_sessions
     from embodied_adhoc.experiments.registry import get_trial_domain
     from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+    from embodied_adhoc.experiments.stats import summarise_sample
 
     reps = BENCH_REPS if reps is None else int(reps)
     if episodes < 2:
@@ -161,19 +162,28 @@ def evaluate(
             config = SweepConfig(domain_name, backend, member_options, run_agents, episodes, seed, max_steps)
             result = run_sweep(config, out=out / domain_name / spec.name, workers=workers, progress=progress)
             returns = {a: np.zeros(episodes) for a in run_agents}
+            starts = {}
             for record in result.records:
                 returns[record.agent][record.episode] = record.total_reward
+                starts[record.episode] = start_state(domain_name, library, record.spec)
+            on_episodes, _ = bounds.on_starts(list(starts.values()))
             row = {
                 **spec.describe(),
                 "bounds": {"random": bounds.random, "best": bounds.best, "horizon": max_steps},
+                # the best response's expected return from these episodes' own starts, normalised: what no agent's
+                # mean over the same episodes exceeds in expectation
+                "best_on_episodes": float(normalise(on_episodes, bounds)),
             }
             row["agents"] = {}
             for agent in run_agents:
                 normalised = normalise(returns[agent], bounds)
                 matrices[agent].append(normalised)
+                sample = summarise_sample(normalised)
                 row["agents"][agent] = {
                     "mean_return": float(returns[agent].mean()),
-                    "normalised_mean": float(normalised.mean()),
+                    "normalised_mean": sample.mean,
+                    "normalised_sd": sample.sd,
+                    "normalised_ci": [sample.ci_low, sample.ci_high],
                 }
             rows.append(row)
             close_sessions()  # one member's worlds and policies at a time in memory

@@ -62,9 +62,10 @@ class TeammateSpec:
         """The plug-in spec naming this member on ``--human`` (lab) or ``--teammate`` (chapter 5)."""
         if self.plugin_spec is not None:
             return self.plugin_spec
+        where = self.name if self.split in SPLITS else f"{self.split}/{self.name}"  # a user's suite: its name
         if self.domain == LAB:
-            return f"embodied_adhoc.bench.lab_members:{self.name}"
-        return f"embodied_adhoc.bench.chapter5_members:{self.domain}/{self.name}"
+            return f"embodied_adhoc.bench.lab_members:{where}"
+        return f"embodied_adhoc.bench.chapter5_members:{self.domain}/{where}"
 
     def factory(self):
         """The member's factory (the domain's teammate interface)."""
@@ -188,8 +189,16 @@ def members(domain: str, split: str) -> tuple[TeammateSpec, ...]:
     return tuple(spec for spec in population(domain) if spec.split == _SUITE_SPLIT[split])
 
 
+_USER_MEMBERS: dict[tuple[str, str, str], TeammateSpec] = {}
+"""Members of the population files read in this process, by (domain, suite, name): their plug-in specs name them
+(worker processes forked from this one know them too)."""
+
+
 def find_member(domain: str, name: str) -> TeammateSpec | None:
-    """The member ``name`` of ``domain``'s population (any split), or None."""
+    """The member ``name`` of ``domain``'s population (any split), or ``SUITE/NAME`` of a population file read in
+    this process; None if there is none."""
+    if "/" in name:
+        return _USER_MEMBERS.get((domain, *name.split("/", 1)))
     if domain not in _POPULATIONS:
         return None
     return next((spec for spec in population(domain) if spec.name == name), None)
@@ -220,6 +229,10 @@ def load_population(path: str | Path) -> tuple[str, str, tuple[TeammateSpec, ...
         raise ConfigError(f"{path}: a JSON object with {', '.join(_FILE_FIELDS)}")
     refuse_unknown(str(path), data, _FILE_FIELDS, what="field")
     suite = str(data.get("name") or path.stem)
+    if not suite or any(c in suite for c in "/.:") or suite in SPLITS:
+        raise ConfigError(
+            f"{path}: name {suite!r}: a suite name without '/', '.' or ':', other than {SPLITS}"
+        )
     version = str(data.get("version", "1"))
     entries = data.get("members")
     if not isinstance(entries, list) or not entries:
@@ -253,4 +266,6 @@ def load_population(path: str | Path) -> tuple[str, str, tuple[TeammateSpec, ...
         except ConfigError as error:
             raise ConfigError(f"{where}: {error}") from None
         specs.append(spec)
+    for spec in specs:
+        _USER_MEMBERS[(spec.domain, suite, spec.name)] = spec
     return suite, version, tuple(specs)
