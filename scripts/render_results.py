@@ -7,7 +7,10 @@ Every table of the README and docs/ that this script knows (``FIGURES``) is prod
    ``results/NAME.json``: the numbers plus their provenance (the git commit it ran, from a copy of that
    commit's code, the exact commands, the OpenBLAS kernel that threadpoolctl reports in the same environment,
    numpy/scipy/mujoco/torch versions, the date). ``run NAME --kernel Haswell`` runs the same commands under
-   ``OPENBLAS_CORETYPE=Haswell`` and adds that run to the file as a check of the published one;
+   ``OPENBLAS_CORETYPE=Haswell`` and adds that run to the file as a check of the published one. For a figure
+   whose script prints Markdown tables, ``run NAME --extra '--domains isr'`` re-makes some rows only: they replace
+   the published ones and the run is kept beside the published one as the part that made them (a check with the
+   same ``--extra`` runs that part's code);
 2. ``render`` writes one ``docs/results/`` page per figure (``NAME.md`` plus ``docs/results/index.md``) and
    replaces, in README.md and docs/**/*.md, whatever lies between ``<!-- results:NAME start -->`` and
    ``<!-- results:NAME end -->`` (``NAME`` alone: every table of the figure; ``NAME.KEY``: one of them).
@@ -114,6 +117,8 @@ class Figure:
     """whether a check may run some commands only (the data holds one entry per command under ``"runs"``)"""
     markdown: bool = False
     """whether its one command prints Markdown tables (a check may then add arguments and print fewer rows)"""
+    timing_tables: tuple[str, ...] = ()
+    """keys of its tables that print seconds or rates (class *timing*, never compared; kept under ``"timing"``)"""
 
 
 # ------------------------------------------------------------------------------------------ extraction
@@ -452,6 +457,155 @@ def markdown_figure_tables(keys: Sequence[str]) -> Callable[[dict], list[Table]]
     return tables
 
 
+ARENA_TASK_DOMAINS = {"foraging": "LBF", "pursuit": "pursuit"}
+ARENA_TEAMS = ("tau0", "tau1", "tau2")
+
+
+def arena_task_command(domain: str, team: str, task: int) -> list[str]:
+    return [
+        ".venv/bin/embodied-adhoc",
+        "trials",
+        domain,
+        "--backend",
+        "abstract",
+        "--team",
+        team,
+        "--task",
+        str(task),
+        "--agents",
+        "original",
+        "--episodes",
+        "16",
+        "--max-steps",
+        "200",
+        "--seed",
+        "0",
+        "--workers",
+        "1",
+        "--json",
+    ]
+
+
+def arena_tasks_tables(data: dict) -> list[Table]:
+    headers = ["domain", "team", *(f"task {task}" for task in range(1, 5))]
+    rows = []
+    for domain, label in ARENA_TASK_DOMAINS.items():
+        for team in ARENA_TEAMS:
+            cells = []
+            for task in range(1, 5):
+                stats = data["runs"][f"{domain}-{team}-task{task}"]["original"]
+                cells.append(
+                    f"{stats['steps_mean']:.2f} {ci_cell(stats['steps_ci95'])} "
+                    f"({100 * stats['success_rate']:.0f} % solved)"
+                )
+            rows.append([f"{label}, grid twin", team, *cells])
+    return [Table("tasks", "", headers, rows)]
+
+
+def bench_sim_extract(outputs: dict[str, str]) -> dict:
+    """The tours' table without its real-time-factor column (a rate of this run's CPU), and the rates apart."""
+    tours, measures = markdown_tables(outputs["bench"])[:2]
+    rtf = tours["headers"].index("RTF")
+    rows = [[cell for i, cell in enumerate(row) if i != rtf] for row in tours["rows"]]
+    headers = [h for i, h in enumerate(tours["headers"]) if i != rtf]
+    summary = [
+        line for line in outputs["bench"].splitlines() if line.startswith(("drift after", "node-estimate"))
+    ]
+    return {
+        "tours": {"headers": headers, "rows": rows},
+        "summary": summary,
+        "timing": {
+            "rtf": [row[rtf] for row in tours["rows"]],
+            "measures": measures,
+            "stdout": outputs["bench"],
+        },
+    }
+
+
+def bench_sim_tables(data: dict) -> list[Table]:
+    return [
+        Table("tours", "; ".join(data["summary"]), data["tours"]["headers"], data["tours"]["rows"]),
+        Table("speed", "", data["timing"]["measures"]["headers"], data["timing"]["measures"]["rows"]),
+    ]
+
+
+def bench_sim_compare(published: dict, check: dict) -> list[str]:
+    """Every tour arrives at every node with the node estimate right and without wall contact in both runs, and
+    the check's mean drift lies inside the published mean's 95 % t-interval."""
+    failures = []
+    columns = published["tours"]["headers"]
+    drift = columns.index("drift after tour (m)")
+    for ours, theirs in zip(published["tours"]["rows"], check["tours"]["rows"], strict=True):
+        for column in ("node estimate correct", "arrived", "wall contacts"):
+            index = columns.index(column)
+            if ours[index] != theirs[index]:
+                failures.append(f"seed {ours[0]}: {column} {ours[index]} -> {theirs[index]}")
+    ours = [float(row[drift]) for row in published["tours"]["rows"]]
+    theirs = [float(row[drift]) for row in check["tours"]["rows"]]
+    low, high = t_interval(ours)
+    mean = sum(theirs) / len(theirs)
+    if not low <= mean <= high:
+        failures.append(f"mean drift {mean:.3f} m outside the published [{low:.3f}, {high:.3f}]")
+    return failures
+
+
+T_975 = {2: 12.706, 3: 4.303, 4: 3.182, 5: 2.776, 6: 2.571, 7: 2.447, 8: 2.365, 9: 2.306, 10: 2.262}
+"""Student's t 97.5 % quantile by sample size (n - 1 degrees of freedom); 1.96 beyond."""
+
+
+def t_interval(values: Sequence[float]) -> tuple[float, float]:
+    n = len(values)
+    mean = sum(values) / n
+    sd = (sum((v - mean) ** 2 for v in values) / (n - 1)) ** 0.5 if n > 1 else 0.0
+    half = T_975.get(n, 1.96) * sd / n**0.5
+    return mean - half, mean + half
+
+
+def tag_extract(outputs: dict[str, str]) -> dict:
+    solved = json.loads(outputs["solve"])
+    timing = {k: solved.pop(k) for k in ("seconds", "cpu_seconds")}
+    keep = ("lower", "upper", "alpha_vectors", "iterations", "converged", "beliefs", "simulation")
+    return {
+        "file": Path(solved["file"]).name,
+        **{k: solved[k] for k in keep if k in solved},
+        "timing": timing,
+    }
+
+
+def tag_tables(data: dict) -> list[Table]:
+    simulated = data["simulation"]
+    low, high = simulated["ci95"]
+    headers = [
+        "file",
+        "stages",
+        "V(b0) claimed (lower bound)",
+        "upper bound",
+        "saved policy's vectors",
+        f"simulated return ({simulated['episodes']} episodes x {simulated['horizon']} steps)",
+        "95% CI",
+    ]
+    row = [
+        data["file"],
+        str(data["iterations"]),
+        f"{data['lower']:.6f}",
+        f"{data['upper']:.6f}",
+        str(data["alpha_vectors"]),
+        f"{simulated['mean']:.2f} ± {simulated['std']:.2f}",
+        f"[{low:.2f}, {high:.2f}]",
+    ]
+    return [Table("fixed-set", "", headers, [row])]
+
+
+def tag_compare(published: dict, check: dict) -> list[str]:
+    """A second kernel's claimed value lies in the published bracket, its simulated mean in the published CI."""
+    failures = compare_bracket(published, check)
+    low, high = published["simulation"]["ci95"]
+    mean = check["simulation"]["mean"]
+    if not low <= mean <= high:
+        failures.append(f"simulated mean {mean:.3f} outside the published [{low:.3f}, {high:.3f}]")
+    return failures
+
+
 FIGURES = {
     figure.name: figure
     for figure in (
@@ -587,8 +741,164 @@ FIGURES = {
             ("docs/atpo.md", "README.md"),
             markdown=True,
         ),
+        Figure(
+            "arena-tasks",
+            "Foraging and pursuit arenas: each team with its original teammate on each task "
+            "(grid twin, 16 episodes per cell, seed 0)",
+            {
+                f"{domain}-{team}-task{task}": arena_task_command(domain, team, task)
+                for domain in ARENA_TASK_DOMAINS
+                for team in ARENA_TEAMS
+                for task in range(1, 5)
+            },
+            arenas_extract,
+            arena_tasks_tables,
+            arenas_compare,
+            ("docs/arenas.md",),
+            partial_checks=True,
+            notes="Mean steps to finish, the 95 % bootstrap interval of the mean and the share solved within the "
+            "cap of 200 steps.",
+        ),
+        Figure(
+            "sim-tours",
+            "Physics lab: dead reckoning over full tours and the simulator's rates (10 tours, seeds 0-9)",
+            {"bench": ["{python}", "scripts/bench_sim.py", "--tours", "10"]},
+            bench_sim_extract,
+            bench_sim_tables,
+            bench_sim_compare,
+            ("docs/sim.md",),
+            timing_tables=("speed",),
+            checked="every tour arrives at every node with a correct node estimate and no wall contact in both "
+            "runs, and the second kernel's mean drift lies inside the published mean's 95 % t-interval",
+            notes="Each tour starts at the door and drives every edge in both directions at the default encoder "
+            "noise and wheel slip; the rates are per CPU second of the process (physics) and per wall second "
+            "(rendering), on the machine and at the load of the run.",
+        ),
+        Figure(
+            "tag-fixed-set",
+            "Tag (sarsop-TagAvoid): the fixed-set solver with classic Perseus stages, and what its saved policy "
+            "earns",
+            {
+                "solve": [
+                    ".venv/bin/embodied-adhoc",
+                    "pomdp",
+                    "solve",
+                    "sarsop-TagAvoid.pomdp",
+                    "--beliefs",
+                    "1000",
+                    "--seed",
+                    "0",
+                    "--update",
+                    "perseus",
+                    "--no-expand",
+                    "--simulate",
+                    "2000",
+                    "--json",
+                ]
+            },
+            tag_extract,
+            tag_tables,
+            tag_compare,
+            ("docs/pomdp.md",),
+            checked="the second kernel's claimed value lies inside the published [lower, upper] bracket and its "
+            "simulated mean inside the published 95 % interval",
+        ),
     )
 }
+
+
+@dataclass(frozen=True)
+class Unrun:
+    """A published table that no result file holds yet and that costs too much to re-run on a shared machine: its
+    marked block names the command that makes it, what a run costs and the class it will have, and prints no
+    number (a typed number is what this script replaces). The last hand-recorded figures stay in the changelog's
+    measurement history."""
+
+    name: str
+    title: str
+    command: str
+    cost: str
+    """what one run of ``command`` costs, as its page measured it"""
+    klass: str
+    """the class the table gets once its script writes a result file: statistical, timing or exact"""
+
+
+UNRUN_HISTORY = "docs/changelog.md"
+"""Where the hand-recorded figures of the ``UNRUN`` tables are kept, with the runs that made them."""
+UNRUN = {
+    entry.name: entry
+    for entry in (
+        Unrun(
+            "fig7-12",
+            "Fig. 7.12 in the pursuit arena: seven agents on the grid twin and on MuJoCo physics",
+            "MUJOCO_GL=egl OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/reproduce_fig7_12.py --out DIR "
+            "--workers 2 --markdown",
+            "about 6.5 min of wall time and 7.5 min of CPU on two workers, ATPO's four policies solved in the run",
+            STATISTICAL,
+        ),
+        Unrun(
+            "fig7-12-ablation",
+            "Fig. 7.12's deviations from the thesis: the decision layer under the original experiment's model "
+            "and protocol variants",
+            ".venv/bin/python scripts/ablate_fig7_12.py --episodes 32 --markdown; the same with --episodes 256",
+            "nine model and protocol variants x four agents x 288 episodes, with every variant's policies solved",
+            STATISTICAL,
+        ),
+        Unrun(
+            "arena-speed",
+            "Arena env speed against lbforaging",
+            "MUJOCO_GL=egl .venv/bin/python scripts/bench_arenas.py [--domain pursuit]",
+            "a few minutes; rates swing 2-3x with the machine's load",
+            TIMING,
+        ),
+        Unrun(
+            "chapter5-budget",
+            "Chapter 5's solve budget: Perseus' lower bound at b0 of each domain's first model, stage by stage",
+            "Perseus without a stage limit on model 0 of each domain (SolverProgress per stage, CPU seconds)",
+            "one unlimited solve per domain: minutes each, gridworld's stages the costliest",
+            TIMING,
+        ),
+        Unrun(
+            "chapter5-bugs",
+            "Tables 5.5/5.6 with the original's model bugs (ntu, mit, overcooked)",
+            ".venv/bin/python scripts/reproduce_atpo.py --with-bugs --skip-fig59 --markdown",
+            "the whole chapter-5 sweep plus three rebuilt libraries (about 40 min of wall time cold on two "
+            "shared cores)",
+            STATISTICAL,
+        ),
+        Unrun(
+            "fig5-9",
+            "Fig. 5.9: ATPO's normalised score on gridworld by library size",
+            ".venv/bin/python scripts/reproduce_atpo.py --domains gridworld --markdown",
+            "about 4 min of CPU with the 4-model library's policies cached (28 more models solved)",
+            STATISTICAL,
+        ),
+        Unrun(
+            "table5-3",
+            "Table 5.3: build and solve time of every chapter-5 library beside the thesis's",
+            "OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/bench_chapter5.py --solve --repeats 1 --markdown",
+            "every model of the eleven libraries solved without a cache: several minutes of CPU",
+            TIMING,
+        ),
+        Unrun(
+            "chapter5-executors",
+            "The whole Table 5.5 timed per executor (local processes, Ray)",
+            "RAY_ADDRESS=127.0.0.1:6390 .venv/bin/python scripts/bench_chapter5.py --executors local local ray "
+            "--workers 2 --markdown",
+            "three passes of the whole sweep (the first cold: about 5 min of wall time) and a local Ray cluster",
+            TIMING,
+        ),
+    )
+}
+
+
+def unrun_block(entry: Unrun, page: Path) -> str:
+    history = os.path.relpath(ROOT / UNRUN_HISTORY, page.parent)
+    return (
+        f"*Not re-run (cost: {entry.cost}). No result file holds this table yet, so no number of it is printed "
+        f"here; `{entry.command}` makes it (class once generated: {entry.klass}). The last hand-recorded "
+        f"figures, with the runs that made them, are in the [changelog]({history}).*"
+    )
 
 
 # ------------------------------------------------------------------------------------------------ runs
@@ -630,12 +940,14 @@ def snapshot() -> tuple[str, str, Path]:
     return commit, code, folder
 
 
-def published_code(figure: Figure) -> tuple[str, str, Path] | None:
-    """The frozen copy the figure's published run ran from, while this machine still has it."""
+def published_code(figure: Figure, extra: Sequence[str] = ()) -> tuple[str, str, Path] | None:
+    """The frozen copy the figure's published run ran from (for a check of some rows, the run that re-made those
+    rows, where one did), while this machine still has it."""
     path = RESULTS / f"{figure.name}.json"
     if not path.exists():
         return None
     published = json.loads(path.read_text())["published"]
+    published = next((p for p in published.get("parts", []) if p["extra"] == shlex.join(extra)), published)
     code = published.get("code_sha256", "")
     folder = ROOT / RUN_DIR / f"code-{code[:16]}"
     return (published["commit"], code, folder) if code and folder.is_dir() else None
@@ -650,12 +962,13 @@ def run_figure(
     A check run (``kernel`` given) runs the published run's frozen code when it is still here, so the two runs
     differ in the kernel only; otherwise it freezes HEAD, and the class shows any difference."""
     label = kernel or "default"
-    commit, code, folder = (kernel and published_code(figure)) or snapshot()
+    commit, code, folder = (kernel and published_code(figure, extra)) or snapshot()
     env = dict(os.environ)
     env.pop("OPENBLAS_CORETYPE", None)
     if kernel:
         env["OPENBLAS_CORETYPE"] = kernel
     env["XDG_CACHE_HOME"] = str(ROOT / CACHE_DIR / label)
+    env.setdefault("MUJOCO_GL", "egl")  # physics figures render offscreen, headless
     env["PYTHONPATH"] = os.pathsep.join([str(folder), *filter(None, [env.get("PYTHONPATH")])])
     probe = subprocess.run(
         [sys.executable, "-c", PROBE], cwd=folder, env=env, capture_output=True, text=True, check=True
@@ -699,19 +1012,58 @@ def run_figure(
 def write_run(figure: Figure, run: dict, check: bool) -> Path:
     path = RESULTS / f"{figure.name}.json"
     document = {"figure": figure.name, "published": run, "checks": []}
+    if (check or run["extra"]) and not path.exists():
+        sys.exit(
+            f"{path.relative_to(ROOT)}: no published run to add to; run `{SCRIPT} run {figure.name}` first"
+        )
     if check:
-        if not path.exists():
-            sys.exit(
-                f"{path.relative_to(ROOT)}: no published run to check; run `{SCRIPT} run {figure.name}` first"
-            )
         document = json.loads(path.read_text())
         document["checks"] = [c for c in document["checks"] if c["kernel"] != run["kernel"]] + [run]
+    elif run["extra"]:
+        document = json.loads(path.read_text())
+        document["published"] = replace_rows(document["published"], run)
+        # A full check, or one of these rows, checked numbers that are no longer published; a check of other rows
+        # still holds for those.
+        document["checks"] = [c for c in document["checks"] if c.get("extra") not in ("", run["extra"])]
     RESULTS.mkdir(exist_ok=True)
     path.write_text(json.dumps(document, indent=1, ensure_ascii=False) + "\n")
     return path
 
 
 # --------------------------------------------------------------------------------------- classes/pages
+
+
+def replace_rows(published: dict, run: dict) -> dict:
+    """The published run with the rows that ``run`` (the same command with ``extra`` arguments, e.g. one domain)
+    printed in place of the old ones, and ``run`` recorded as the part of the published run that made them."""
+    tables = []
+    for ours, theirs in zip(published["data"]["tables"], run["data"]["tables"], strict=True):
+        new = {row_label(row): row for row in theirs["rows"]}
+        rows = [new.pop(row_label(row), row) for row in ours["rows"]]
+        tables.append(
+            {
+                **ours,
+                "caption": merge_caption(ours["caption"], theirs["caption"]),
+                "rows": rows + [*new.values()],
+            }
+        )
+    part = {k: v for k, v in run.items() if k != "data"}
+    parts = [p for p in published.get("parts", []) if p["extra"] != run["extra"]] + [part]
+    return {**published, "data": {**published["data"], "tables": tables}, "parts": parts}
+
+
+SETTING = re.compile(r"(?P<name>[A-Za-z0-9-]+) (?P<value>\d+)")
+
+
+def merge_caption(ours: str, theirs: str) -> str:
+    """``ours`` with the ``name value`` settings that ``theirs`` lists for its rows (e.g. a domain's stage budget
+    in "stages per model at most: gridworld 14, isr 13") taken from ``theirs``."""
+    values = {m["name"]: m["value"] for m in SETTING.finditer(theirs.rpartition(": ")[2])}
+    head, sep, tail = ours.rpartition(": ")
+    if not sep or not values:
+        return ours
+    tail = SETTING.sub(lambda m: f"{m['name']} {values.get(m['name'], m['value'])}", tail)
+    return head + sep + tail
 
 
 def comparable(data: dict) -> str:
@@ -741,12 +1093,15 @@ def checkable(data: dict) -> bool:
 def reproducibility(figure: Figure, document: dict, key: str | None = None) -> tuple[str, str]:
     """(class, the sentence that says how it was checked) of table ``key``, from the result file's runs."""
     published = document["published"]
-    if figure.compare is None:
+    if figure.compare is None or key in figure.timing_tables:
         return TIMING, "seconds depend on the host and its load: re-measure, never compare across machines"
     others = [c for c in document["checks"] if c["kernel"] != published["kernel"]]
     if not others:
         return "not re-checked", f"run under the {published['kernel']} kernel only"
-    stale = [c for c in others if c.get("code_sha256") != published.get("code_sha256")]
+    codes = {"": published.get("code_sha256")} | {
+        p["extra"]: p["code_sha256"] for p in published.get("parts", [])
+    }
+    stale = [c for c in others if c.get("code_sha256") != codes.get(c.get("extra", ""), codes[""])]
     others = [c for c in others if c not in stale]
     if not others:
         kernels = ", ".join(c["kernel"] for c in stale)
@@ -819,9 +1174,14 @@ def provenance(figure: Figure, document: dict, page: Path) -> str:
         scripts = ", ".join(f"`{name}`" for name in script_of(figure).split(", "))
         commands = f"{len(run['commands'])} commands ({scripts}), listed on the results page"
     link = os.path.relpath(PAGES / f"{figure.name}.md", page.parent)
+    parts = "".join(
+        f"; the rows of `{p['extra']}` re-made on {p['started'][:10]} at commit {p['commit'][:10]} (OpenBLAS "
+        f"{p['kernel']})"
+        for p in run.get("parts", [])
+    )
     return (
         f"*Generated from `results/{figure.name}.json` ({run['started'][:10]}, commit {run['commit'][:10]}, "
-        f"OpenBLAS {run['kernel']}) by `{SCRIPT}`; made by {commands}. [How it reproduces]({link}).*"
+        f"OpenBLAS {run['kernel']}{parts}) by `{SCRIPT}`; made by {commands}. [How it reproduces]({link}).*"
     )
 
 
@@ -875,6 +1235,7 @@ def figure_page(figure: Figure, document: dict) -> str:
         "",
         "```bash",
         *run["commands"].values(),
+        *(command for p in run.get("parts", []) for command in p["commands"].values()),
         "```",
         "",
     ]
@@ -882,7 +1243,8 @@ def figure_page(figure: Figure, document: dict) -> str:
         "| run | OpenBLAS kernel | commit | code (SHA-256 of its files) | versions | date (UTC) |",
         "|---|---|---|---|---|---|",
     ]
-    for label, each in [("published", run), *(("check", c) for c in document["checks"])]:
+    parts = [(f"published, the rows of `{p['extra']}`", p) for p in run.get("parts", [])]
+    for label, each in [("published", run), *parts, *(("check", c) for c in document["checks"])]:
         versions = ", ".join(f"{k} {v}" for k, v in each["versions"].items())
         coretype = f" (OPENBLAS_CORETYPE={each['openblas_coretype']})" if each["openblas_coretype"] else ""
         lines.append(
@@ -914,14 +1276,29 @@ def index_page(documents: dict[str, dict]) -> str:
         else:
             klass = "; ".join(f"{t.key}: {reproducibility(figure, document, t.key)[0]}" for t in tables)
         lines.append(f"| [{figure.title}]({name}.md) | {klass} | `{script_of(figure)}` |")
+    for entry in UNRUN.values():
+        lines.append(f"| {entry.title} | not re-run (cost: {entry.cost}) | `{entry.command}` |")
     return "\n".join(lines) + "\n"
 
 
 HEADLINE = "headline"
 """The README's summary table: one row per headline figure, each cell taken from that figure's result file."""
 HEADLINE_SOURCES = ("hotspot", "sim-vs-physics", "chapter5")
-NOT_GENERATED = "the offline speech pipeline, ATLPO and TEAMSTER"
-"""Headline results whose scripts do not write result files yet; their pages give the figures and commands."""
+NOT_GENERATED = (
+    (
+        "Offline speech pipeline: the human's node recognised from synthesised speech (thesis M4-M6)",
+        "docs/speech.md",
+    ),
+    (
+        "ATLPO steps to finish on foraging and pursuit, task, team and task+team libraries (chapter 6)",
+        "docs/atlpo.md",
+    ),
+    (
+        "TEAMSTER and PLASTIC captures per 500 steps in pursuit and on the navigation maps (chapter 4)",
+        "docs/teamster.md",
+    ),
+)
+"""Headline results whose scripts write no result file yet: (the result, the page with its commands and cost)."""
 
 
 def table_of(document: dict, key: str) -> Table:
@@ -979,11 +1356,15 @@ def headline(documents: dict[str, dict], page: Path) -> str:
                 link("chapter5", "table5_6"),
             ]
         )
+    for result, guide in NOT_GENERATED:
+        rows.append(
+            [result, "not generated", "-", f"[not re-run]({os.path.relpath(ROOT / guide, page.parent)})"]
+        )
     table = Table(HEADLINE, "", ["result (thesis figure)", "ours", "thesis", "how it reproduces"], rows)
     sources = ", ".join(f"`results/{name}.json`" for name in HEADLINE_SOURCES if name in documents)
     return (
-        f"{table.markdown()}\n\n*Generated by `{SCRIPT}` from {sources}. Not generated from result files yet "
-        f"(their pages give the figures and the commands that made them): {NOT_GENERATED}.*"
+        f"{table.markdown()}\n\n*Generated by `{SCRIPT}` from {sources}. The rows marked not generated have no "
+        "result file yet: their pages give the commands that make them and what a run costs.*"
     )
 
 
@@ -1004,26 +1385,24 @@ def render_markers(page: Path, text: str, documents: dict[str, dict]) -> tuple[s
         if match["edge"] != "start":
             sys.exit(f"{page.relative_to(ROOT)}:{index}: results:{match['name']} ends before it starts")
         name, _, key = match["name"].partition(".")
-        if name == HEADLINE:
-            end = f"<!-- results:{name} end -->"
-            stop = lines.index(end, index) if end in lines[index:] else None
-            if stop is None:
-                sys.exit(f"{page.relative_to(ROOT)}:{index}: results:{name} has no `{end}` line")
-            out += ["", headline(documents, page), "", end]
-            names.append(name)
-            index = stop + 1
-            continue
-        if name not in FIGURES or name not in documents:
+        if name != HEADLINE and name not in UNRUN and (name not in FIGURES or name not in documents):
+            known = sorted([*documents, *UNRUN])
             sys.exit(
                 f"{page.relative_to(ROOT)}:{index}: results:{name}: no such figure with a result file "
-                f"(known: {', '.join(sorted(documents))}); run `{SCRIPT} run {name}`"
+                f"(known: {', '.join(known)}); run `{SCRIPT} run {name}`"
             )
         end = f"<!-- results:{match['name']} end -->"
         try:
             stop = lines.index(end, index)
         except ValueError:
             sys.exit(f"{page.relative_to(ROOT)}:{index}: results:{match['name']} has no `{end}` line")
-        out += ["", fragment(FIGURES[name], documents[name], key or None, page), "", end]
+        if name == HEADLINE:
+            block = headline(documents, page)
+        elif name in UNRUN:
+            block = unrun_block(UNRUN[name], page)
+        else:
+            block = fragment(FIGURES[name], documents[name], key or None, page)
+        out += ["", block, "", end]
         names.append(match["name"])
         index = stop + 1
     return "\n".join(out), names
@@ -1082,6 +1461,11 @@ def check() -> int:
                     f"`.venv/bin/python {SCRIPT} render`, or re-run the figure whose numbers are stale"
                 )
                 continue
+            if name.partition(".")[0] in UNRUN:
+                print(
+                    f"{relative}: block {name} differs from its entry in {SCRIPT}; re-render with `{SCRIPT} render`"
+                )
+                continue
             figure = FIGURES[name.partition(".")[0]]
             print(
                 f"{relative}: table {name} differs from results/{figure.name}.json ({where}); re-render with "
@@ -1119,7 +1503,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     run.add_argument(
         "--extra",
         default="",
-        help="a check run with these arguments added to the figure's command (e.g. '--domains gridworld')",
+        help="arguments added to the figure's command (e.g. '--domains isr'): with --kernel, a check of the rows "
+        "it prints; without, a re-run of those rows, which replace the published ones (the others keep their run)",
     )
     run.add_argument(
         "--keys",
@@ -1143,9 +1528,9 @@ def main(argv: Sequence[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return 2
-        if extra and (args.kernel is None or not figure.markdown):
+        if extra and not figure.markdown:
             print(
-                f"--extra: a check run (--kernel) of a one-command figure whose output is Markdown tables "
+                f"--extra: arguments added to a one-command figure whose output is Markdown tables "
                 f"({', '.join(n for n, f in FIGURES.items() if f.markdown)})",
                 file=sys.stderr,
             )

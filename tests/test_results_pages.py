@@ -213,3 +213,103 @@ def test_a_check_of_fewer_rows_is_held_to_the_rows_it_printed():
     assert module.reproducibility(figure, document)[0] == "statistical, CHECK FAILED"
     check["data"]["tables"][0]["rows"] = [rows[1]]
     assert module.reproducibility(figure, document)[0] == "exact on any host"
+
+
+def test_a_table_without_a_result_file_prints_its_command_and_cost_and_no_figure(tmp_path):
+    module = load_script()
+    entry = next(iter(module.UNRUN.values()))
+    block = module.unrun_block(entry, module.ROOT / "docs" / "arenas.md")
+    assert block.startswith("*Not re-run (cost: ")
+    assert entry.command in block and entry.cost in block and entry.klass in block
+    assert "](changelog.md)" in block  # its hand-recorded figures stay in the measurement history
+    index = module.index_page({})
+    assert all(f"| {e.title} | not re-run (cost: {e.cost}) |" in index for e in module.UNRUN.values())
+    # A marked block of such a table is re-rendered like any other: an edit inside it fails the check.
+    root = copy_tree(tmp_path)
+    page = root / "docs" / "unrun.md"
+    page.write_text(
+        f"# t\n\n<!-- results:{entry.name} start -->\n\n12.5 s\n\n<!-- results:{entry.name} end -->\n"
+    )
+    done = run_check(root)
+    assert done.returncode == 1
+    assert f"docs/unrun.md: block {entry.name} differs" in done.stdout
+
+
+def test_the_headline_marks_the_results_that_have_no_result_file():
+    module = load_script()
+    text = module.headline({}, module.ROOT / "README.md")
+    for result, guide in module.NOT_GENERATED:
+        assert f"| {result} | not generated | - | [not re-run]({guide}) |" in text
+
+
+def test_the_tour_table_is_compared_and_the_rates_beside_it_are_timing():
+    module = load_script()
+    stdout = (
+        "physics timestep 5.0 ms\n\n"
+        "| seed | distance (m) | drift after tour (m) | node estimate correct | arrived | worst arrival error (m) "
+        "| wall contacts | RTF |\n|---|---|---|---|---|---|---|---|\n"
+        "| 0 | 34.2 | 0.500 | 8/8 | 8/8 | 0.050 | 0 | 80.1 |\n"
+        "| 1 | 34.2 | 0.300 | 8/8 | 8/8 | 0.040 | 0 | 75.3 |\n"
+        "| 2 | 34.2 | 0.100 | 8/8 | 8/8 | 0.060 | 0 | 77.0 |\n\n"
+        "drift after a full tour: mean 0.300 m, max 0.500 m (0.88 % of distance)\n\n"
+        "| measure | value |\n|---|---|\n| LabWorld real-time factor (sim s / CPU s, headless) | 80.0 |\n"
+    )
+    data = module.bench_sim_extract({"bench": stdout})
+    assert "RTF" not in data["tours"]["headers"] and data["timing"]["rtf"] == ["80.1", "75.3", "77.0"]
+    figure = module.FIGURES["sim-tours"]
+    other = copy.deepcopy(data)
+    other["timing"]["rtf"] = ["40.0", "41.0", "39.0"]  # another machine's rates: never compared
+    published = {"kernel": "SkylakeX", "code_sha256": "c0de", "data": data}
+    document = {
+        "published": published,
+        "checks": [{"kernel": "Haswell", "code_sha256": "c0de", "data": other}],
+    }
+    assert module.reproducibility(figure, document, "tours")[0] == "exact on any host"
+    assert module.reproducibility(figure, document, "speed")[0] == "timing"
+    other["tours"]["rows"][0][2] = "0.450"  # mean 0.283, inside the published mean's t-interval
+    assert module.reproducibility(figure, document, "tours")[0] == "statistical"
+    other["tours"]["rows"][1][3] = "7/8"  # a wrong node estimate is a failure whatever the drift
+    assert module.reproducibility(figure, document, "tours")[0] == "statistical, CHECK FAILED"
+
+
+def test_the_fixed_set_tag_check_holds_the_simulated_return_to_the_published_interval():
+    module = load_script()
+    published = {"lower": -6.7, "upper": -0.5, "simulation": {"mean": -6.2, "ci95": [-6.5, -5.9]}}
+    check = copy.deepcopy(published)
+    assert module.tag_compare(published, check) == []
+    check["simulation"]["mean"] = -7.0
+    assert module.tag_compare(published, check) == [
+        "simulated mean -7.000 outside the published [-6.500, -5.900]"
+    ]
+    check["lower"] = -8.0
+    assert len(module.tag_compare(published, check)) == 2
+
+
+def test_a_re_run_of_some_rows_replaces_them_and_a_check_of_those_rows_counts_against_their_code():
+    module = load_script()
+    headers = ["domain", "agent", "reward (ours)", "95% CI (bootstrap)"]
+
+    def tables(rows: list[list[str]], caption: str) -> dict:
+        return {"tables": [{"caption": caption, "headers": headers, "rows": rows}]}
+
+    old = [
+        ["mit", "atpo", "80.00 ± 5.00", "[78.00, 82.00]"],
+        ["isr", "atpo", "66.12 ± 48.41", "[48.37, 81.13]"],
+    ]
+    published = {"kernel": "SkylakeX", "code_sha256": "old", "commit": "a" * 40, "extra": "",
+                 "data": tables(old, "Table 5.5: stages per model at most: mit 30, isr 13")}  # fmt: skip
+    new = [["isr", "atpo", "90.00 ± 3.00", "[89.00, 91.00]"]]
+    run = {"kernel": "SkylakeX", "code_sha256": "new", "commit": "b" * 40, "extra": "--domains isr",
+           "data": tables(new, "Table 5.5: stages per model at most: isr 30")}  # fmt: skip
+    merged = module.replace_rows(published, run)
+    (table,) = merged["data"]["tables"]
+    assert table["rows"] == [old[0], new[0]]
+    assert table["caption"] == "Table 5.5: stages per model at most: mit 30, isr 30"
+    assert merged["code_sha256"] == "old" and merged["parts"][0]["code_sha256"] == "new"
+    figure = module.FIGURES["chapter5"]
+    check = {"kernel": "Haswell", "code_sha256": "new", "extra": "--domains isr", "keys": [],
+             "data": tables([["isr", "atpo", "90.50 ± 3.00", "[89.50, 91.50]"]], "")}  # fmt: skip
+    document = {"published": merged, "checks": [check]}
+    assert module.reproducibility(figure, document)[0] == "statistical"
+    check["code_sha256"] = "old"  # the rows' previous code: it checked numbers no longer published
+    assert module.reproducibility(figure, document)[0] == "not re-checked"
