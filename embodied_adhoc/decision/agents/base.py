@@ -12,14 +12,12 @@ actions. The episode loop (:func:`embodied_adhoc.episodes.loop.run_episode_loop`
 ``z`` is the flat observation index of the domain's POMDP library, or the env's raw observation for agents that
 declare ``observes_raw``. Capability flags say what else an agent receives; each is a class attribute:
 
-``observes_state``
-    Privileged: the loop passes the true state index (``state=``) to ``reset`` and ``observe``. Baselines that
-    are *defined* by it (the full-observability oracle, value iteration on the state, BOPA) declare it, and
-    the tables mark them. It is the one channel through which ground truth reaches an agent.
-``observes_raw``
-    ``observe`` and ``start`` get the env's raw observation (arrays) instead of the index (learned agents).
-``observes_reward``
-    ``observe`` also gets ``reward=`` and ``terminated=`` (agents that learn online).
+- ``observes_state`` (privileged): the loop passes the true state index (``state=``) to ``reset`` and
+  ``observe``. Baselines that are *defined* by it (the full-observability oracle, value iteration on the state,
+  BOPA) declare it, and the tables mark them. It is the one channel through which ground truth reaches an agent.
+- ``observes_raw``: ``observe`` and ``start`` get the env's raw observation (arrays) instead of the index
+  (learned agents).
+- ``observes_reward``: ``observe`` also gets ``reward=`` and ``terminated=`` (agents that learn online).
 
 An agent that is given the true task (``known-task``) receives it at construction, never through ``observe``.
 
