@@ -845,6 +845,14 @@ UNRUN = {
             STATISTICAL,
         ),
         Unrun(
+            "arena-tasks-mujoco",
+            "Foraging and pursuit arenas on MuJoCo physics: each team with its original teammate on each task",
+            "MUJOCO_GL=egl .venv/bin/embodied-adhoc trials <domain> --backend mujoco --team <t> --task <k> "
+            "--agents original --episodes 4 --max-steps 200 (24 cells)",
+            "96 physics episodes of about 10 macro steps each, and random's 8 (tau1, 4 per domain)",
+            STATISTICAL,
+        ),
+        Unrun(
             "arena-speed",
             "Arena env speed against lbforaging",
             "MUJOCO_GL=egl .venv/bin/python scripts/bench_arenas.py [--domain pursuit]",
