@@ -108,6 +108,30 @@ def table(result: dict) -> str:
                 f"| {domain} ({scope['members']}) | {name} | {_cell(values, 'iqm')} | {_cell(values, 'mean')} | "
                 f"{_cell(check, 'iqm') if check else '-'} |"
             )
+    lines += [
+        "",
+        "Per held-out teammate: each agent's normalised mean and, in parentheses, its mean final posterior on the "
+        "true task (an agent without a task posterior shows none); `BR` is the best response's expected score from "
+        "the run's own starts.",
+    ]
+    for domain, scope in held.items():
+        agents = list(scope["aggregate"])
+        lines += ["", f"| {domain} teammate | type | BR | " + " | ".join(agents) + " |"]
+        lines.append("|---|---|---|" + "---|" * len(agents))
+        for row in scope["teammates"]:
+            cells = []
+            for agent in agents:
+                values = row["agents"][agent]
+                belief = values.get("true_task_probability")
+                cells.append(
+                    f"{values['normalised_mean']:.2f}" + (f" ({belief:.2f})" if belief is not None else "")
+                )
+            best = row.get("best_on_episodes")
+            lines.append(
+                f"| {row['name']} | {row['type']} | {best:.2f} | " + " | ".join(cells) + " |"
+                if best is not None
+                else f"| {row['name']} | {row['type']} | - | " + " | ".join(cells) + " |"
+            )
     return "\n".join(lines)
 
 

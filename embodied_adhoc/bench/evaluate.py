@@ -162,9 +162,13 @@ def evaluate(
             config = SweepConfig(domain_name, backend, member_options, run_agents, episodes, seed, max_steps)
             result = run_sweep(config, out=out / domain_name / spec.name, workers=workers, progress=progress)
             returns = {a: np.zeros(episodes) for a in run_agents}
+            solved = {a: np.zeros(episodes) for a in run_agents}
+            belief = {a: np.full(episodes, np.nan) for a in run_agents}
             starts = {}
             for record in result.records:
                 returns[record.agent][record.episode] = record.total_reward
+                solved[record.agent][record.episode] = float(record.success)
+                belief[record.agent][record.episode] = record.true_task_probability
                 starts[record.episode] = start_state(domain_name, library, record.spec)
             on_episodes, _ = bounds.on_starts(list(starts.values()))
             row = {
@@ -184,6 +188,12 @@ def evaluate(
                     "normalised_mean": sample.mean,
                     "normalised_sd": sample.sd,
                     "normalised_ci": [sample.ci_low, sample.ci_high],
+                    "success": float(solved[agent].mean()),
+                    # the agent's final posterior on the true task (NaN for agents without one): low where the
+                    # member made it identify the wrong task
+                    "true_task_probability": float(np.nanmean(belief[agent]))
+                    if np.isfinite(belief[agent]).any()
+                    else math.nan,
                 }
             rows.append(row)
             close_sessions()  # one member's worlds and policies at a time in memory
@@ -200,8 +210,9 @@ def evaluate(
         "agents": everywhere,
         **_scope_summary({a: np.concatenate(overall[a], axis=1) for a in everywhere}, reps),
     }
+    summary = _finite(summary)
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out / "summary.json", json.dumps(_finite(summary), indent=1) + "\n")
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=1) + "\n")
     if plots:
         from embodied_adhoc.bench.plots import plot_summary
 

@@ -88,6 +88,10 @@ def test_summary_scores_between_the_bounds(tiny):
                 margin = scipy_stats.t.ppf(0.99, EPISODES - 1) * values["normalised_sd"] / EPISODES**0.5
                 assert values["normalised_mean"] - margin <= row["best_on_episodes"]
                 assert values["normalised_ci"][0] <= values["normalised_mean"] <= values["normalised_ci"][1]
+    late = next(row for row in summary["domains"]["toxic-waste"]["teammates"] if row["name"] == "late")
+    assert 0.0 <= late["agents"]["hotspot"]["true_task_probability"] <= 1.0
+    assert late["agents"]["random"]["true_task_probability"] is None  # no task posterior
+    assert 0.0 <= late["agents"]["bopa"]["success"] <= 1.0
     lab = summary["domains"]["toxic-waste"]["aggregate"]
     assert lab["bopa"]["mean"] > lab["random"]["mean"]
 
