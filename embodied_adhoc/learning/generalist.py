@@ -189,6 +189,13 @@ def train_teams(domain: str) -> tuple:
     return tuple(HeldOutTeam(tau, thesis_team(specs, (tau,))) for tau in TRAIN_TEAMS)
 
 
+def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
+    """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.generalist:plugin``), for any
+    command that takes plug-ins: built for the grid of the arena's ``library`` (its ``rules.config``)."""
+    grid = library.rules.config
+    return generalist_agent(grid.domain, None, grid)
+
+
 @dataclass(frozen=True)
 class GeneralistTraining:
     """The ``train ppo-generalist`` settings (CLI flags map one to one)."""

@@ -6,12 +6,13 @@ initial grid state as JSON, imposed through ``reset(options={"state": ...})``), 
 team, task and start; the prey's moves and teammates' tie-breaks then follow each trial's env seed.
 
 Agents: ``original`` (the thesis's *original teammate*: the team's own policy, with the full state, in the ad
-hoc robot's seat), ``random`` (uniform over the 5 actions) and ``atlpo-mf`` (thesis chapter 6: the ATLPO agent of
+hoc robot's seat), ``random`` (uniform over the 5 actions), ``atlpo-mf`` (thesis chapter 6: the ATLPO agent of
 the pre-trained library shipped with the package, or of ``--library DIR``; it reads the egocentric arrays
-themselves, ``observes_raw``, and its task posterior is the classifier's marginal over the tasks). The
-observation index reported to the runner is a CRC-32 fingerprint of the egocentric observation (these domains
-have no finite observation library), or on the pair variant (``--pairs``) the pursuit POMDP's index that its
-``obs["observation_index"]`` holds.
+themselves, ``observes_raw``, and its task posterior is the classifier's marginal over the tasks) and
+``ppo-generalist`` (the library-free recurrent PPO agent shipped with the package, trained against tau0-tau2;
+it keeps no task posterior). The observation index reported to the runner is a CRC-32 fingerprint of the
+egocentric observation (these domains have no finite observation library), or on the pair variant
+(``--pairs``) the pursuit POMDP's index that its ``obs["observation_index"]`` holds.
 """
 
 from __future__ import annotations
@@ -100,6 +101,10 @@ class GridTrialSession:
             from embodied_adhoc.learning.atlpo import library_agent
 
             return library_agent(self.domain, self.library, self.rules.config, name=name)
+        if name == "ppo-generalist":
+            from embodied_adhoc.learning.generalist import generalist_agent
+
+            return generalist_agent(self.domain, None, self.rules.config, name=name)
         raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
 
     def observation_index(self, observation) -> int:
@@ -136,7 +141,7 @@ def env_kwargs(options: dict) -> dict:
 
 class GridTrialDomain:
     backends = ("abstract", "mujoco")
-    agent_names = ("original", "random", "atlpo-mf")
+    agent_names = ("original", "random", "atlpo-mf", "ppo-generalist")
     default_agents = ("original", "random")
     privileged_agents = ("original",)  # observes_state: marked in the tables
 
