@@ -103,6 +103,14 @@ def _add_common_arguments(parser: argparse.ArgumentParser, domain) -> None:
         help="where DIR holds a run with other options, input files or BLAS kernel, write this one to a fresh "
         "sibling DIR-2, DIR-3, ... (the first new one, or the one holding this run) instead of refusing",
     )
+    parser.add_argument(
+        "--record",
+        type=output_folder,
+        default=None,
+        metavar="DIR",
+        help="also record episode 0 of every agent on physics (--backend mujoco) as `run` records it: "
+        "DIR/<agent>/episode.mp4, episode.rrd, metrics.json",
+    )
     parser.add_argument("--json", action="store_true", help="print only the JSON summary on stdout")
 
 
@@ -126,6 +134,10 @@ def handle(args: argparse.Namespace) -> int:
             f"{', '.join(domain.backends)}"
         )
     options = domain.options_from_args(args)
+    if args.record is not None:
+        from embodied_adhoc.experiments.recorded import check_recordable
+
+        check_recordable(domain.name, backends, options, parse_agents(args.agents))
     note = worker_note(args.workers)
     if note:
         print(f"embodied-adhoc: note: {note}", file=sys.stderr)
@@ -149,7 +161,25 @@ def handle(args: argparse.Namespace) -> int:
         results[backend] = _run_one(args, config, out)
     if len(backends) > 1:
         _compare_backends(args, results)
+    if args.record is not None:
+        _record(args, results["mujoco"].config)
     return 0
+
+
+def _record(args: argparse.Namespace, config) -> None:
+    """Episode 0 of every agent of the physics sweep, recorded into ``--record DIR/<agent>``."""
+    import re
+    from pathlib import Path
+
+    from embodied_adhoc.experiments.recorded import record_trial_episode
+
+    for agent in config.agents:
+        folder = Path(args.record) / re.sub(r"[^A-Za-z0-9._-]+", "_", agent)
+        outcome = record_trial_episode(
+            config.domain, dict(config.options), agent, config.seed, config.max_steps, folder
+        )
+        line = f"recorded {agent} episode 0 ({outcome.metrics['outcome']}, {outcome.metrics['steps']} steps): {folder}"
+        print(line, file=sys.stderr if args.json else sys.stdout)
 
 
 def _note_single_task(domain_name: str, backend: str, options: dict) -> None:

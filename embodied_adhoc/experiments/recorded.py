@@ -26,9 +26,11 @@ __all__ = [
     "EpisodeConfig",
     "ForagingEpisodeConfig",
     "PursuitEpisodeConfig",
+    "check_recordable",
     "lab_presenter",
     "prepare_lab_episode",
     "prepare_recorded",
+    "record_trial_episode",
     "run_episode",
     "run_foraging_episode",
     "run_pursuit_episode",
@@ -144,11 +146,13 @@ def prepare_lab_episode(
     config: EpisodeConfig,
     command: str = "run toxic-waste",
     make_env: Callable[[dict], Any] | None = None,
+    options: dict | None = None,
     **settings,
 ) -> PreparedEpisode:
     """Episode 0 of ``config.seed`` in the physics lab (start nodes overridden by the config); the env renders
     only with a record folder, exactly the frames the video keeps. ``make_env(env_kwargs)`` replaces the
-    registered env (the live mode's real-time one); ``settings`` go into ``metrics.json``'s config."""
+    registered env (the live mode's real-time one); ``options`` (a ``trials toxic-waste`` sweep's) replace the
+    config's; ``settings`` go into ``metrics.json``'s config."""
     import gymnasium
 
     import embodied_adhoc.envs  # noqa: F401  (registers the ids)
@@ -161,15 +165,19 @@ def prepare_lab_episode(
             f"video_hold ({config.video_hold}) >= 0"
         )
     domain = get_trial_domain("toxic-waste")
-    options = domain.options(
-        human_epsilon=config.human_epsilon,
-        communication=config.communication,
-        task=config.task,
-        confusion=config.confusion,
-        faults=config.faults,
-        localisation=config.localisation,
-        localisation_model=config.localisation_model,
-        model_rfid_miss=config.model_rfid_miss,
+    options = (
+        options
+        if options is not None
+        else domain.options(
+            human_epsilon=config.human_epsilon,
+            communication=config.communication,
+            task=config.task,
+            confusion=config.confusion,
+            faults=config.faults,
+            localisation=config.localisation,
+            localisation_model=config.localisation_model,
+            model_rfid_miss=config.model_rfid_miss,
+        )
     )
 
     def lab_env(session, spec):
@@ -269,11 +277,11 @@ def _arena_env(env_id: str, max_steps: int, recording: bool, **env_kwargs):
     )
 
 
-def _check_agent(domain, agent: str, choices: tuple[str, ...]) -> None:
+def _check_agent(domain, agent: str, choices: tuple[str, ...], flag: str = "--agent") -> None:
     from embodied_adhoc.experiments.registry import agent_plugin
 
-    if agent not in choices and agent_plugin(domain, agent, "--agent").builtin:
-        raise ConfigError(f"--agent {agent}: choose from {', '.join(choices)}")
+    if agent not in choices and agent_plugin(domain, agent, flag).builtin:
+        raise ConfigError(f"{flag} {agent}: choose from {', '.join(choices)}")
 
 
 @dataclass(frozen=True)
@@ -287,10 +295,13 @@ class PursuitEpisodeConfig(ArenaVideoConfig):
 
 
 def run_pursuit_episode(
-    config: PursuitEpisodeConfig, progress: Callable[[int, dict], None] | None = None
+    config: PursuitEpisodeConfig,
+    progress: Callable[[int, dict], None] | None = None,
+    options: dict | None = None,
+    command: str = "run pursuit",
 ) -> EpisodeOutcome:
-    """One Fig. 7.12 physics episode (episode 0 of ``trials pursuit --pairs --backend mujoco``), recorded with
-    ``config.record_dir``; ``progress(step, info)`` per step."""
+    """One Fig. 7.12 physics episode (episode 0 of ``trials pursuit --pairs --backend mujoco``; ``options``, a
+    sweep's, replace the config's), recorded with ``config.record_dir``; ``progress(step, info)`` per step."""
     from embodied_adhoc.episodes.frames import ArenaFrameSource
     from embodied_adhoc.episodes.presenters import PursuitPresenter
     from embodied_adhoc.experiments.domains.pursuit_pairs import ENV_IDS, POMDP_AGENTS, pomdp_options
@@ -307,9 +318,9 @@ def run_pursuit_episode(
         "mujoco",
         config.agent,
         config.seed,
-        options=pomdp_options(config.task),
+        options=pomdp_options(config.task) if options is None else options,
         max_steps=config.max_steps,
-        command="run pursuit",
+        command=command,
         make_env=lambda session, spec: _arena_env(ENV_IDS["mujoco"], config.max_steps, recording),
         frames=lambda env: ArenaFrameSource(
             env.arena, env.arena.backend, lambda: env.arena.sim_time, config.size, video.frame_period
@@ -355,10 +366,14 @@ class ForagingEpisodeConfig(ArenaVideoConfig):
 
 
 def run_foraging_episode(
-    config: ForagingEpisodeConfig, progress: Callable[[int, dict], None] | None = None
+    config: ForagingEpisodeConfig,
+    progress: Callable[[int, dict], None] | None = None,
+    options: dict | None = None,
+    command: str = "run foraging",
 ) -> EpisodeOutcome:
     """One level-based-foraging physics episode (episode 0 of ``trials foraging --backend mujoco``; the default
-    agent is ATLPO-MF with the shipped library), recorded with ``config.record_dir``; ``progress(step, info)``."""
+    agent is ATLPO-MF with the shipped library; ``options``, a sweep's, replace the config's), recorded with
+    ``config.record_dir``; ``progress(step, info)`` per step."""
     from embodied_adhoc.episodes.frames import ArenaFrameSource
     from embodied_adhoc.episodes.presenters import ForagingPresenter
     from embodied_adhoc.experiments.domains.foraging import DOMAIN
@@ -386,9 +401,9 @@ def run_foraging_episode(
         "mujoco",
         config.agent,
         config.seed,
-        options=config.options(),
+        options=config.options() if options is None else options,
         max_steps=config.max_steps,
-        command="run foraging",
+        command=command,
         make_env=lambda session, spec: _arena_env(
             session.env_id, config.max_steps, recording, **session.env_kwargs
         ),
@@ -408,3 +423,46 @@ def run_foraging_episode(
     outcome = run_recorded(episode, presenter, config.record_dir, video, progress)
     outcome.metrics["true_team"] = episode.spec["team"]
     return outcome
+
+
+# -- trials --record ----------------------------------------------------------------------------------------------
+RECORDABLE = ("toxic-waste", "pursuit", "foraging")
+
+
+def check_recordable(domain_name: str, backends, options: dict, agents) -> None:
+    """``trials --record`` records physics episodes of the domains with a presenter, for the agents their ``run``
+    command takes: one line naming the flag and the fix otherwise (before any trial runs)."""
+    if domain_name not in RECORDABLE:
+        raise ConfigError(
+            f"--record: trials {domain_name} has no recorded physics episode; record one of {', '.join(RECORDABLE)}"
+        )
+    if "mujoco" not in backends:
+        raise ConfigError("--record records the physics episodes: add --backend mujoco")
+    if domain_name == "pursuit" and not options.get("pairs"):
+        raise ConfigError("--record: trials pursuit records the Fig. 7.12 pair variant only: add --pairs")
+    from embodied_adhoc.experiments.registry import get_trial_domain
+
+    if domain_name != "toxic-waste":
+        from embodied_adhoc.experiments.domains.pursuit_pairs import POMDP_AGENTS
+
+        choices = FORAGING_AGENTS if domain_name == "foraging" else POMDP_AGENTS + ("random",)
+        for agent in agents:
+            _check_agent(get_trial_domain(domain_name), agent, choices, "--agents")
+
+
+def record_trial_episode(
+    domain_name: str, options: dict, agent: str, seed: int, max_steps: int, out: Path
+) -> EpisodeOutcome:
+    """Episode 0 of a ``trials DOMAIN --backend mujoco`` sweep's ``seed`` for ``agent`` with the sweep's
+    ``options``, recorded into ``out`` (``episode.mp4``, ``episode.rrd``, ``metrics.json``) with the defaults
+    of the domain's ``run`` command; the same episode the sweep ran as trial 0."""
+    command = f"trials {domain_name} --record"
+    if domain_name == "toxic-waste":
+        config = EpisodeConfig(agent=agent, seed=seed, max_steps=max_steps, record_dir=out)
+        episode = prepare_lab_episode(config, command, options=options)
+        return run_recorded(episode, lab_presenter(episode, agent), out, config.video())
+    if domain_name == "pursuit":
+        pursuit = PursuitEpisodeConfig(agent=agent, seed=seed, max_steps=max_steps, record_dir=out)
+        return run_pursuit_episode(pursuit, options=options, command=command)
+    foraging = ForagingEpisodeConfig(agent=agent, seed=seed, max_steps=max_steps, record_dir=out)
+    return run_foraging_episode(foraging, options=options, command=command)
