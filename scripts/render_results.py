@@ -606,6 +606,53 @@ def tag_compare(published: dict, check: dict) -> list[str]:
     return failures
 
 
+SPEECH_CONFUSIONS = ("thesis", "measured")
+SPEECH_AGENT_LABELS = {"hotspot": "hotspot (TEBOPA)", "oracle": "oracle (full observability)"}
+
+
+def speech_confusion_command(confusion: str) -> list[str]:
+    return [
+        ".venv/bin/embodied-adhoc",
+        "trials",
+        "toxic-waste",
+        "--agents",
+        "hotspot,known-task,oracle",
+        "--confusion",
+        confusion,
+        "--episodes",
+        "32",
+        "--seed",
+        "7",
+        "--workers",
+        "1",
+        "--json",
+    ]
+
+
+def speech_confusions_tables(data: dict) -> list[Table]:
+    headers = [
+        "confusion",
+        "agent",
+        "steps to finish (mean ± sd)",
+        "steps 95% CI (bootstrap)",
+        "success",
+        "identify",
+    ]
+    rows = [
+        [
+            confusion,
+            SPEECH_AGENT_LABELS.get(agent, agent),
+            steps_cell(s),
+            ci_cell(s["steps_ci95"]),
+            f"{s['success_rate']:.2f}",
+            "n/a" if s["identify_steps_mean"] is None else f"{s['identify_steps_mean']:.2f}",
+        ]
+        for confusion in SPEECH_CONFUSIONS
+        for agent, s in data["runs"][confusion].items()
+    ]
+    return [Table("agents", "", headers, rows)]
+
+
 FIGURES = {
     figure.name: figure
     for figure in (
@@ -803,6 +850,18 @@ FIGURES = {
             checked="the second kernel's claimed value lies inside the published [lower, upper] bracket and its "
             "simulated mean inside the published 95 % interval",
         ),
+        Figure(
+            "speech-confusions",
+            "HOTSPOT lab with the thesis's and the measured speech confusion (abstract, 32 episodes, seed 7)",
+            {confusion: speech_confusion_command(confusion) for confusion in SPEECH_CONFUSIONS},
+            arenas_extract,
+            speech_confusions_tables,
+            arenas_compare,
+            ("docs/speech.md",),
+            partial_checks=True,
+            notes="The matrix is both the env's channel and the agents' model; a task counts as identified when its "
+            "posterior leads every other task by more than 1e-6.",
+        ),
     )
 }
 
@@ -898,6 +957,105 @@ UNRUN = {
         ),
     )
 }
+
+
+@dataclass(frozen=True)
+class Recorded:
+    """Tables generated from a result file that ships in the repository (an asset the package reads, written by
+    its own script with its provenance inside), not re-run by this script: the pages print what the file holds."""
+
+    name: str
+    title: str
+    source: str
+    """the result file, relative to the repository root"""
+    tables: Callable[[dict], list[Table]]
+    cost: str
+    """what a re-run of the file's command costs"""
+
+
+SPEECH_THESIS = ("257", "58.62 %", "77.77 %", "74.07 %")
+"""The thesis's live recogniser (thesis ch. 7, M4-M6): utterances and the three accuracies."""
+
+
+def percent(value: float) -> str:
+    return f"{100 * value:.2f} %"
+
+
+def speech_eval_tables(data: dict) -> list[Table]:
+    provenance = data["provenance"]
+    headers = ["condition", "n", "transcript (M4)", "place (M5)", "node (M6)", "latency ms (wall)", "CPU ms",
+               "real-time factor"]  # fmt: skip
+
+    def row(label: str, c: dict) -> list[str]:
+        return [
+            label,
+            str(c["n"]),
+            percent(c["transcript_accuracy"]),
+            percent(c["place_accuracy"]),
+            percent(c["node_accuracy"]),
+            f"{c['latency_ms_mean']:.0f}",
+            f"{c['cpu_ms_mean']:.0f}",
+            f"{c['real_time_factor']:.3f}",
+        ]
+
+    conditions = [
+        row("clean" if c["snr_db"] is None else f"SNR {c['snr_db']:g} dB", c)
+        for c in provenance["conditions"]
+    ]
+    conditions.append(["thesis (online recogniser, live)", *SPEECH_THESIS, "-", "-", "-"])
+    voices = [
+        [voice, percent(c["transcript_accuracy"]), percent(c["place_accuracy"]), percent(c["node_accuracy"])]
+        for voice, c in provenance["clean_by_voice"].items()
+    ]
+    thesis = json.loads((ROOT / "assets" / "data" / "speech_confusion_thesis.json").read_text())["matrix"]
+    matrix = [
+        [f"{i} {node}", *(f"{p:.3f}".lstrip("0") for p in values)]
+        for i, (node, values) in enumerate(zip(data["nodes"], data["matrix"], strict=True))
+    ]
+    matrix.append(
+        [
+            "thesis row 0..4 diagonal",
+            *(f"{thesis[i][i]:.3f}".lstrip("0") for i in range(len(thesis))),
+            "/".join(f"{row[-1]:.3f}".lstrip("0") for row in thesis),
+        ]
+    )
+    return [
+        Table("conditions", "", headers, conditions),
+        Table("voices", "", ["voice", "transcript", "place", "node"], voices),
+        Table(
+            "confusion", "", ["true \\ heard", *(str(i) for i in range(len(data["nodes"]))), "failed"], matrix
+        ),
+    ]
+
+
+RECORDED = {
+    entry.name: entry
+    for entry in (
+        Recorded(
+            "speech-eval",
+            "Offline speech pipeline: recognition per noise condition and voice, and the measured confusion matrix",
+            "assets/data/speech_confusion_measured.json",
+            speech_eval_tables,
+            "1,440 utterances synthesised and recognised, seconds each in noise: tens of minutes on two cores",
+        ),
+    )
+}
+
+
+def recorded_block(entry: Recorded, key: str | None, page: Path) -> str:
+    data = json.loads((ROOT / entry.source).read_text())
+    tables = [t for t in entry.tables(data) if key is None or t.key == key]
+    if not tables:
+        sys.exit(
+            f"{page.relative_to(ROOT)}: marker results:{entry.name}.{key}: no such table in {entry.source}"
+        )
+    provenance = data["provenance"]
+    # The file is named, not linked: it lies outside the documentation site.
+    return "\n\n".join(t.markdown() for t in tables) + (
+        f"\n\nClass: **not re-run** (cost: {entry.cost}; one run on one host). *Generated by `{SCRIPT}` from "
+        f"`{entry.source}`, which `{provenance['command']}` wrote on {provenance['date'][:10]} with its "
+        "provenance inside.*"
+    )
 
 
 def unrun_block(entry: Unrun, page: Path) -> str:
@@ -1284,6 +1442,11 @@ def index_page(documents: dict[str, dict]) -> str:
         else:
             klass = "; ".join(f"{t.key}: {reproducibility(figure, document, t.key)[0]}" for t in tables)
         lines.append(f"| [{figure.title}]({name}.md) | {klass} | `{script_of(figure)}` |")
+    for entry in RECORDED.values():
+        command = json.loads((ROOT / entry.source).read_text())["provenance"]["command"]
+        lines.append(
+            f"| {entry.title} | not re-run, from `{entry.source}` (cost: {entry.cost}) | `{command}` |"
+        )
     for entry in UNRUN.values():
         lines.append(f"| {entry.title} | not re-run (cost: {entry.cost}) | `{entry.command}` |")
     return "\n".join(lines) + "\n"
@@ -1393,8 +1556,8 @@ def render_markers(page: Path, text: str, documents: dict[str, dict]) -> tuple[s
         if match["edge"] != "start":
             sys.exit(f"{page.relative_to(ROOT)}:{index}: results:{match['name']} ends before it starts")
         name, _, key = match["name"].partition(".")
-        if name != HEADLINE and name not in UNRUN and (name not in FIGURES or name not in documents):
-            known = sorted([*documents, *UNRUN])
+        if name not in (HEADLINE, *UNRUN, *RECORDED) and (name not in FIGURES or name not in documents):
+            known = sorted([*documents, *UNRUN, *RECORDED])
             sys.exit(
                 f"{page.relative_to(ROOT)}:{index}: results:{name}: no such figure with a result file "
                 f"(known: {', '.join(known)}); run `{SCRIPT} run {name}`"
@@ -1408,6 +1571,8 @@ def render_markers(page: Path, text: str, documents: dict[str, dict]) -> tuple[s
             block = headline(documents, page)
         elif name in UNRUN:
             block = unrun_block(UNRUN[name], page)
+        elif name in RECORDED:
+            block = recorded_block(RECORDED[name], key or None, page)
         else:
             block = fragment(FIGURES[name], documents[name], key or None, page)
         out += ["", block, "", end]
@@ -1469,7 +1634,7 @@ def check() -> int:
                     f"`.venv/bin/python {SCRIPT} render`, or re-run the figure whose numbers are stale"
                 )
                 continue
-            if name.partition(".")[0] in UNRUN:
+            if name.partition(".")[0] in (*UNRUN, *RECORDED):
                 print(
                     f"{relative}: block {name} differs from its entry in {SCRIPT}; re-render with `{SCRIPT} render`"
                 )

@@ -44,6 +44,9 @@ def copy_tree(tmp_path: Path) -> Path:
         ROOT / "docs", tmp_path / "docs", ignore=shutil.ignore_patterns("*.mp4", "*.rrd", "*.png")
     )
     shutil.copytree(ROOT / "results", tmp_path / "results")
+    shutil.copytree(
+        ROOT / "assets" / "data", tmp_path / "assets" / "data"
+    )  # result files that ship as assets
     return tmp_path
 
 
@@ -313,3 +316,15 @@ def test_a_re_run_of_some_rows_replaces_them_and_a_check_of_those_rows_counts_ag
     assert module.reproducibility(figure, document)[0] == "statistical"
     check["code_sha256"] = "old"  # the rows' previous code: it checked numbers no longer published
     assert module.reproducibility(figure, document)[0] == "not re-checked"
+
+
+def test_a_result_file_shipped_as_an_asset_renders_its_tables_and_says_it_was_not_re_run():
+    module = load_script()
+    entry = module.RECORDED["speech-eval"]
+    page = module.ROOT / "docs" / "speech.md"
+    block = module.recorded_block(entry, "confusion", page)
+    data = json.loads((module.ROOT / entry.source).read_text())
+    first = data["matrix"][0]
+    assert f"| 0 {data['nodes'][0]} | " + " | ".join(f"{p:.3f}".lstrip("0") for p in first) + " |" in block
+    assert "Class: **not re-run** (cost: " in block and data["provenance"]["command"] in block
+    assert f"from `{entry.source}`, which" in block
