@@ -9,22 +9,15 @@ import numpy as np
 from gymnasium import spaces
 
 from embodied_adhoc import checks
-from embodied_adhoc.domains.lab import (
-    LAB_PARAMETERS,
-    LabConfig,
-    LabObservation,
-    apply_step,
-    library_from_config,
-)
-from embodied_adhoc.domains.lab_graph import DEFAULT_GRAPH, DISPOSED, GROUND, HELD
-from embodied_adhoc.domains.lab_human import HumanOutcome
+from embodied_adhoc.domains.lab import LAB_PARAMETERS, LabConfig, LabObservation, library_from_config
+from embodied_adhoc.domains.lab_graph import DEFAULT_GRAPH, DISPOSED, GROUND
 from embodied_adhoc.envs import contract
 from embodied_adhoc.envs.toxic_waste_speech import SPEECH_KINDS, SpeechTurn, make_speech
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.sim.lab_human_mind import BALL_STATUS, HumanMind
 
 __all__ = ["FAULT_COUNTS", "ToxicWasteEnv"]
 
-BALL_STATUS = {"ground": GROUND, "held": HELD, "container": DISPOSED}
 FAULT_COUNTS = {
     # info["faults"] key: (a fault event, or an event faults are counted out of; what it counts)
     "rfid_reads": ("event", "balls that entered the container (one RFID read attempt each)"),
@@ -61,8 +54,9 @@ class ToxicWasteEnv(gymnasium.Env):
     same observation semantics and encoding, same reward, same ``reset`` options, so an agent (and the trial
     runner) works unchanged in both.
 
-    Each ``step`` is one macro step, turn-based as in the thesis: the human's command is decided from the true
-    state at the start of the step, then the robot's waypoint controller (tracking its pose estimate, not
+    Each ``step`` is one macro step, turn-based as in the thesis: the world's human decides its command from the
+    room as it is at the start of the step (``sim.lab_human_mind``: its policy on what it perceives, no rule of
+    the abstract model), then the robot's waypoint controller (tracking its pose estimate, not
     ground truth) and the human's motion script run together in physics until both are done (or the robot is
     blocked, ``info["blocked"]``, or ``macro_timeout`` simulated seconds). The physics step and the env step are
     synchronous and deterministic: the
@@ -89,10 +83,11 @@ class ToxicWasteEnv(gymnasium.Env):
 
     The robot node is the Monte Carlo localiser's area (lidar + odometry against the lab map,
     ``sim.localisation``), 5 (unknown) when its particles span more than one area; with ``localisation=False`` it
-    is the wheel-odometry pose's area (5 outside every area). Without a measured ``localisation_model`` it is also
-    5 with probability 1 - ``robot_node_accuracy`` (the model's robot-node factor, drawn from its own seeded
-    stream). The human node is 5 when the reply names no location; without communication it is the robot's true
-    area when the human is in it, else 5.
+    is the wheel-odometry pose's area (5 outside every area). The robot's area sensor (``sim.area_sensor``) reports
+    it with probability ``robot_node_accuracy``, else 5: the sensor's dropout, the parameter the model's
+    robot-node factor is built from (with a measured ``localisation_model`` the sensor drops nothing). The human
+    node is 5 when the reply names no location; without communication it is the robot's true area when the human
+    is in it, else 5.
 
     ## Rewards
     From the state before the step (``domains.lab.LabReward``): -1 per ball on the ground, -2 per ball held,
@@ -219,6 +214,9 @@ class ToxicWasteEnv(gymnasium.Env):
             localisation=localisation,
             lidar_noise=lidar_noise,
             lidar_dropout=lidar_dropout,
+            # the area sensor's dropout is the model's robot-node factor; a measured localisation model
+            # describes the localiser's own errors, and the sensor then drops nothing
+            area_accuracy=config.robot_node_accuracy if config.localisation_model is None else 1.0,
         )
         self.layout = self.world.layout
         self.speech: SpeechTurn | None = (
@@ -257,13 +255,14 @@ class ToxicWasteEnv(gymnasium.Env):
         self._human_rng = np.random.default_rng(int(human_seed))
         self._speech_rng = np.random.default_rng(int(speech_seed))
         self._failure_rng = np.random.default_rng((int(speech_seed), 1))  # speech_failure's own stream
-        self._sensor_rng = np.random.default_rng(int(sensor_seed))
+        self.world.area_sensor.reset(np.random.default_rng(int(sensor_seed)))
         self._status = (GROUND,) * len(lib.tasks[self._task])
         self._steps = self._step_index = 0
         self._counts = dict.fromkeys(self._counts, 0)
         self._robot_believed_node = robot
         self._episode.open()
         truth = self.world.reset(int(world_seed), robot, human, lib.tasks[self._task])
+        self._human = HumanMind(self._humans[self._task], self._human_rng, self.layout)
         observation = self._observation(
             self.world.robot_node_reading(), truth.robot_node, truth.human_node, None, False
         )
@@ -276,20 +275,9 @@ class ToxicWasteEnv(gymnasium.Env):
         )
         lib = self.library
         reward = float(lib.config.reward.of(np.array(self._status)))
-        before = self.world.ground_truth()
-        robot_node = _area(self.layout, before.robot_pose, before.robot_node)
-        # The human's command follows the model's one transition rule (domains.lab.apply_step) from the true
-        # state at the start of the step; while it holds a ball the rule ignores its draw, so none is made.
-        outcome = (
-            HumanOutcome(1.0, before.human_node)
-            if HELD in self._status
-            else self._humans[self._task].step(self._human_rng, before.human_node, self._status)
-        )
-        _, next_human, planned, handed_over = apply_step(
-            lib.graph, robot_node, before.human_node, self._status, action, outcome
-        )
-        command = _human_command(self._status, planned, handed_over, before.human_node, next_human)
         target = self.move_target(action)
+        # the world's human decides from the room as it is at the start of the step (sim.lab_human_mind)
+        command = self._human.decide(self.world.ground_truth(), robot_stays=target is None)
         self._step_index += 1
         result = self.world.step_macro(target, command, self._on_frame if self._frame_sink else None)
         truth = self.world.ground_truth()
@@ -349,9 +337,7 @@ class ToxicWasteEnv(gymnasium.Env):
     # ----------------------------------------------------------------------------------------- internals
     def _observation(self, robot_reading, true_robot, true_human, heard, rfid, action=None) -> LabObservation:
         n = self.library.graph.n_nodes
-        config = self.library.config
-        if config.localisation_model is None and self._sensor_rng.random() >= config.robot_node_accuracy:
-            robot_reading = None  # the model's robot-node factor: the reading is lost w.p. 1 - accuracy
+        robot_reading = self.world.area_sensor.observe(robot_reading)  # the reading as the robot observes it
         if self.speech is not None:
             human = heard if action == self.library.locate_action else None
         else:
@@ -434,20 +420,6 @@ class ToxicWasteEnv(gymnasium.Env):
             "ball_positions": np.array(truth.ball_positions),
         }
         self._frame_sink(snapshot)
-
-
-def _human_command(status, planned, handed_over: bool, human_node: int, next_human: int):
-    """The motion script's command that realises the transition ``apply_step`` chose (``planned`` statuses)."""
-    from embodied_adhoc.sim.human import HumanCommand
-
-    if handed_over:
-        return HumanCommand.drop_into_container(status.index(HELD))
-    picked = [i for i, (a, b) in enumerate(zip(status, planned, strict=True)) if a == GROUND and b == HELD]
-    if picked:
-        return HumanCommand.pick(picked[0])
-    if next_human != human_node:
-        return HumanCommand.move_to(next_human)
-    return HumanCommand.stay()
 
 
 def _area(layout, pose, node: int | None) -> int:

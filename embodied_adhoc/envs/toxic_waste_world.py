@@ -19,9 +19,11 @@ def make_world(
     localisation: bool = True,
     lidar_noise: float | None = None,
     lidar_dropout: float | None = None,
+    area_accuracy: float = 1.0,
 ):
     """A ``sim.lab_world.LabWorld`` with the env's odometry noise, RFID miss rate, timeout, frame rate,
-    rendering settings, lidar noise/dropout and localiser (``localisation=False``: wheel odometry alone)."""
+    rendering settings, lidar noise/dropout, localiser (``localisation=False``: wheel odometry alone) and the
+    accuracy of the robot's area sensor (``sim.area_sensor``)."""
     from embodied_adhoc.sim.lab_world import LabWorld, LabWorldConfig
     from embodied_adhoc.sim.lidar import LidarConfig
     from embodied_adhoc.sim.localisation import LocalisationConfig
@@ -44,6 +46,7 @@ def make_world(
         lidar=lidar,
         localisation=LocalisationConfig() if localisation else None,
         rfid_miss_probability=float(rfid_miss),
+        area_accuracy=float(area_accuracy),
         macro_timeout=float(macro_timeout),
         video_fps=float(frame_rate),
         render_width=int(width),

@@ -1,9 +1,10 @@
 """Who moves the human in the real-time lab (``live.realtime.RealtimeToxicWasteEnv``), tick by tick.
 
 * :class:`ScriptedHuman` — the lab's scripted cleaner (``domains.lab_human.LabHuman``), run asynchronously: it
-  decides its next command whenever the previous one is done (a "stay" lasts ``pause`` seconds), from the true
-  state at that moment, by the model's one transition rule (``domains.lab.apply_step``) with the robot's current
-  macro action, and answers "Where are you?" at once through the env's speech channel.
+  decides its next command whenever the previous one is done (a "stay" lasts ``pause`` seconds), as the physics
+  lab's human does (``sim.lab_human_mind.HumanMind``: its policy on the room as it is then, the hand-over when
+  the robot's current macro action stays or asks), and answers "Where are you?" at once through the env's speech
+  channel.
 * :class:`Participant` — a person in the browser: held direction keys walk the human continuously
   (``speed`` m/s, kept inside the lab's areas and passages by :func:`walkable`), one key picks up the nearest ball
   in the area or drops the held one into the robot's container (the walker's own pick/drop motion scripts), and
@@ -26,12 +27,9 @@ import numpy as np
 
 from embodied_adhoc.comms.robot_speech import WHERE_ARE_YOU
 from embodied_adhoc.comms.vocabulary import NODE_NAMES
-from embodied_adhoc.domains.lab import apply_step
-from embodied_adhoc.domains.lab_graph import HELD
-from embodied_adhoc.domains.lab_human import HumanOutcome
-from embodied_adhoc.envs.toxic_waste import BALL_STATUS, _human_command
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.sim.human import HumanCommand
+from embodied_adhoc.sim.lab_human_mind import HumanMind
 from embodied_adhoc.sim.lab_layout import LabLayout
 
 __all__ = ["DIRECTIONS", "Participant", "Reply", "ScriptedHuman", "heard_line", "walkable"]
@@ -128,23 +126,14 @@ class ScriptedHuman:
         env.tick_walker(dt)
 
     def _decide(self, env) -> HumanCommand:
-        """The next command from the true state now, as ``ToxicWasteEnv.step`` decides it per macro step."""
+        """The next command from the room now, as the physics lab's human decides it per macro step."""
         world, library = env.world, env.library
-        truth = world.ground_truth()
-        status = tuple(BALL_STATUS[s] for s in truth.ball_states)
-        robot_node = env.true_robot_node(truth)
-        outcome = (
-            HumanOutcome(1.0, truth.human_node)
-            if HELD in status
-            else library.humans[env.task_index].step(env.human_rng, truth.human_node, status)
+        mind = HumanMind(library.humans[env.task_index], env.human_rng, world.layout)
+        # the hand-over needs the robot to stay or ask; between two decisions it does neither
+        action = env.current_action
+        return mind.decide(
+            world.ground_truth(), robot_stays=action is not None and action >= library.stay_action
         )
-        # the hand-over needs the robot to "stay or ask" (apply_step); between two decisions it does neither, which
-        # the rule reads from any move action (action 0)
-        action = 0 if env.current_action is None else env.current_action
-        _, next_human, planned, handed_over = apply_step(
-            library.graph, robot_node, truth.human_node, status, action, outcome
-        )
-        return _human_command(status, planned, handed_over, truth.human_node, next_human)
 
     def ask(self, env, true_node: int) -> None:
         node, lines, wav = env.speech.ask(true_node, env.speech_rng)

@@ -32,9 +32,10 @@ import numpy as np
 from embodied_adhoc import checks
 from embodied_adhoc.domains.lab_graph import DISPOSED
 from embodied_adhoc.envs import contract
-from embodied_adhoc.envs.toxic_waste import BALL_STATUS, ToxicWasteEnv, _area
+from embodied_adhoc.envs.toxic_waste import ToxicWasteEnv, _area
 from embodied_adhoc.errors import EmbodiedAdhocError
 from embodied_adhoc.live.humans import ScriptedHuman
+from embodied_adhoc.sim.lab_human_mind import BALL_STATUS
 
 __all__ = ["LiveStopped", "RealtimeClock", "RealtimeToxicWasteEnv"]
 

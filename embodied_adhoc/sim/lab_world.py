@@ -29,6 +29,7 @@ import numpy as np
 from embodied_adhoc.control.reference import wrap_angle
 from embodied_adhoc.control.waypoint_controller import ControllerConfig, WaypointController
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.sim.area_sensor import AreaSensor
 from embodied_adhoc.sim.human import HumanCommand, HumanSenses, HumanWalker
 from embodied_adhoc.sim.lab_layout import LAB_LAYOUT, LabLayout
 from embodied_adhoc.sim.lab_model import LabIds, load_lab_model, yaw_of
@@ -58,6 +59,8 @@ class LabWorldConfig:
         stall_seconds: a moving robot whose pose estimate advances less than 10 cm and 0.2 rad over a window of
             this many simulated seconds is blocked: the macro step ends with ``blocked=True``.
         rfid_miss_probability: chance that the reader misses a ball entering the container (one read per ball).
+        area_accuracy: the robot's area sensor reports its area with this probability, else unknown
+            (``sim.area_sensor``; the physics lab sets it to the lab model's ``robot_node_accuracy``).
         human_speed: walking speed of the human (m/s).
         macro_timeout: a macro step ends after this many simulated seconds even if unfinished.
         min_macro_seconds: a macro step lasts at least this long (a "stay" still lets time pass).
@@ -79,6 +82,7 @@ class LabWorldConfig:
     localisation: LocalisationConfig | None = field(default_factory=LocalisationConfig)
     stall_seconds: float = 5.0
     rfid_miss_probability: float = 0.0
+    area_accuracy: float = 1.0
     human_speed: float = 1.2
     macro_timeout: float = 60.0
     min_macro_seconds: float = 1.0
@@ -108,6 +112,8 @@ class LabWorldConfig:
             raise ConfigError(
                 f"LabWorldConfig.rfid_miss_probability must be in [0, 1], got {self.rfid_miss_probability}"
             )
+        if not 0.0 <= self.area_accuracy <= 1.0:
+            raise ConfigError(f"LabWorldConfig.area_accuracy must be in [0, 1], got {self.area_accuracy}")
         if self.render_quality not in RENDER_QUALITIES:
             raise ConfigError(
                 f"LabWorldConfig.render_quality must be one of {RENDER_QUALITIES}, got {self.render_quality!r}"
@@ -174,6 +180,7 @@ class LabWorld:
         self.human = HumanWalker(layout, speed=self.config.human_speed)
         self.odometry = WheelOdometry(self.config.odometry, np.random.default_rng(0))
         self.lidar = Lidar(self.model, self.config.lidar)
+        self.area_sensor = AreaSensor(self.config.area_accuracy)  # the robot's area as it observes it
         self._lidar_rng = np.random.default_rng(0)
         self._next_scan = 0.0
         self.localiser: MonteCarloLocaliser | None = None

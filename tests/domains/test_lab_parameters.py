@@ -1,5 +1,6 @@
 """The lab's knowledge written once: LabConfig is the parameter list (with defaults) of build_lab_library and of
-both toxic-waste envs; the physics env's human follows apply_step and honours robot_node_accuracy; HOTSPOT's
+both toxic-waste envs; the physics world's own human decides what apply_step says, and the physics env honours
+robot_node_accuracy; HOTSPOT's
 information reward has one default reward gain."""
 
 import dataclasses
@@ -13,7 +14,7 @@ from embodied_adhoc.decision.agents.hotspot import HotspotConfig, information_re
 from embodied_adhoc.domains.lab import LAB_PARAMETERS, LabConfig, apply_step, build_lab_library
 from embodied_adhoc.domains.lab_graph import DISPOSED, GROUND, HELD
 from embodied_adhoc.domains.lab_human import HumanOutcome
-from embodied_adhoc.envs.toxic_waste import ToxicWasteEnv, _human_command
+from embodied_adhoc.envs.toxic_waste import ToxicWasteEnv
 from embodied_adhoc.envs.toxic_waste_abstract import ToxicWasteAbstractEnv
 from embodied_adhoc.errors import ConfigError
 
@@ -82,12 +83,34 @@ def test_every_entry_point_refuses_the_same_bad_parameter_with_the_same_message(
         ((DISPOSED, GROUND, GROUND), 0, 0, 3, HumanOutcome(1.0, 0, -1), ("stay", None)),
     ],
 )
-def test_the_physics_human_command_realises_apply_step(status, robot, human, action, outcome, expected):
+def test_the_physics_human_decides_what_the_models_rule_says(status, robot, human, action, outcome, expected):
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from embodied_adhoc.sim.lab_human_mind import BALL_STATUS, HumanMind
+    from embodied_adhoc.sim.lab_layout import LAB_LAYOUT
+
     graph = build_lab_library().graph
     outcome = outcome or HumanOutcome(1.0, human)
-    _, next_human, planned, handed_over = apply_step(graph, robot, human, status, action, outcome)
-    command = _human_command(status, planned, handed_over, human, next_human)
+    policy = SimpleNamespace(step=lambda rng, node, ball_status: outcome)
+    names = {code: name for name, code in BALL_STATUS.items()}
+    truth = SimpleNamespace(
+        human_node=human,
+        robot_node=robot,
+        ball_states=tuple(names[s] for s in status),
+        robot_pose=(0.0, 0.0, 0.0),
+    )
+    mind = HumanMind(policy, np.random.default_rng(0), LAB_LAYOUT)
+    command = mind.decide(truth, robot_stays=action >= graph.max_degree)  # stay or ask: no move target
     assert (command.kind, command.target) == expected
+    # the world's own decision is the transition the abstract model's rule gives
+    _, next_human, planned, handed_over = apply_step(graph, robot, human, status, action, outcome)
+    assert (command.kind == "drop_into_container") == handed_over
+    assert (command.kind == "pick") == any(
+        a == GROUND and b == HELD for a, b in zip(status, planned, strict=True)
+    )
+    assert (command.kind == "move_to") == (next_human != human)
 
 
 def test_the_physics_env_honours_robot_node_accuracy():
