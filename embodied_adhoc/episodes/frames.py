@@ -86,8 +86,9 @@ class LabFrameSource:
 class ArenaFrameSource:
     """A grid arena as a frame source: ``view`` draws (``render_top(size)``) and gives the robots' poses
     (``poses()``), ``backend`` is its :class:`~embodied_adhoc.sim.grid_arena_world.GridArenaBackend` (control-tick
-    hook), ``clock()`` the simulated time. A frame is due ``period`` simulated seconds after the last one; the
-    picture is the overhead camera (square, ``size`` pixels), drawn when taken."""
+    hook), ``clock()`` the simulated time. A frame is due ``period`` simulated seconds after the last picture taken
+    (a frame instant's or one the recorder takes after a step); the picture is the overhead camera (square,
+    ``size`` pixels), drawn when taken."""
 
     def __init__(self, view, backend, clock: Callable[[], float], size: int, period: float):
         self.view, self.backend, self.clock = view, backend, clock
@@ -105,12 +106,11 @@ class ArenaFrameSource:
 
     def _on_tick(self, _seconds_into_step: float) -> None:
         sim_time = self.sim_time()
-        if sim_time + 1e-9 < self._next:
-            return
-        self._next = sim_time + self.period
-        self._listener({"sim_time": sim_time, "poses": self.view.poses()})
+        if sim_time + 1e-9 >= self._next:
+            self._listener({"sim_time": sim_time, "poses": self.view.poses()})
 
     def take(self, camera: str, markers: bool) -> np.ndarray:
+        self._next = self.sim_time() + self.period
         return self.view.render_top(self.width)
 
     def render(self, taken: np.ndarray) -> np.ndarray:
