@@ -919,6 +919,93 @@ UNRUN = {
             TIMING,
         ),
         Unrun(
+            "teamster-reference",
+            "TEAMSTER Part A: the PLASTIC reference, captures per 500 steps with the teammate-aware team",
+            ".venv/bin/python scripts/reproduce_teamster.py --trials 4 --skip-protocol",
+            "4 runs of 500 steps per agent with Table 4.1's UCT planning each step",
+            STATISTICAL,
+        ),
+        Unrun(
+            "teamster-changed",
+            "TEAMSTER Part B: 12 trials at T = 500 per team and a changed environment (predator moves fail w.p. 0.5)",
+            "embodied-adhoc teamster pursuit --agents A --trials K --steps 500 --eval-steps 50 --points 5 "
+            "--changed 0.5 --out runs/teamster-study-t500 (A = teamster, plastic-model; K = 1..12)",
+            "24 trials of 19,200-step schedules; TEAMSTER about 10.6 ms per step on one thread: CPU hours",
+            STATISTICAL,
+        ),
+        Unrun(
+            "teamster-mirror",
+            "TEAMSTER Part C: the mirrored environment (8 trials per agent)",
+            "embodied-adhoc teamster pursuit ... --out runs/teamster-mirror-t500, summarised by "
+            "experiments.domains.teamster.summarise",
+            "8 trials per agent at T = 500 and 2,500 steps in the mirrored environment: CPU hours",
+            STATISTICAL,
+        ),
+        Unrun(
+            "teamster-t5000",
+            "TEAMSTER Part D: the thesis's scale, 8 trials at T = 5000 per team",
+            "OPENBLAS_NUM_THREADS=1 embodied-adhoc teamster pursuit --trials 8 --steps 5000 --eval-steps 100 "
+            "--points 10 --out runs/teamster-t5000",
+            "4,590 CPU s for the whole study (TEAMSTER 204 CPU s per trial)",
+            STATISTICAL,
+        ),
+        Unrun(
+            "teamster-maps",
+            "TEAMSTER on the navigation maps: the baselines beside Tables 4.5-4.7",
+            ".venv/bin/python scripts/reproduce_teamster.py --maps ntu,isr,pentagon --episodes 40 --skip-protocol "
+            "--skip-pursuit",
+            "40 episodes per row with Table 4.1's UCT on three maps",
+            STATISTICAL,
+        ),
+        Unrun(
+            "teamster-ntu",
+            "TEAMSTER on ntu: two trials at T = 500 per team and a changed environment",
+            "embodied-adhoc teamster ntu --agents teamster,plastic-model,learns-team,learns-environment,"
+            "plastic-policy,random,original --trials 2 --steps 500 --points 5 --eval-episodes 8 --changed 0.25 "
+            "--out runs/teamster-ntu-study",
+            "268 s of wall clock per TEAMSTER trial and 76 s per PLASTIC-Model trial on the loaded machine, 7 agents",
+            STATISTICAL,
+        ),
+        Unrun(
+            "teamster-isr-pentagon",
+            "TEAMSTER on isr and pentagon: the exact-environment agents, one trial at T = 200 per team",
+            "embodied-adhoc teamster isr|pentagon --agents learns-team,plastic-model,original --trials 1 --steps 200 "
+            "--points 2 --eval-episodes 4 --out runs/teamster-isr-small",
+            "139-299 s of wall clock per trial on the loaded machine",
+            STATISTICAL,
+        ),
+        Unrun(
+            "atlpo-teams",
+            "ATLPO: are the teams distinguishable? The Bayes-optimal posterior against the classifier",
+            ".venv/bin/python scripts/diagnose_atlpo.py --what teams --domain foraging|pursuit",
+            "a classifier trained per window size and domain (256 episodes per team, 600 iterations) and 256 "
+            "Monte Carlo draws per step",
+            STATISTICAL,
+        ),
+        Unrun(
+            "atlpo-chapter6",
+            "ATLPO: the chapter-6 table and the held-out teammates",
+            ".venv/bin/python scripts/reproduce_atlpo.py --out DIR",
+            "three training seeds of the task, team and task+team libraries of both domains: 7-17 min of wall "
+            "clock per library and seed on the loaded machine, hours in all",
+            STATISTICAL,
+        ),
+        Unrun(
+            "atlpo-mb",
+            "ATLPO-MB on the thesis's 3 training seeds",
+            "nice -n 10 .venv/bin/python scripts/reproduce_atlpo.py --out DIR --mb --domains D --seeds S "
+            "--no-held-out --threads 1, then --seeds 0 1 2 --report-only",
+            "a world model and its latent policy per member, domain and seed: hours",
+            STATISTICAL,
+        ),
+        Unrun(
+            "speech-tuning",
+            "Speech recogniser settings: dictionary, beams and adaptation per voice",
+            "scripts/tune_speech.py (the recogniser's settings swept on the eval's utterances)",
+            "one speech eval per setting",
+            STATISTICAL,
+        ),
+        Unrun(
             "chapter5-budget",
             "Chapter 5's solve budget: Perseus' lower bound at b0 of each domain's first model, stage by stage",
             "Perseus without a stage limit on model 0 of each domain (SolverProgress per stage, CPU seconds)",
