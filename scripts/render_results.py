@@ -1006,6 +1006,75 @@ UNRUN = {
             STATISTICAL,
         ),
         Unrun(
+            "pomdp-io",
+            "The .pomdp reader's speed per corpus file, against the floor and an earlier reader",
+            ".venv/bin/python scripts/bench_pomdp_io.py",
+            "best of 5 reads of each corpus file and of the earlier reader loaded from git: about a minute",
+            TIMING,
+        ),
+        Unrun(
+            "solvers-sarsop",
+            "Perseus beside SARSOP at 5 and 20 CPU seconds",
+            "OPENBLAS_NUM_THREADS=1 PATH=SARSOP:$PATH .venv/bin/python scripts/bench_solvers.py --only-anytime "
+            "--checkpoints 5 20 --problems sarsop-TagAvoid.pomdp cit.POMDP hallway2.POMDP",
+            "20 CPU s per solver and file, and SARSOP's pomdpsol built and on the PATH",
+            TIMING,
+        ),
+        Unrun(
+            "solvers-626",
+            "Perseus on the thesis-size sparse POMDP (626 states, 5,000 beliefs): seconds to converge",
+            "OPENBLAS_NUM_THREADS=1 .venv/bin/embodied-adhoc pomdp solve DIR/pursuit-task-m0.pomdp --beliefs 5000 "
+            "--tolerance 0.01 --no-expand --seed 0 --json --quiet",
+            "a few CPU minutes per solve",
+            TIMING,
+        ),
+        Unrun(
+            "solvers-corpus",
+            "The solver benchmarks: backup speed, the corpus against SARSOP, the generated 626-state model",
+            "OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/bench_solvers.py --time-limit 30 "
+            "--generated-time-limit 60",
+            "30 s per corpus file (13 files), the naive reference backups and two rules x two stages on the "
+            "generated model: about half an hour",
+            TIMING,
+        ),
+        Unrun(
+            "live-realtime",
+            "HOTSPOT turn-based against real time, scripted human (physics lab)",
+            ".venv/bin/python scripts/bench_realtime.py --episodes 16 --paced-episodes 4",
+            "16 physics episodes per mode, the paced ones at real time (minutes of wall clock each)",
+            STATISTICAL,
+        ),
+        Unrun(
+            "live-latency",
+            "Latency of the live page: frame intervals and key press to motion",
+            "LIVE_SCREENSHOTS=/tmp/shots MUJOCO_GL=egl .venv/bin/python -m pytest -q -s "
+            "tests/live/test_live_browser.py",
+            "the browser tests at real time with headless Chromium: several minutes of wall clock",
+            TIMING,
+        ),
+        Unrun(
+            "fault-table",
+            "HOTSPOT under each fault option (physics lab, seeds 100-107)",
+            "MUJOCO_GL=egl .venv/bin/embodied-adhoc trials toxic-waste --backend mujoco --agents hotspot --episodes 8 "
+            "--seed 100 FAULTS (the ten settings of the loop above)",
+            "80 physics episodes, each some 10-100 macro steps",
+            STATISTICAL,
+        ),
+        Unrun(
+            "fault-sweep",
+            "The fault sweep of bench_faults.py: HOTSPOT with and without the localiser under each fault",
+            "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py",
+            "physics episodes per fault setting with and without the localiser, and the scripted tours",
+            STATISTICAL,
+        ),
+        Unrun(
+            "localiser-cost",
+            "The localiser's cost per control step",
+            "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py --cost-seconds N",
+            "N seconds of scripted driving",
+            TIMING,
+        ),
+        Unrun(
             "chapter5-budget",
             "Chapter 5's solve budget: Perseus' lower bound at b0 of each domain's first model, stage by stage",
             "Perseus without a stage limit on model 0 of each domain (SolverProgress per stage, CPU seconds)",
@@ -1058,6 +1127,8 @@ class Recorded:
     tables: Callable[[dict], list[Table]]
     cost: str
     """what a re-run of the file's command costs"""
+    command: str = ""
+    """the command that wrote the file, where its provenance does not name it"""
 
 
 SPEECH_THESIS = ("257", "58.62 %", "77.77 %", "74.07 %")
@@ -1115,6 +1186,16 @@ def speech_eval_tables(data: dict) -> list[Table]:
     ]
 
 
+def localisation_model_tables(data: dict) -> list[Table]:
+    counts = data["provenance"]["pooled_counts"]
+    headers = ["true \\ reported", *data["nodes"], "unknown", "readings"]
+    rows = [
+        [node, *(f"{p:.3f}" for p in values), str(sum(row))]
+        for node, values, row in zip(data["nodes"], data["matrix"], counts, strict=True)
+    ]
+    return [Table("matrix", "", headers, rows)]
+
+
 RECORDED = {
     entry.name: entry
     for entry in (
@@ -1124,6 +1205,14 @@ RECORDED = {
             "assets/data/speech_confusion_measured.json",
             speech_eval_tables,
             "1,440 utterances synthesised and recognised, seconds each in noise: tens of minutes on two cores",
+        ),
+        Recorded(
+            "localisation-model",
+            "The measured robot-node model: the localiser's readings per true area (HOTSPOT episodes and tours)",
+            "assets/data/localisation_confusion_measured.json",
+            localisation_model_tables,
+            "the fault sweep's physics episodes and scripted tours with the localiser on",
+            "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py --confusion-out PATH",
         ),
     )
 }
@@ -1140,8 +1229,8 @@ def recorded_block(entry: Recorded, key: str | None, page: Path) -> str:
     # The file is named, not linked: it lies outside the documentation site.
     return "\n\n".join(t.markdown() for t in tables) + (
         f"\n\nClass: **not re-run** (cost: {entry.cost}; one run on one host). *Generated by `{SCRIPT}` from "
-        f"`{entry.source}`, which `{provenance['command']}` wrote on {provenance['date'][:10]} with its "
-        "provenance inside.*"
+        f"`{entry.source}`, which `{provenance.get('command') or entry.command}` wrote on "
+        f"{provenance['date'][:10]} with its provenance inside.*"
     )
 
 
@@ -1530,7 +1619,7 @@ def index_page(documents: dict[str, dict]) -> str:
             klass = "; ".join(f"{t.key}: {reproducibility(figure, document, t.key)[0]}" for t in tables)
         lines.append(f"| [{figure.title}]({name}.md) | {klass} | `{script_of(figure)}` |")
     for entry in RECORDED.values():
-        command = json.loads((ROOT / entry.source).read_text())["provenance"]["command"]
+        command = json.loads((ROOT / entry.source).read_text())["provenance"].get("command") or entry.command
         lines.append(
             f"| {entry.title} | not re-run, from `{entry.source}` (cost: {entry.cost}) | `{command}` |"
         )
