@@ -64,8 +64,12 @@ ALLOWED: dict[str, frozenset[str]] = {
             "experiments",
         }
     ),
+    # the benchmark: teammate populations (lab humans, chapter-5 teammates), their bounds, and evaluate through
+    # the trial runner
+    "bench": frozenset({"decision", "domains", "envs", "experiments"}),
     "commands": frozenset(
         {
+            "bench",
             "live",
             "decision",
             "control",
