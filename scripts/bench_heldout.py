@@ -67,6 +67,11 @@ def run(args: Args) -> dict:
                 "episodes": summary["episodes"],
                 "bootstrap": summary["bootstrap"],
             }
+    checks = best_response_check(results)
+    print(
+        f"best-response check: {checks['checked']} (teammate, agent) cells, {len(checks['above'])} above",
+        file=sys.stderr,
+    )
     commit = subprocess.run(
         ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True
     ).stdout.strip()
@@ -79,6 +84,29 @@ def run(args: Args) -> dict:
         "started": started,
         "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "suites": results,
+        "best_response_check": checks,
+    }
+
+
+def best_response_check(results: dict) -> dict:
+    """Every (teammate, agent) cell whose normalised mean exceeds the best response's expected score from the same
+    starts by more than a one-sided 99 % t bound (none is expected: the best response is exact)."""
+    from scipy import stats
+
+    above, checked = [], 0
+    for suite_name, domains in results.items():
+        for domain, scope in domains.items():
+            n = scope["episodes"]
+            for row in scope["teammates"]:
+                for agent, values in row["agents"].items():
+                    checked += 1
+                    margin = stats.t.ppf(0.99, n - 1) * (values["normalised_sd"] or 0.0) / n**0.5
+                    if values["normalised_mean"] - margin > row["best_on_episodes"]:
+                        above.append(f"{suite_name}/{domain}/{row['name']}/{agent}")
+    return {
+        "checked": checked,
+        "above": above,
+        "rule": "mean - t(0.99, n-1) sd / sqrt(n) <= best on the same starts",
     }
 
 
@@ -108,6 +136,15 @@ def table(result: dict) -> str:
                 f"| {domain} ({scope['members']}) | {name} | {_cell(values, 'iqm')} | {_cell(values, 'mean')} | "
                 f"{_cell(check, 'iqm') if check else '-'} |"
             )
+    check = result.get("best_response_check")
+    if check:
+        above = ", ".join(check["above"]) or "none"
+        lines += [
+            "",
+            f"Best-response check over {check['checked']} (teammate, agent) cells of both suites: cells whose "
+            f"normalised mean exceeds the best response's expected score from the same starts beyond a one-sided "
+            f"99 % t bound: {above}.",
+        ]
     lines += [
         "",
         "Per held-out teammate: each agent's normalised mean and, in parentheses, its mean final posterior on the "
