@@ -117,11 +117,15 @@ def evaluate(
     seed: int = 0,
     backend: str = "abstract",
     workers: int = 1,
+    executor: str = "local",
     progress: bool = False,
     reps: int | None = None,
     plots: bool = True,
 ) -> dict:
-    """Run (or resume) the suite for ``agents`` and write ``OUT/summary.json`` (returned) and the plots."""
+    """Run (or resume) the suite for ``agents`` and write ``OUT/summary.json`` (returned) and the plots.
+
+    ``executor`` is the trial runner's (``local`` or ``ray``); the members of a population file given by
+    ``params`` are known to this process and its forked workers only, so they need ``local``."""
     from embodied_adhoc.atomic import atomic_write_text
     from embodied_adhoc.bench.bounds import member_bounds, normalise, start_state
     from embodied_adhoc.bench.scores import BENCH_REPS
@@ -160,7 +164,13 @@ def evaluate(
             bounds = member_bounds(spec, library, max_steps)
             member_options = {**spec.trial_options(options), "bench_member": spec.describe()}
             config = SweepConfig(domain_name, backend, member_options, run_agents, episodes, seed, max_steps)
-            result = run_sweep(config, out=out / domain_name / spec.name, workers=workers, progress=progress)
+            result = run_sweep(
+                config,
+                out=out / domain_name / spec.name,
+                workers=workers,
+                executor=executor,
+                progress=progress,
+            )
             returns = {a: np.zeros(episodes) for a in run_agents}
             solved = {a: np.zeros(episodes) for a in run_agents}
             belief = {a: np.full(episodes, np.nan) for a in run_agents}

@@ -59,6 +59,7 @@ def handle_evaluate(args: argparse.Namespace) -> int:
         seed=args.seed,
         backend=args.backend,
         workers=args.workers,
+        executor=args.executor,
         progress=not args.json,
         plots=not args.no_plots,
     )
@@ -112,6 +113,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     evaluate.add_argument("--backend", default="abstract", choices=("abstract",))
     evaluate.add_argument(
         "--workers", type=int, default=1, metavar="W", help="worker processes (0 = one per CPU)"
+    )
+    evaluate.add_argument(
+        "--executor",
+        default="local",
+        choices=("local", "ray"),
+        help="where trials run (default local; see docs/ray.md)",
     )
     evaluate.add_argument("--out", required=True, metavar="DIR", help="where runs, summary.json and plots go")
     evaluate.add_argument("--no-plots", action="store_true", help="write summary.json only")
