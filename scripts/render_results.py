@@ -862,6 +862,19 @@ FIGURES = {
             notes="The matrix is both the env's channel and the agents' model; a task counts as identified when its "
             "posterior leads every other task by more than 1e-6.",
         ),
+        Figure(
+            "table5-3",
+            "ATPO: thesis Table 5.3, build and solve time of every chapter-5 library beside the thesis's",
+            {"bench": ["{python}", "scripts/bench_chapter5.py", "--solve", "--repeats", "1", "--markdown"]},
+            markdown_extract("bench"),
+            markdown_figure_tables(("table5_3",)),
+            None,
+            ("docs/atpo.md",),
+            notes="One process; build in wall seconds (the fastest of the repeats), solve in this process's CPU "
+            "seconds per model, with the trials' solver settings and no cache; the thesis's setup time is per "
+            "POMDP, so its column is multiplied by the library size.",
+            markdown=True,
+        ),
     )
 }
 
