@@ -61,8 +61,9 @@ class _Node:
 
     def select(self, exploration: float, rng: np.random.Generator) -> int:
         """UCB1: an untried action first (uniformly among them), else the largest upper bound."""
-        untried = [a for a, n in enumerate(self.counts) if n == 0]
-        if untried:
+        counts = self.counts
+        if self.visits < len(counts):  # untried actions come first, so some are left exactly while this holds
+            untried = [a for a, n in enumerate(counts) if n == 0]
             return untried[int(rng.integers(len(untried)))] if len(untried) > 1 else untried[0]
         log_n = math.log(self.visits)
         best, best_value = 0, -math.inf
@@ -119,43 +120,57 @@ class BatchedUct:
         self, states: np.ndarray, root_key, tree: dict, simulate: Simulator, rng: np.random.Generator
     ) -> None:
         cfg = self.config
-        width = states.shape[0]
+        width, actions_n, exploration = states.shape[0], cfg.actions, cfg.exploration
         paths: list[list[tuple[_Node, int]]] = [[] for _ in range(width)]
-        in_tree = [True] * width
+        in_tree = list(range(width))  # the simulations still descending the tree, in index order
         live = np.ones(width, dtype=bool)
         rewards = np.zeros((cfg.depth, width))
         for depth in range(cfg.depth):
-            index = np.flatnonzero(live)
+            index = np.flatnonzero(live) if depth else np.arange(width)
             if index.size == 0:
                 break
-            keys = [root_key[1]] * index.size if depth == 0 else _codes(states[index])
-            actions = np.empty(index.size, dtype=np.int64)
-            rollout = rng.integers(0, cfg.actions, size=index.size)
-            for j, i in enumerate(index.tolist()):
-                if in_tree[i]:
-                    key = (depth, keys[j])
+            actions = np.empty(width, dtype=np.int64)
+            if in_tree:
+                keys = [root_key[1]] * width if depth == 0 else _codes(states[in_tree])
+                still = []
+                for i, code in zip(in_tree, keys, strict=True):
+                    key = (depth, code)
                     node = tree.get(key)
                     if node is None:
-                        node = tree[key] = _Node(cfg.actions)
-                        in_tree[i] = False  # expanded: the rest of this simulation is a rollout
-                    action = node.select(cfg.exploration, rng)
-                    node.visit(action)
+                        node = tree[key] = _Node(actions_n)
+                    else:
+                        still.append(i)  # a known node: the simulation stays in the tree
+                    action = node.select(exploration, rng)
+                    node.visits += 1
+                    node.counts[action] += 1
                     paths[i].append((node, action))
-                    actions[j] = action
-                else:
-                    actions[j] = rollout[j]
-            nxt, reward, terminal = simulate(states[index], actions, rng)
+                    actions[i] = action
+                # live in-tree simulations that expanded a node continue as rollouts from the next depth
+                rolling = live.copy()
+                rolling[in_tree] = False
+                in_tree = still
+            else:
+                rolling = live
+            out = np.flatnonzero(rolling)
+            if out.size:  # uniform rollout actions, one draw for the whole wave at this depth
+                actions[out] = rng.integers(0, actions_n, size=out.size)
+            nxt, reward, terminal = simulate(states[index], actions[index], rng)
             states[index] = nxt
             rewards[depth, index] = reward
-            live[index[np.asarray(terminal, dtype=bool)]] = False
-        returns = np.zeros_like(rewards)
+            ended = index[np.asarray(terminal, dtype=bool)]
+            if ended.size:
+                live[ended] = False
+                if in_tree:
+                    in_tree = [i for i in in_tree if live[i]]
         acc = np.zeros(width)
+        returns = np.zeros_like(rewards)
         for depth in range(cfg.depth - 1, -1, -1):
             acc = rewards[depth] + cfg.discount * acc
             returns[depth] = acc
-        for i, path in enumerate(paths):
-            for depth, (node, action) in enumerate(path):
-                node.back(action, float(returns[depth, i]))
+        by_simulation = returns.T.tolist()
+        for path, values in zip(paths, by_simulation, strict=True):
+            for (node, action), value in zip(path, values, strict=False):
+                node.values[action] += (value - node.values[action]) / node.counts[action]
 
 
 class PlainUct:
