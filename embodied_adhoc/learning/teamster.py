@@ -15,6 +15,8 @@
 Models are evaluated in batches (all leaves of a UCT wave at once, one forward per network per depth) by a
 numpy forward over views of the torch parameters (:class:`~embodied_adhoc.learning.blocks.NumpyMlp`): no torch
 dispatch and no autograd in the planner, and no weight export after an Adam step (measured in docs/teamster.md).
+On pursuit the planner's simulator fuses the team model's draw with the environment model's step
+(:class:`PursuitSimulator`), and one optimiser steps the transition and reward networks after one backward pass.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.domains.pursuit4 import N_ACTIONS, N_AGENTS, N_PREDATORS, PREY, Pursuit4
 from embodied_adhoc.learning.blocks import NumpyMlp, ReplayBuffer, adam_step, mlp, seeded_module, softmax
 from embodied_adhoc.learning.weights import load_into, save_weights
@@ -192,9 +195,15 @@ class LearnedEnvironment:
             NumpyMlp(self.transition_net),
             NumpyMlp(self.reward_net),
         )
-        # fused: torch's one-kernel CPU Adam, cheaper per step than the per-parameter loop for small networks
-        self.transition_opt = torch.optim.Adam(self.transition_net.parameters(), lr=1e-3, fused=True)
-        self.reward_opt = torch.optim.Adam(self.reward_net.parameters(), lr=1e-2, fused=True)
+        # fused: torch's one-kernel CPU Adam, cheaper per step than the per-parameter loop for small networks;
+        # one optimiser with a parameter group per network (Table 4.2's rates) steps both in one call
+        self.optimiser = torch.optim.Adam(
+            [
+                {"params": self.transition_net.parameters(), "lr": 1e-3},
+                {"params": self.reward_net.parameters(), "lr": 1e-2},
+            ],
+            fused=True,
+        )
         self.buffer = ReplayBuffer(
             CAPACITY,
             {
@@ -230,6 +239,15 @@ class LearnedEnvironment:
         goal = self.capture_probability(nxt).astype(np.float64)
         return nxt, self.features.step_reward + self.features.goal_reward * goal, goal > 0.5
 
+    def simulator(self, team):
+        """The planner's simulator with ``team`` drawing the teammates' actions, fused with this model's step
+        (:class:`PursuitSimulator`) when both encode pursuit states with the same :class:`Features`; None
+        otherwise (the planner then composes ``team.probs`` and :meth:`step`)."""
+        features = self.features
+        if type(features) is not Features or getattr(team, "features", None) is not features:
+            return None
+        return PursuitSimulator(self, team)
+
     def update(self, state, joint_action, reward, next_state, terminal) -> tuple[float, float] | None:
         """Line 11 of Algorithm 1: store the transition, one Adam step of each network on a minibatch."""
         if (self.features.move_of[state, next_state] < 0).any():
@@ -241,12 +259,12 @@ class LearnedEnvironment:
         logits = self.transition_net(
             torch.from_numpy(self.features.transition(batch["state"], batch["action"]))
         )
-        transition_loss = adam_step(self.transition_opt, F.cross_entropy(logits, target))
+        transition_loss = F.cross_entropy(logits, target)
         predicted = self.reward_net(torch.from_numpy(self.features.reward(batch["next"])))[:, 0]
-        reward_loss = adam_step(
-            self.reward_opt, F.binary_cross_entropy_with_logits(predicted, torch.from_numpy(batch["reward"]))
-        )
-        return transition_loss, reward_loss
+        reward_loss = F.binary_cross_entropy_with_logits(predicted, torch.from_numpy(batch["reward"]))
+        # the networks share no parameter, so the sum's gradient is each loss's own: one backward pass
+        adam_step(self.optimiser, transition_loss + reward_loss)
+        return float(transition_loss.detach()), float(reward_loss.detach())
 
     def save(self, folder: str | Path) -> list[Path]:
         folder = Path(folder)
@@ -259,3 +277,52 @@ class LearnedEnvironment:
     def load(self, folder: str | Path) -> None:
         load_into(self.transition_net, Path(folder) / "transition.safetensors")
         load_into(self.reward_net, Path(folder) / "reward.safetensors")
+
+
+class PursuitSimulator:
+    """``simulate(states, actions, rng)`` for the planner on pursuit: the team model's draw of the teammates'
+    actions, then the environment model's step, as ``team.probs`` + ``sample_rows`` + :meth:`LearnedEnvironment.step`
+    compute them (the same inputs, products, draws and order of draws, so the same results bit for bit; the
+    environment's step draws as ``sample_rows`` does) with
+    fewer numpy calls: the state's offsets are gathered once for both networks and written into input arrays
+    whose constant one-hot columns (seat, agent index) are kept from call to call."""
+
+    def __init__(self, environment: LearnedEnvironment, team: LearnedTeam) -> None:
+        self.environment, self.team, self.features = environment, team, environment.features
+        self.buffers = environment.__dict__.setdefault("_simulator_buffers", {})
+
+    def _inputs(self, count: int) -> tuple[np.ndarray, np.ndarray]:
+        """(count, 3, 43) team and (count, 5, 70) transition input arrays, constant columns set."""
+        if count not in self.buffers:
+            f = self.features
+            team = np.zeros((count, 3, f.team_width), dtype=np.float32)
+            team[:, :, :3] = np.eye(3, dtype=np.float32)
+            transition = np.zeros((count, N_AGENTS, f.transition_width), dtype=np.float32)
+            transition[:, :, :N_AGENTS] = np.eye(N_AGENTS, dtype=np.float32)
+            self.buffers[count] = team, transition
+        return self.buffers[count]
+
+    def __call__(self, states: np.ndarray, actions: np.ndarray, rng: np.random.Generator):
+        f, env = self.features, self.environment
+        count = states.shape[0]
+        team_in, transition_in = self._inputs(count)
+        offsets = f.offset_code[states[:, :, None], states[:, _OTHERS]].reshape(count, N_AGENTS, -1)
+        team_in[:, :, 3:] = offsets[:, 1:N_PREDATORS]
+        probs = softmax(self.team.forward(team_in.reshape(count * 3, -1))).reshape(count, 3, N_ACTIONS)
+        mates = sample_rows(probs, rng)
+        joint = np.empty((count, N_PREDATORS), dtype=np.int64)
+        joint[:, 0], joint[:, 1:] = actions, mates
+        action_code = _EYE5[joint]  # (B, 4, 5)
+        own = N_AGENTS + f.offset_width
+        transition_in[:, :, N_AGENTS:own] = offsets
+        transition_in[:, :N_PREDATORS, own : own + N_ACTIONS] = action_code
+        transition_in[:, PREY, own : own + N_ACTIONS] = 0.0
+        transition_in[:, :, own + N_ACTIONS :] = action_code.reshape(count, 1, -1)
+        logits = env.transition_forward(transition_in.reshape(count * N_AGENTS, -1))
+        moves = sample_rows(softmax(logits).reshape(count, N_AGENTS, N_ACTIONS), rng)
+        nxt = f.world.neighbours[states, moves]
+        goal = env.capture_probability(nxt)
+        return nxt, f.step_reward + f.goal_reward * goal, goal > 0.5
+
+
+_EYE5 = np.eye(N_ACTIONS, dtype=np.float32)

@@ -138,10 +138,13 @@ class ModelBasedAgent(TeamTracking):
     def act(self, state: np.ndarray) -> int:
         team = self.team_model()
         environment = self.environment
+        fused = getattr(environment, "simulator", None)  # a model may fuse the team's draws into its step
+        simulate = fused(team) if fused is not None else None
+        if simulate is None:
 
-        def simulate(states, actions, rng):
-            mates = sample_rows(team.probs(states), rng)
-            return environment.step(states, np.concatenate([actions[:, None], mates], axis=1), rng)
+            def simulate(states, actions, rng):
+                mates = sample_rows(team.probs(states), rng)
+                return environment.step(states, np.concatenate([actions[:, None], mates], axis=1), rng)
 
         return int(self.planner.plan(np.asarray(state), simulate, self.rng))
 
