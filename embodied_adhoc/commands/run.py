@@ -184,20 +184,36 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
         width=args.width,
         height=args.height,
     )
+
+    def postfix(info: dict) -> str:
+        done = sum(1 for status in info["ball_status"] if status == 2)
+        return f"balls {done}/{len(info['ball_status'])}, sim {info['sim_time']:.0f}s"
+
+    summary = play(args, "toxic-waste", lambda progress: run_episode(config, progress), postfix)
+    if args.json:
+        print(json.dumps(summary, indent=2))
+    else:
+        print(format_summary(summary))
+    return 0
+
+
+def play(args: argparse.Namespace, domain: str, run, postfix) -> dict:
+    """``run(progress)`` (one recorded run) under a progress bar (``postfix(info)`` beside it, unless
+    ``--no-progress``); returns the metrics summary without the per-step rows, with the files written. Shared by
+    ``run toxic-waste``, ``run pursuit`` and ``run foraging``."""
     bar = None
     if not args.no_progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=args.max_steps, desc=f"toxic-waste {args.agent}", unit="step", file=sys.stderr)
+        bar = tqdm(total=args.max_steps, desc=f"{domain} {args.agent}", unit="step", file=sys.stderr)
 
     def progress(step: int, info: dict) -> None:
         if bar is not None:
-            done = sum(1 for status in info["ball_status"] if status == 2)
-            bar.set_postfix_str(f"balls {done}/{len(info['ball_status'])}, sim {info['sim_time']:.0f}s")
+            bar.set_postfix_str(postfix(info))
             bar.update(1)
 
     try:
-        outcome = run_episode(config, progress)
+        outcome = run(progress)
         if bar is not None and outcome.metrics["success"]:
             finish_progress(bar)
     finally:
@@ -205,11 +221,7 @@ def handle_toxic_waste(args: argparse.Namespace) -> int:
             bar.close()
     summary = {k: v for k, v in outcome.metrics.items() if k != "per_step"}
     summary["files"] = {name: str(path) for name, path in outcome.files.items()}
-    if args.json:
-        print(json.dumps(summary, indent=2))
-    else:
-        print(format_summary(summary))
-    return 0
+    return summary
 
 
 def finish_progress(bar) -> None:
@@ -219,18 +231,33 @@ def finish_progress(bar) -> None:
     bar.refresh()
 
 
-def format_summary(summary: dict) -> str:
+def format_summary(
+    summary: dict,
+    outcomes: tuple[str, str] = ("all balls in the container", "not finished"),
+    truth: str | None = None,
+    belief: str = "task-belief",
+    extra: tuple[str, ...] = (),
+    per_step_time: bool = True,
+) -> str:
+    """The text summary of a ``run`` episode: outcome (``outcomes``: what success and the rest are), steps,
+    identification against ``truth`` (default the true task), final ``belief`` entropy, ``extra`` lines, times,
+    the lab's localisation, faults and cap reason where the summary has them, and the files written."""
     step_time = summary["macro_step_time_s"]["mean"]
     identify = summary["identify_step"]
     entropy = summary["final_entropy"]
+    truth = f"true task {summary['true_task']}" if truth is None else truth
+    time_line = (
+        f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated"
+    )
+    if per_step_time:
+        time_line += f", {float('nan') if step_time is None else step_time:.2f} s wall per macro step"
     lines = [
-        f"outcome:        {summary['outcome']} "
-        f"({'all balls in the container' if summary['success'] else 'not finished'})",
+        f"outcome:        {summary['outcome']} ({outcomes[0] if summary['success'] else outcomes[1]})",
         f"steps:          {summary['steps']}",
-        f"identified:     {'never' if identify is None else f'at step {identify}'} (true task {summary['true_task']})",
-        f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised task-belief entropy)",
-        f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated, "
-        f"{float('nan') if step_time is None else step_time:.2f} s wall per macro step",
+        f"identified:     {'never' if identify is None else f'at step {identify}'} ({truth})",
+        f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised {belief} entropy)",
+        *extra,
+        time_line,
     ]
     localisation = summary.get("localisation")
     if localisation is not None:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 
 from embodied_adhoc.commands.arguments import output_folder, seed
 from embodied_adhoc.gl import choose_gl_platform
@@ -141,34 +140,6 @@ def _recording_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _play(args: argparse.Namespace, domain: str, run, postfix) -> dict:
-    """``run(progress)`` (one recorded-episode player call) under a progress bar (``postfix(info)`` beside it,
-    unless ``--no-progress``); returns the metrics summary without the per-step rows, with the files written."""
-    bar = None
-    if not args.no_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=args.max_steps, desc=f"{domain} {args.agent}", unit="step", file=sys.stderr)
-
-    def progress(step: int, info: dict) -> None:
-        if bar is not None:
-            bar.set_postfix_str(postfix(info))
-            bar.update(1)
-
-    try:
-        outcome = run(progress)
-        if bar is not None and outcome.metrics["success"]:
-            from embodied_adhoc.commands.run import finish_progress
-
-            finish_progress(bar)
-    finally:
-        if bar is not None:
-            bar.close()
-    summary = {k: v for k, v in outcome.metrics.items() if k != "per_step"}
-    summary["files"] = {name: str(path) for name, path in outcome.files.items()}
-    return summary
-
-
 def handle_pursuit(args: argparse.Namespace) -> int:
     choose_gl_platform()
     from embodied_adhoc.experiments.recorded import PursuitEpisodeConfig, run_pursuit_episode
@@ -184,7 +155,9 @@ def handle_pursuit(args: argparse.Namespace) -> int:
         size=args.size,
         video_overlay=not args.no_overlay,
     )
-    summary = _play(
+    from embodied_adhoc.commands.run import play
+
+    summary = play(
         args,
         "pursuit",
         lambda progress: run_pursuit_episode(config, progress),
@@ -193,20 +166,10 @@ def handle_pursuit(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
-    identify = summary["identify_step"]
-    entropy = summary["final_entropy"]
-    step_time = summary["macro_step_time_s"]["mean"]
-    lines = [
-        f"outcome:        {summary['outcome']} ({'prey captured' if summary['success'] else 'not captured'})",
-        f"steps:          {summary['steps']}",
-        f"identified:     {'never' if identify is None else f'at step {identify}'} (true task {summary['true_task']})",
-        f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised task-belief entropy)",
-        f"physics:        {summary['physics_mismatches']} step(s) where physics did not execute the drawn move",
-        f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated, "
-        f"{float('nan') if step_time is None else step_time:.2f} s wall per macro step",
-    ]
-    lines += [f"{name + ':':<16}{path}" for name, path in summary["files"].items()]
-    print("\n".join(lines))
+    from embodied_adhoc.commands.run import format_summary
+
+    physics = f"physics:        {summary['physics_mismatches']} step(s) where physics did not execute the drawn move"
+    print(format_summary(summary, ("prey captured", "not captured"), extra=(physics,)))
     return 0
 
 
@@ -231,7 +194,9 @@ def handle_foraging(args: argparse.Namespace) -> int:
         size=args.size,
         video_overlay=not args.no_overlay,
     )
-    summary = _play(
+    from embodied_adhoc.commands.run import play
+
+    summary = play(
         args,
         "foraging",
         lambda progress: run_foraging_episode(config, progress),
@@ -240,16 +205,9 @@ def handle_foraging(args: argparse.Namespace) -> int:
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
-    identify = summary["identify_step"]
-    entropy = summary["final_entropy"]
-    lines = [
-        f"outcome:        {summary['outcome']} ({'apple foraged' if summary['success'] else 'not foraged'})",
-        f"steps:          {summary['steps']}",
-        f"identified:     {'never' if identify is None else f'at step {identify}'} (true task "
-        f"{summary['true_task'] + 1}, team {summary['true_team']})",
-        f"final entropy:  {'-' if entropy is None else format(entropy, '.3f')} (normalised task-posterior entropy)",
-        f"time:           {summary['wall_time_s']:.1f} s wall, {summary['sim_time_s']:.1f} s simulated",
-    ]
-    lines += [f"{name + ':':<16}{path}" for name, path in summary["files"].items()]
-    print("\n".join(lines))
+    from embodied_adhoc.commands.run import format_summary
+
+    truth = f"true task {summary['true_task'] + 1}, team {summary['true_team']}"
+    outcomes = ("apple foraged", "not foraged")
+    print(format_summary(summary, outcomes, truth, "task-posterior", per_step_time=False))
     return 0
