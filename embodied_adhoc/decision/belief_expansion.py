@@ -9,7 +9,6 @@ Perseus' belief set. Deterministic (no random draw), so the solve stays seeded b
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import numpy as np
@@ -23,16 +22,12 @@ def sample_path(
     start: np.ndarray,
     precision: float,
     max_depth: int,
-    deadline: float | None = None,
-    clock: Callable[[], float] = time.perf_counter,
 ) -> list[np.ndarray]:
-    """Beliefs of one excess-gap path from ``start`` (the upper bound is updated along it); ``lower`` maps beliefs
-    (n, S) to the lower bound's values. At ``deadline`` (seconds of ``clock``) the path ends where it is."""
+    """Beliefs of one excess-gap path from ``start``, at most ``max_depth`` of them (the upper bound is updated
+    along it); ``lower`` maps beliefs (n, S) to the lower bound's values."""
     gamma = upper.pomdp.discount
     belief, path = start, []
     for depth in range(max_depth):
-        if deadline is not None and clock() > deadline:
-            break
         successors = upper.successors(belief)
         q_upper = upper.q_values(belief, successors)
         gap = min(float(upper.values(belief)[0]), float(q_upper.max())) - float(lower(belief[None, :])[0])

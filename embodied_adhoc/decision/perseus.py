@@ -50,7 +50,9 @@ CLOCKS: dict[str, Callable[[], float]] = {
     "wall": lambda: time.perf_counter(),
     "cpu": lambda: time.process_time(),
 }
-_TRIAL_SHARE = 0.1  # with a time limit, trials from b0 take at most this share of the time spent
+_TRIAL_BACKUPS = 250  # with a time limit, a trial step per this many stage backups at most
+_ROUND_MIN_UPDATES = 32  # upper-bound updates of one round at least
+_ROUND_SHARE = 1 / 300  # ... and this many per belief backup done so far (the lower bound's work)
 _DOMINANCE_CANDIDATES = 4  # new vectors tested for dominating each vector a stage drops
 
 
@@ -187,7 +189,7 @@ def _infinite_horizon(
     alphas, actions = graph.vectors, graph.actions
     b0 = pomdp.initial_belief
     deadline = None if config.time_limit is None else start + config.time_limit
-    upper = SawtoothBound(pomdp, fast_informed_bound(pomdp, deadline=deadline, clock=clock))
+    upper = SawtoothBound(pomdp, fast_informed_bound(pomdp))
     rows = _belief_rows(beliefs)
     values = (rows @ alphas.T).max(axis=1)  # V_n on the belief set
     known = {_belief_key(b) for b in beliefs}
@@ -207,25 +209,30 @@ def _infinite_horizon(
     bound = config.stop == "bound" and gamma > 0
     threshold = config.tolerance * (1.0 - gamma) / gamma if bound else config.tolerance
     max_beliefs = config.max_beliefs or (10 if deadline is not None else 3) * config.n_beliefs
-    round_start, last_round, last_round_time = bounds, 0, clock()
-    stage_seconds, stage_gain, trial_wait, trial_skip, trial_seconds = 0.0, 0.0, 0, 0, 0.0
+    round_start, last_round = bounds, 0
+    stage_gain, trial_wait, trial_skip = 0.0, 0, 0
+    # beliefs backed up so far (stages, trials, full backups): what upper-bound rounds are sized by
+    backups = 0
+    stage_backups, trial_steps = 0, 0
     witness = np.full(len(current), -1)  # per row of current: a belief of B where it is best (-1: unknown)
     owner = None  # per belief of B: the row of current first best there (None: not known)
     old_rows = None  # per row of current: its values on B (None: not known)
     for iteration in range(1, config.max_iterations + 1):
-        now = clock()
+        if deadline is not None and clock() > deadline:
+            iteration -= 1
+            break
         if (
             config.expand
             and trial_wait <= 0
-            and (deadline is None or trial_seconds <= _TRIAL_SHARE * (now - start))
+            and (deadline is None or trial_steps * _TRIAL_BACKUPS <= stage_backups)
         ):
-            # A trial from b0 before a stage (for at most half the last stage's time, and a tenth of the time so
-            # far, with a time limit). A trial that raises V(b0) by less than the tolerance, or by less than the
-            # last stage did, doubles the number of stages until the next one: a trial before every stage
-            # would take stages from a time-limited solve where breadth pays (Tag), while a b0 far from the
-            # goal (cit, sunysb) needs trials early.
-            end = None if deadline is None else min(deadline, now + max(0.05, 0.5 * stage_seconds))
-            grown = _lower_trial(operator, graph, current, upper, b0, config.precision, end, clock)
+            # A trial from b0 before a stage (with a time limit, while trial steps stay within their share of
+            # the stages' backups). A trial that raises V(b0) by less than the tolerance, or by less
+            # than the last stage did, doubles the number of stages until the next one: a trial before every
+            # stage would take stages from a time-limited solve where breadth pays (Tag), while a b0 far from
+            # the goal (cit, sunysb) needs trials early.
+            grown, steps = _lower_trial(operator, graph, current, upper, b0, config.precision)
+            backups, trial_steps = backups + steps, trial_steps + steps
             if len(grown) > len(current):
                 added = graph.vectors[grown[len(current) :]]
                 witness = np.concatenate([witness, np.full(len(grown) - len(current), -1)])
@@ -235,29 +242,21 @@ def _infinite_horizon(
             lower_b0 = float(dot(b0, alphas.T).max())
             gain = lower_b0 - bounds.lower
             trial_skip = 0 if gain > config.tolerance and gain >= stage_gain else max(1, 2 * trial_skip)
-            trial_wait, trial_seconds = trial_skip, trial_seconds + clock() - now
+            trial_wait = trial_skip
             bounds = _Bounds(lower_b0, float(upper.values(b0)[0]))
             trace.append((clock() - start, bounds.lower))
             if bounds.gap <= config.precision:
                 break
         else:
             trial_wait -= 1
-        stage_start = clock()
         seidel = _Seidel(graph, current, owner, old_rows) if config.update == "gauss-seidel" else None
         stage = _perseus_iteration(
-            operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, deadline, clock, seidel
+            operator, beliefs, rows, alphas, actions, values, rng, config.batch_size, seidel
         )
+        backups, stage_backups = backups + stage.n_backups, stage_backups + stage.n_backups
         if seidel is not None:  # the stage's new vectors are in the graph already; origin indexes extended
             current, witness = seidel.extended, np.concatenate([witness, seidel.new_witness])
-        if stage.timed_out and not stage.vectors.shape[0]:
-            iteration -= 1
-            break
-        if stage.timed_out:
-            # A partial iteration: keep the old vectors too, so no belief loses value.
-            stage = stage.with_old(alphas, actions)
-            stage.values[:] = (rows @ stage.vectors.T).max(axis=1)
         improvement = float(np.max(stage.values - values))
-        stage_seconds = clock() - stage_start
         current = _record(graph, current, stage, rows, witness)
         # (vectors x |B|) floats: a Gauss-Seidel stage reuses them for the vectors it keeps as they are.
         old_rows, stage.score_rows = stage.score_rows if config.update == "gauss-seidel" else None, None
@@ -268,22 +267,18 @@ def _infinite_horizon(
         stage_gain, bounds = lower_b0 - bounds.lower, _Bounds(lower_b0, bounds.upper)
         trace.append((clock() - start, bounds.lower))
         report(iteration, improvement)
-        if stage.timed_out or bounds.gap <= config.precision:
+        if bounds.gap <= config.precision:
             break
-        # Expansion also runs periodically: with a time limit once the backups since the last round took a
-        # quarter of the time so far (at least 1 s); without one every max(10, iteration / 4) iterations
-        # (counted, so that the seed alone fixes B).
-        now = clock()
-        if deadline is not None:
-            periodic = config.expand and now - last_round_time >= max(1.0, 0.25 * (now - start))
-        else:
-            periodic = config.expand and iteration - last_round >= max(10, iteration // 4)
+        # Expansion also runs periodically, every max(10, iteration / 4) iterations (counted, so that the seed
+        # alone fixes B).
+        periodic = config.expand and iteration - last_round >= max(10, iteration // 4)
         if improvement > threshold and not periodic:
             continue
         if improvement <= threshold:
             # Perseus may stall on ties (a belief "improved" by an equal vector); the belief set has converged
             # only if a full backup of every belief confirms the Bellman residual on B is within tolerance.
             residual, fixes = _full_backup_check(operator, beliefs, rows, alphas, values, threshold, config)
+            backups += len(beliefs)
             if residual > threshold:
                 current = _record(graph, current, fixes.with_old(alphas, actions), rows, witness)
                 witness, owner, old_rows = np.full(len(current), -1), None, None
@@ -295,39 +290,30 @@ def _infinite_horizon(
         # many beliefs as B holds, from the trajectories B was collected from (PBVI-like breadth: the set grows
         # geometrically). The excess-gap beliefs themselves are not added: chosen greedily on a loose upper bound
         # they cost backups without raising the lower bound.
-        _explore(
-            upper, _lower_values(alphas), b0, config.precision, _time_budget(start, deadline, clock), clock
-        )
+        _explore(upper, _lower_values(alphas), b0, config.precision, _round_updates(backups))
         new: list[np.ndarray] = []
         if config.expand:
             count = len(beliefs) // 2 + 1
             new = _unknown(
                 collect_beliefs(pomdp, count, rng, greedy_q=greedy_q, epsilon=config.epsilon), known
             )
-        last_round, last_round_time = iteration, clock()
+        last_round = iteration
         bounds = _Bounds(bounds.lower, float(upper.values(b0)[0]))
         new = new[: max(0, max_beliefs - len(beliefs))]
         report(iteration, improvement, len(beliefs) + len(new))
         if bounds.gap <= config.precision:
             break
         if on_beliefs and config.expand and not new:
-            # B is exhausted and converged: only the upper bound can still move; tighten it while it does (until
-            # the deadline, else for at most a quarter of the time spent so far).
-            last = deadline or clock() + max(1.0, 0.25 * (clock() - start))
-            while bounds.gap > config.precision and clock() < last:
-                _explore(
-                    upper,
-                    _lower_values(alphas),
-                    b0,
-                    config.precision,
-                    _time_budget(start, deadline, clock),
-                    clock,
-                )
+            # B is exhausted and converged: only the upper bound can still move; tighten it while it does, by
+            # rounds of the same size (until the deadline, else until a round barely moves it).
+            lower = _lower_values(alphas)
+            while bounds.gap > config.precision and (deadline is None or clock() <= deadline):
+                _explore(upper, lower, b0, config.precision, _round_updates(backups))
                 moved = bounds.upper - float(upper.values(b0)[0])
                 bounds = _Bounds(bounds.lower, bounds.upper - moved)
                 report(iteration, improvement)
-                if deadline is None and moved <= 0.1 * config.tolerance:
-                    break  # without a time limit: stop once a round barely moves it
+                if moved <= (0.0 if deadline is not None else 0.1 * config.tolerance):
+                    break
             break
         if on_beliefs:
             if not config.expand:
@@ -380,12 +366,11 @@ def _lower_values(alphas: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     return lambda beliefs: dot(np.atleast_2d(beliefs), alphas_t).max(axis=1)
 
 
-def _time_budget(start: float, deadline: float | None, clock: Callable[[], float]) -> float:
-    """Seconds for one round of upper-bound paths: a tenth of the time spent so far (at least 0.2 s), within the
-    deadline."""
-    now = clock()
-    budget = max(0.2, 0.1 * (now - start))
-    return budget if deadline is None else max(0.0, min(budget, deadline - now))
+def _round_updates(backups: int) -> int:
+    """Upper-bound updates of one round: a fixed share of the belief backups done so far (at least
+    ``_ROUND_MIN_UPDATES``), so the upper bound's share of the work stays about constant as the solve goes on. A
+    count, not seconds: the same seed gives the same rounds on a loaded host."""
+    return max(_ROUND_MIN_UPDATES, math.ceil(_ROUND_SHARE * backups))
 
 
 def _explore(
@@ -393,17 +378,18 @@ def _explore(
     lower: Callable[[np.ndarray], np.ndarray],
     b0: np.ndarray,
     precision: float,
-    budget: float,
-    clock: Callable[[], float],
+    updates: int,
 ) -> None:
-    """Excess-gap paths from b0, each backing up the upper bound along it, for ``budget`` seconds."""
-    end = clock() + budget
+    """Excess-gap paths from b0, each backing up the upper bound along it, for ``updates`` updates in all (the
+    last path is cut to the updates left)."""
     max_depth = _max_depth(upper, lower, b0, precision)
-    while clock() < end:
+    while updates > 0:
         # Paths aim at half the precision: they stop where the gap is within their target, and the lower bound
         # is not backed up along them, so aiming at the precision itself leaves a gap at b0 just above it.
-        if not sample_path(upper, lower, b0, precision / 2, max_depth, end, clock):
+        path = sample_path(upper, lower, b0, precision / 2, min(max_depth, updates))
+        if not path:
             break  # the gap at b0 is within precision
+        updates -= len(path)
 
 
 def _max_depth(
@@ -421,20 +407,19 @@ def _lower_trial(
     upper: SawtoothBound,
     b0: np.ndarray,
     precision: float,
-    deadline: float | None,
-    clock: Callable[[], float],
-) -> np.ndarray:
+) -> tuple[np.ndarray, int]:
     """One excess-gap path from b0 (HSVI/SARSOP trial), then the lower bound backed up at its beliefs, deepest
     first, each against the set grown by the previous ones: value travels the whole path in one trial, where
     Perseus' synchronous stages move it one step per stage (cit, sunysb: V(b0) stayed at the blind policies' 0
     for about 15 stages). A backup is kept only where it raises the bound at its belief; its continuations are
-    rows of the graph, so the set stays closed and every vector the value of a plan. Returns the grown rows."""
+    rows of the graph, so the set stays closed and every vector the value of a plan. Returns the grown rows and the
+    number of beliefs backed up (the path's length)."""
     alphas = graph.vectors[current]
     lower = _lower_values(alphas)
     # Paths end at the effective horizon 1 / (1 - gamma) (20 steps at 0.95, 100 at 0.99): HSVI's gap rule alone
     # lets them run 130-670 steps while the upper bound is loose, at the cost of a few stages each.
     depth = min(_max_depth(upper, lower, b0, precision), math.ceil(1.0 / (1.0 - operator.discount)))
-    path = sample_path(upper, lower, b0, precision / 2, depth, deadline, clock)
+    path = sample_path(upper, lower, b0, precision / 2, depth)
     for belief in reversed(path):
         alphas = graph.vectors[current]
         vector, action, value, children = operator.backup(
@@ -442,7 +427,7 @@ def _lower_trial(
         )
         if value[0] > float(dot(belief, alphas.T).max()) + 1e-12:
             current = np.append(current, graph.add(vector, action, current[children]))
-    return current
+    return current, len(path)
 
 
 def _unknown(beliefs, known: set[bytes]) -> list[np.ndarray]:
@@ -466,10 +451,10 @@ class _Stage:
     origin: np.ndarray
     children: np.ndarray
     values: np.ndarray
-    timed_out: bool = False
     witness: np.ndarray | None = None  # a belief of B where each vector is the best one (None: not known)
     score_rows: list[np.ndarray] | None = None  # per vector, its value at every belief of B (None: not kept)
     owner: np.ndarray | None = None  # per belief of B, the first vector best there (None: not known)
+    n_backups: int = 0  # beliefs backed up to build it
 
     def with_old(self, alphas: np.ndarray, actions: np.ndarray) -> _Stage:
         """This stage together with every vector of V_n."""
@@ -480,7 +465,6 @@ class _Stage:
             np.concatenate([self.origin, np.arange(count)]),
             np.vstack([self.children, np.zeros((count, self.children.shape[1]), dtype=np.int64)]),
             self.values,
-            self.timed_out,
         )
 
 
@@ -592,11 +576,9 @@ def _perseus_iteration(
     values: np.ndarray,
     rng: np.random.Generator,
     batch_size: int,
-    deadline: float | None,
-    clock: Callable[[], float],
     seidel: _Seidel | None = None,
 ) -> _Stage:
-    """One Perseus stage ``V_n -> V_{n+1}`` (its vectors, their plans, V_{n+1} on B, whether it timed out).
+    """One Perseus stage ``V_n -> V_{n+1}`` (its vectors, their plans, V_{n+1} on B, the beliefs backed up).
 
     ``rows`` is ``beliefs`` in the form used for value products (sparse when the beliefs are). With ``seidel`` a
     Gauss-Seidel stage: each batch is backed up against the vectors of V_n still best at a belief not improved yet
@@ -631,11 +613,8 @@ def _perseus_iteration(
     everywhere = sp.issparse(rows)
     score_rows: list[np.ndarray] = []  # with `everywhere`: per kept vector, its values on B
     size = min(batch_size, 16)
-    timed_out = False
+    n_backups = 0
     while True:
-        if deadline is not None and clock() > deadline:
-            timed_out = True
-            break
         pending = order[new_values[order] < values[order]]  # B~: not improved yet, in random order
         if pending.size == 0:
             break
@@ -648,6 +627,7 @@ def _perseus_iteration(
         batch = pending[:size]
         size = min(batch_size, 2 * size)
         vectors, vector_actions, _, children = operator.backup(beliefs[batch], prepared, with_children=True)
+        n_backups += len(batch)
         if seidel is not None:
             children = scored.codes[children]
         pending_beliefs = rows[pending]
@@ -714,10 +694,7 @@ def _perseus_iteration(
         kept_children,
         (beliefs.shape[1], operator.n_observations),
         new_values,
-        timed_out,
     )
-    if timed_out:
-        return stage
     # Exact V_{n+1} on B (beliefs that left B~ early were not re-evaluated against later vectors), and pruning
     # of the vectors maximal at no belief of B: V_{n+1} on B is unchanged and later backups get cheaper (the
     # plan graph still keeps those that remaining plans continue with).
@@ -737,6 +714,7 @@ def _perseus_iteration(
         witness=witness,
         score_rows=[score_rows[k] for k in keep] if everywhere else None,
         owner=np.searchsorted(keep, best),
+        n_backups=n_backups,
     )
 
 
@@ -847,7 +825,6 @@ def _stack(
     children: list[np.ndarray],
     shape: tuple[int, int],
     values: np.ndarray,
-    timed_out: bool,
 ) -> _Stage:
     n_states, n_obs = shape  # (S, Z)
     return _Stage(
@@ -856,7 +833,6 @@ def _stack(
         np.asarray(origin, dtype=np.int64),
         np.asarray(children, dtype=np.int64).reshape(len(children), n_obs),
         values,
-        timed_out,
     )
 
 

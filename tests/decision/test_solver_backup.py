@@ -158,9 +158,7 @@ def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
     values = (rows @ alphas.T).max(axis=1)  # the solver's own products (CSR), so ties compare exactly
     rng = np.random.default_rng(0)
     for _ in range(4):  # a few stages, so that old vectors are kept and batches grow
-        stage = perseus_module._perseus_iteration(
-            operator, beliefs, rows, alphas, actions, values, rng, 32, None, lambda: 0.0
-        )
+        stage = perseus_module._perseus_iteration(operator, beliefs, rows, alphas, actions, values, rng, 32)
         scores_t = np.stack(stage.score_rows)
         np.testing.assert_array_equal(scores_t, (rows @ stage.vectors.T).T)
         np.testing.assert_array_equal(stage.values, scores_t.max(axis=0))
@@ -252,7 +250,7 @@ def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
     for _ in range(6):
         seidel = perseus_module._Seidel(graph, current, owner, old_rows)
         stage = perseus_module._perseus_iteration(
-            operator, beliefs, rows, alphas, actions, values, rng, 32, None, lambda: 0.0, seidel
+            operator, beliefs, rows, alphas, actions, values, rng, 32, seidel
         )
         new_rows = seidel.extended[len(current) :]
         same_stage += int(np.isin(graph.children[new_rows], new_rows).sum())

@@ -6,6 +6,7 @@ which every comparison adds to its confidence interval.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from pathlib import Path
 
@@ -173,8 +174,8 @@ def test_gap_closes_and_sets_converged_on_tiger():
 
 def test_expansion_never_lowers_v_b0():
     """V(b0) never falls within a run, across the rounds that add beliefs too. (Not compared with a fixed-set run:
-    expansion draws its beliefs from the same generator as the stages' orders, and its upper-bound rounds have
-    wall-clock budgets, so the two runs' stages differ and either may end higher.)"""
+    expansion draws its beliefs from the same generator as the stages' orders, so the two runs' stages differ and
+    either may end higher.)"""
     pomdp = _model("hallway.POMDP")
     reports = []
     grown = perseus(
@@ -190,11 +191,47 @@ def test_expansion_never_lowers_v_b0():
     assert before and after and min(after) >= max(before) - 1e-12
 
 
-def test_expansion_is_seeded():
+def _digest(policy) -> str:
+    return hashlib.sha256(policy.alphas.tobytes() + policy.actions.tobytes()).hexdigest()
+
+
+def test_expansion_is_seeded_whatever_the_clock_reads(monkeypatch):
+    """Every budget that decides what an expanding solve computes (trials, upper-bound rounds, expansion rounds) is
+    a count, so a host ten times slower (here: both clocks the solver can read running ten times faster) gives the
+    same alphas, bit for bit, as long as the time limit does not stop it."""
+    import embodied_adhoc.decision.perseus as perseus_module
+
     pomdp = _model("hallway.POMDP")
     config = PerseusConfig(n_beliefs=30, tolerance=0.05, seed=3, expand=True, max_beliefs=60)
     first, second = perseus(pomdp, config), perseus(pomdp, config)
-    np.testing.assert_array_equal(first.alphas, second.alphas)
+    assert _digest(first) == _digest(second)
+    assert first.stats.n_beliefs > 30  # it did expand
+    for name in ("wall", "cpu"):
+        real = perseus_module.CLOCKS[name]
+        monkeypatch.setitem(perseus_module.CLOCKS, name, lambda real=real: 10.0 * real())
+    slow = perseus(pomdp, config)
+    limited = perseus(pomdp, PerseusConfig(**{**config.__dict__, "time_limit": 1e6, "clock": "cpu"}))
+    assert _digest(slow) == _digest(first)
+    assert slow.stats.iterations == first.stats.iterations and slow.stats.upper == first.stats.upper
+    assert limited.stats.iterations < config.max_iterations  # ended by its own rules, not by the limit
+
+
+def test_time_limit_stops_between_whole_iterations(monkeypatch):
+    """The time limit is only the outer stopping rule: a solve stopped by it after N iterations holds the bytes of
+    the same solve run for N iterations without reaching its limit (here a fake clock that advances one second per
+    reading stops it; the comparison solve has a limit it never reaches, so every other rule is the same)."""
+    import embodied_adhoc.decision.perseus as perseus_module
+
+    pomdp = _model("hallway.POMDP")
+    settings = dict(n_beliefs=60, tolerance=1e-4, seed=1, expand=True, clock="cpu")
+    readings = iter(range(1_000_000))
+    monkeypatch.setitem(perseus_module.CLOCKS, "cpu", lambda: float(next(readings)))
+    stopped = perseus(pomdp, PerseusConfig(time_limit=40.0, **settings))
+    monkeypatch.undo()
+    assert 1 <= stopped.stats.iterations and not stopped.stats.converged
+    same = perseus(pomdp, PerseusConfig(time_limit=1e6, max_iterations=stopped.stats.iterations, **settings))
+    assert same.stats.iterations == stopped.stats.iterations
+    assert _digest(same) == _digest(stopped) and same.stats.lower == stopped.stats.lower
 
 
 @pytest.mark.slow
