@@ -15,6 +15,7 @@ fi
 .venv/bin/python -m pytest -q
 KERNEL_SUBSET=(
     tests/decision/test_solver_backup.py
+    tests/decision/test_solver_golden.py
     tests/decision/test_solver_bounds.py::test_no_expand_reproduces_the_fixed_set_solver
     tests/decision/test_pomdp_solvers.py
     tests/arenas/test_pursuit_pairs_ablation.py
