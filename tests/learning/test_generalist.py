@@ -130,6 +130,12 @@ def test_the_shipped_agent_loads_from_safetensors_and_plays_by_the_protocol():
     assert _episode(agent, seed=7) == first  # reset and start clear the GRU state: the same episode again
     distribution = agent.action_distribution()
     assert distribution.shape == (5,) and distribution.sum() == pytest.approx(1.0)
+    from types import SimpleNamespace
+
+    from embodied_adhoc.learning.generalist import plugin
+
+    arena = SimpleNamespace(rules=SimpleNamespace(config=GridConfig()))  # what a plug-in factory receives
+    assert _episode(plugin(arena, rng_seed=3), seed=7) == first
 
 
 def test_the_agent_refuses_another_grid_and_observation_indices():
