@@ -192,3 +192,26 @@ def test_the_train_command_refuses_bad_input_before_work(tmp_path):
         )
         assert result.returncode == 2 and message in result.stderr, result.stderr
         assert len(result.stderr.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_trials_run_the_shipped_generalist_seeded():
+    from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+
+    options = {
+        "domain": "foraging",
+        "teams": ["tau0", "tau1", "tau2"],
+        "task": None,
+        "rows": 5,
+        "cols": 5,
+        "agents": 4,
+        "toroidal": False,
+        "pairs": False,
+    }
+    config = SweepConfig(
+        "foraging", "abstract", options, agents=("ppo-generalist",), episodes=3, seed=2, max_steps=40
+    )
+    first, again = run_sweep(config), run_sweep(config)
+    steps = [r.steps for r in first.records]
+    assert len(steps) == 3 and all(1 <= s <= 40 for s in steps)
+    assert steps == [r.steps for r in again.records]  # the episode's rng drives its samples
+    assert first.curves_by_agent().get("ppo-generalist") is None  # it keeps no task posterior
