@@ -134,8 +134,15 @@ class ScriptedParticipant:
         if self.shots and not self.shot_question:
             self.driver.save_screenshot(str(self.shots / "live_asking.png"))
             self.shot_question = True
-        box.send_keys(f"I'm at the {NODE_NAMES[self.state()['human_node']]}")
-        self.driver.find_element(self.by.ID, "reply-send").click()
+        from selenium.common.exceptions import ElementNotInteractableException
+
+        try:
+            box.send_keys(f"I'm at the {NODE_NAMES[self.state()['human_node']]}")
+            self.driver.find_element(self.by.ID, "reply-send").click()
+        except ElementNotInteractableException:
+            # The question closed (answered by timeout or withdrawn) between the check and the typing: the
+            # robot asks again and the walker answers then.
+            return
         self.answers += 1
         time.sleep(0.2)
 
