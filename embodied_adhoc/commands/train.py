@@ -52,10 +52,10 @@ def handle_generalist(args: argparse.Namespace) -> int:
     settings = GeneralistTraining(
         args.domain, str(args.out), args.steps, args.seed, args.envs, args.rollout, args.device, args.threads
     )
-    settings.config()  # settings that do not fit together are refused before training starts
-    with tqdm(
-        total=settings.steps, unit="step", desc=f"ppo-generalist {args.domain}", disable=args.quiet
-    ) as bar:
+    config = settings.config()  # settings that do not fit together are refused before training starts
+    batch = config.num_envs * config.rollout_steps
+    total = max(1, config.total_steps // batch) * batch  # whole updates
+    with tqdm(total=total, unit="step", desc=f"ppo-generalist {args.domain}", disable=args.quiet) as bar:
 
         def progress(steps: int, row: dict) -> None:
             length, solved = row["mean_episode_length"], row["solved"]
@@ -174,7 +174,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "the checkpoint there (same settings, same result).",
     )
     generalist.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
-    generalist.add_argument("--steps", type=int, default=500_000, help="env steps in all (default 500000)")
+    generalist.add_argument(
+        "--steps",
+        type=int,
+        default=300_000,
+        help="env steps in all, rounded down to whole updates (default 300000)",
+    )
     generalist.add_argument("--seed", type=int, default=0)
     generalist.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
     generalist.add_argument(

@@ -202,7 +202,7 @@ class GeneralistTraining:
 
     domain: str
     out: str
-    steps: int = 500_000
+    steps: int = 300_000
     seed: int = 0
     envs: int = 32
     rollout: int = 64
