@@ -68,6 +68,7 @@ def worker(args: argparse.Namespace) -> dict:
         points=args.points,
         seed=args.seed,
         **({"changed": args.changed} if args.changed else {}),
+        **({"wave": args.wave} if args.wave else {}),
     )
     start_cpu, start_wall = time.process_time(), time.perf_counter()
     record = run_trial(args.agent, args.trial, config)
@@ -116,6 +117,12 @@ def main() -> None:
     parser.add_argument(
         "--repeat", type=int, default=1, choices=(1, 2), help="2: the reference again at the end"
     )
+    parser.add_argument(
+        "--wave",
+        type=int,
+        default=0,
+        help="this tree's UCT wave (default: its planner's; the reference: its own)",
+    )
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -138,7 +145,12 @@ def main() -> None:
     results = []
     if args.reference is not None:
         results.append(("reference", _run_tree(args.reference, argv)))
-    results.append(("this tree", _run_tree(None, argv)))
+    results.append(
+        (
+            "this tree" + (f" (wave {args.wave})" if args.wave else ""),
+            _run_tree(None, [*argv, f"--wave={args.wave}"]),
+        )
+    )
     if args.reference is not None and args.repeat == 2:
         results.append(("reference (again)", _run_tree(args.reference, argv)))
     for name, result in results:

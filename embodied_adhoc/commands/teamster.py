@@ -23,6 +23,7 @@ from pathlib import Path
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.commands.arguments import output_folder, positive_int, seed
 from embodied_adhoc.decision.agents.teamwork import CHAPTER4_AGENTS as AGENTS
+from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.errors import ConfigError
 
 DEFAULT_AGENTS = AGENTS[:7]
@@ -63,6 +64,10 @@ def handle(args: argparse.Namespace) -> int:
     if args.changed_steps is not None and not changed:
         raise ConfigError(f"--changed-steps {args.changed_steps}: only with a changed phase (--changed)")
 
+    if args.size != 5 and args.domain != "pursuit":
+        raise ConfigError(f"--size {args.size}: only pursuit has a size (a map's is its file's)")
+    if args.size < 3:
+        raise ConfigError(f"--size {args.size}: pursuit's torus needs a side >= 3")
     iterations, depth = TABLE_4_1[args.domain]
     config = ProtocolConfig(
         steps=args.steps,
@@ -75,6 +80,8 @@ def handle(args: argparse.Namespace) -> int:
         depth=args.depth or depth,
         domain=args.domain,
         eval_episodes=args.eval_episodes,
+        wave=args.wave,
+        size=args.size,
     )
     out = args.out
     records = []
@@ -187,6 +194,19 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=positive_int,
         default=None,
         help="UCT rollout depth (default Table 4.1's: pursuit 5, ntu 10, isr 50, pentagon 25)",
+    )
+    parser.add_argument(
+        "--wave",
+        type=positive_int,
+        default=UctConfig.wave,
+        help=f"UCT simulations that descend the tree together, one batched model call per depth (default "
+        f"{UctConfig.wave}; 1: the sequential UCT; more: fewer, larger calls)",
+    )
+    parser.add_argument(
+        "--size",
+        type=positive_int,
+        default=5,
+        help="pursuit: the torus's side (default 5; section 4.1.5's larger world: 10), >= 3",
     )
     parser.add_argument("--seed", type=seed, default=0, help="seed, >= 0 (default 0)")
     parser.add_argument(

@@ -22,6 +22,8 @@ SMALL = ["--steps", "20", "--points", "2", "--eval-steps", "10", "--trials", "2"
         (["--changed", "fail:x"], "--changed 'fail:x': give fail:P"),
         (["--changed", "0", "--changed-steps", "20"], "--changed-steps 20: only with a changed phase"),
         (["--trials", "0"], "--trials"),
+        (["--size", "2"], "--size 2: pursuit's torus needs a side >= 3"),
+        (["--wave", "0"], "--wave"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, fragment):
@@ -110,3 +112,30 @@ def test_changed_environment_table_tests_agents_on_their_trials_after_learning_b
     assert [p["step"] for p in fit] == [0, 50, 100] and abs(fit[1]["share"]["mean"] - 0.4) < 1e-12
     assert "changed_fit" not in summarise(records)["b"]
     assert plot_changed(summarise(records), tmp_path / "changed.png").stat().st_size > 0
+
+
+def test_larger_world_and_wave_are_recorded(tmp_path):
+    """Section 4.1.5's 10x10 world and the planner's wave reach the trial (its record's settings); the default
+    wave stays out of the record, so folders written without the option still resume."""
+    small = [
+        "--steps",
+        "4",
+        "--points",
+        "2",
+        "--eval-steps",
+        "4",
+        "--trials",
+        "1",
+        "--iterations",
+        "10",
+        "--quiet",
+    ]
+    argv = ["teamster", "pursuit", "--agents", "teamster", *small, "--size", "10", "--wave", "5"]
+    assert main(argv + ["--out", str(tmp_path / "big")]) == 0
+    config = json.loads((tmp_path / "big" / "runs" / "teamster" / "trial-0.json").read_text())["config"]
+    assert config["size"] == 10 and config["wave"] == 5
+    assert main(["teamster", "pursuit", "--agents", "random", *small, "--out", str(tmp_path / "plain")]) == 0
+    assert (
+        "wave"
+        not in json.loads((tmp_path / "plain" / "runs" / "random" / "trial-0.json").read_text())["config"]
+    )

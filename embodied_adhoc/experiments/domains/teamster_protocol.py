@@ -67,14 +67,19 @@ class ProtocolConfig:
     domain: str = "pursuit"  # or a navigation map: ntu, isr, pentagon
     eval_episodes: int = 8  # navigation: episodes per evaluation (the original's 8)
     changed_steps: int | None = None  # the changed phase's interaction steps (None: ``steps``)
+    wave: int = (
+        UctConfig.wave
+    )  # UCT simulations that descend together (decision.uct.BatchedUct; 1: the sequential UCT)
 
     def __post_init__(self) -> None:
         if self.domain not in DOMAINS:
             raise ConfigError(f"teamster domain={self.domain!r}: choose one of {', '.join(DOMAINS)}")
-        for name in ("steps", "eval_steps", "points", "iterations", "depth", "eval_episodes"):
+        for name in ("steps", "eval_steps", "points", "iterations", "depth", "eval_episodes", "wave"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise ConfigError(f"teamster {name}={value!r}: give a positive integer")
+        if self.domain == "pursuit" and (not isinstance(self.size, int) or self.size < 3):
+            raise ConfigError(f"teamster size={self.size!r}: pursuit's torus needs a side >= 3")
         if self.steps % self.points:
             raise ConfigError(f"teamster steps={self.steps}: must be a multiple of points={self.points}")
         object.__setattr__(self, "changed", parse_change(self.changed, "teamster changed"))
@@ -99,6 +104,10 @@ class ProtocolConfig:
         settings = asdict(self)
         if self.changed_steps is None:  # folders written before the option existed still resume
             del settings["changed_steps"]
+        if (
+            self.wave == UctConfig.wave
+        ):  # the same: records carry the wave only where it is not the planner's default
+            del settings["wave"]
         if self.domain == "pursuit":
             del settings["domain"], settings["eval_episodes"]
         return settings
@@ -271,7 +280,7 @@ def _run_trial(agent_name: str, trial: int, config: ProtocolConfig, tick: Callab
     start = time.perf_counter()
     world = make_world(config.domain, config.size)
     teams = {name: ExactTeam(world, name) for name in world.teams}
-    uct = UctConfig(iterations=config.iterations, depth=config.depth)
+    uct = UctConfig(iterations=config.iterations, depth=config.depth, wave=config.wave)
     agent = build_agent(agent_name, world, _stream(config, trial, agent_name, "agent"), config.steps, uct)
     record = {"agent": agent_name, "trial": trial, "config": config.as_dict(), "curves": {}, "after": {}}
     for i, name in enumerate(world.teams):
