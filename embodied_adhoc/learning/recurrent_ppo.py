@@ -258,14 +258,10 @@ def train_recurrent_ppo(
     if checkpoint is not None and checkpoint.exists():
         tensors, header = _load_checkpoint(checkpoint, config, env_kwargs)
         model.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("model.")})
-        optimiser.load_state_dict(
+        optimiser.load_state_dict(  # it puts each slot on its parameter's device (Adam's step stays on the CPU)
             {
                 "state": {
-                    i: {
-                        k.split(".", 2)[2]: v.to(device)
-                        for k, v in tensors.items()
-                        if k.startswith(f"optimiser.{i}.")
-                    }
+                    i: {k.split(".", 2)[2]: v for k, v in tensors.items() if k.startswith(f"optimiser.{i}.")}
                     for i in header["optimiser_slots"]
                 },
                 "param_groups": header["param_groups"],
