@@ -83,10 +83,11 @@ class LabConfig:
     ``human_epsilon=2``, a ball outside the graph). Hashable: libraries are cached per configuration.
 
     ``confusion``: "measured" (default), "thesis" or a JSON path (``domains.confusion``); ``robot_node_accuracy``:
-    probability that the robot-node reading is right (else unknown); ``rfid_miss``: probability that the
+    probability that the robot-node reading is reported (else unknown): the model's robot-node factor and the
+    physics robot's area sensor (``sim.area_sensor``) read this one number; ``rfid_miss``: probability that the
     container's reader misses a ball going in; ``localisation_model``: None (the ``robot_node_accuracy`` factor),
     "measured" or a JSON path: the robot-node factor is the localiser's measured confusion
-    (``domains.lab_observations.load_localisation_model``), and the physics env adds no random loss.
+    (``domains.lab_observations.load_localisation_model``), and the physics robot's area sensor drops nothing.
     """
 
     graph: LabGraph = DEFAULT_GRAPH
