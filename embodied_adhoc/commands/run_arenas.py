@@ -140,11 +140,12 @@ def _recording_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def handle_pursuit(args: argparse.Namespace) -> int:
-    choose_gl_platform()
-    from embodied_adhoc.experiments.recorded import PursuitEpisodeConfig, run_pursuit_episode
+def _arena_episode(args: argparse.Namespace, domain: str, config_type, run, postfix, **fields) -> dict | None:
+    """One ``run pursuit`` / ``run foraging`` episode: its config from the shared flags (and ``fields``), run
+    under the progress bar; the summary, or None once printed as JSON (``--json``)."""
+    from embodied_adhoc.commands.run import play
 
-    config = PursuitEpisodeConfig(
+    config = config_type(
         agent=args.agent,
         seed=args.seed,
         task=args.task,
@@ -154,22 +155,31 @@ def handle_pursuit(args: argparse.Namespace) -> int:
         video_speed=args.video_speed,
         size=args.size,
         video_overlay=not args.no_overlay,
+        **fields,
     )
-    from embodied_adhoc.commands.run import play
-
-    summary = play(
-        args,
-        "pursuit",
-        lambda progress: run_pursuit_episode(config, progress),
-        lambda info: f"sim {info['sim_time']:.0f}s",
-    )
+    summary = play(args, domain, lambda progress: run(config, progress), postfix)
     if args.json:
         print(json.dumps(summary, indent=2))
-        return 0
-    from embodied_adhoc.commands.run import format_summary
+        return None
+    return summary
 
-    physics = f"physics:        {summary['physics_mismatches']} step(s) where physics did not execute the drawn move"
-    print(format_summary(summary, ("prey captured", "not captured"), extra=(physics,)))
+
+def handle_pursuit(args: argparse.Namespace) -> int:
+    choose_gl_platform()
+    from embodied_adhoc.commands.run import format_summary
+    from embodied_adhoc.experiments.recorded import PursuitEpisodeConfig, run_pursuit_episode
+
+    summary = _arena_episode(
+        args,
+        "pursuit",
+        PursuitEpisodeConfig,
+        run_pursuit_episode,
+        lambda info: f"sim {info['sim_time']:.0f}s",
+    )
+    if summary is not None:
+        mismatches = summary["physics_mismatches"]
+        physics = f"physics:        {mismatches} step(s) where physics did not execute the drawn move"
+        print(format_summary(summary, ("prey captured", "not captured"), extra=(physics,)))
     return 0
 
 
@@ -179,35 +189,20 @@ def handle_foraging(args: argparse.Namespace) -> int:
     choose_gl_platform()
     from pathlib import Path
 
+    from embodied_adhoc.commands.run import format_summary
     from embodied_adhoc.experiments.recorded import ForagingEpisodeConfig, run_foraging_episode
 
-    config = ForagingEpisodeConfig(
-        agent=args.agent,
-        seed=args.seed,
-        task=args.task,
-        teams=tuple(t.strip() for t in args.team.split(",")),
-        library=None if args.library is None else Path(args.library),
-        max_steps=args.max_steps,
-        record_dir=args.record,
-        video_fps=args.video_fps,
-        video_speed=args.video_speed,
-        size=args.size,
-        video_overlay=not args.no_overlay,
-    )
-    from embodied_adhoc.commands.run import play
-
-    summary = play(
+    summary = _arena_episode(
         args,
         "foraging",
-        lambda progress: run_foraging_episode(config, progress),
+        ForagingEpisodeConfig,
+        run_foraging_episode,
         lambda info: f"apples left {info['remaining']}",
+        teams=tuple(t.strip() for t in args.team.split(",")),
+        library=None if args.library is None else Path(args.library),
     )
-    if args.json:
-        print(json.dumps(summary, indent=2))
-        return 0
-    from embodied_adhoc.commands.run import format_summary
-
-    truth = f"true task {summary['true_task'] + 1}, team {summary['true_team']}"
-    outcomes = ("apple foraged", "not foraged")
-    print(format_summary(summary, outcomes, truth, "task-posterior", per_step_time=False))
+    if summary is not None:
+        truth = f"true task {summary['true_task'] + 1}, team {summary['true_team']}"
+        outcomes = ("apple foraged", "not foraged")
+        print(format_summary(summary, outcomes, truth, "task-posterior", per_step_time=False))
     return 0
