@@ -333,7 +333,7 @@ class AtlpoAgent(AgentBase):
     deterministic; PPO's are stochastic, so their whole distributions are mixed).
 
     It follows the project's ``Agent`` protocol with ``observes_raw``: the episode loop
-    (:func:`~embodied_adhoc.experiments.episode.run_episode_loop`) gives it the env's egocentric arrays instead of
+    (:func:`~embodied_adhoc.episodes.loop.run_episode_loop`) gives it the env's egocentric arrays instead of
     observation indices, the episode's first one through :meth:`start` (after :meth:`reset`), each following one
     through :meth:`observe`. With ``known=k`` the posterior stays on environment ``k``: the library member alone,
     the model-free RL baseline that knows task and team (section 6.2.4).
