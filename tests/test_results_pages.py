@@ -189,7 +189,7 @@ def test_a_partial_check_is_held_to_the_same_part_of_the_published_runs():
     document = {"published": published, "checks": [check]}
     figure = module.FIGURES["arenas"]
     klass, how = module.reproducibility(figure, document)
-    assert klass == "exact on any host"
+    assert klass == "exact on any host (the part checked)"
     assert f"ran 1 of the {len(figure.commands)} commands" in how
     check["data"] = {"runs": {"a": {"original": {**stats["original"], "steps_mean": 12.0}}}}
     assert module.reproducibility(figure, document)[0] == "statistical, CHECK FAILED"
@@ -210,12 +210,12 @@ def test_a_check_of_fewer_rows_is_held_to_the_rows_it_printed():
     document = {"published": published, "checks": [check]}
     figure = module.FIGURES["chapter5"]
     klass, how = module.reproducibility(figure, document)
-    assert klass == "statistical"
+    assert klass == "statistical (the part checked)"
     assert "--domains cit" in how
     check["data"]["tables"][0]["rows"] = [["cit", "atpo", "75.00 ± 5.00", "[73.00, 77.00]"]]
     assert module.reproducibility(figure, document)[0] == "statistical, CHECK FAILED"
     check["data"]["tables"][0]["rows"] = [rows[1]]
-    assert module.reproducibility(figure, document)[0] == "exact on any host"
+    assert module.reproducibility(figure, document)[0] == "exact on any host (the part checked)"
 
 
 def test_a_table_without_a_result_file_prints_its_command_and_cost_and_no_figure(tmp_path):
@@ -313,9 +313,9 @@ def test_a_re_run_of_some_rows_replaces_them_and_a_check_of_those_rows_counts_ag
     check = {"kernel": "Haswell", "code_sha256": "new", "extra": "--domains isr", "keys": [],
              "data": tables([["isr", "atpo", "90.50 ± 3.00", "[89.50, 91.50]"]], "")}  # fmt: skip
     document = {"published": merged, "checks": [check]}
-    assert module.reproducibility(figure, document)[0] == "statistical"
+    assert module.reproducibility(figure, document)[0] == "statistical (the part checked)"
     check["data"]["tables"][0]["rows"] = [new[0]]  # the same rows; its caption names its own domains only
-    assert module.reproducibility(figure, document)[0] == "exact on any host"
+    assert module.reproducibility(figure, document)[0] == "exact on any host (the part checked)"
     check["code_sha256"] = "old"  # the rows' previous code: it checked numbers no longer published
     assert module.reproducibility(figure, document)[0] == "not re-checked"
 
