@@ -2,6 +2,7 @@
 
     .venv/bin/python scripts/reproduce_teamster.py [--trials 8] [--steps 5000] [--eval-steps 500] [--points 10]
         [--agents ...] [--changed fail:0.25|mirror] [--changed-steps N] [--out runs/teamster-pursuit] [--skip-protocol]
+        [--size 5] [--wave N]
 
 The mirrored-environment study (docs/teamster.md, Part B3): ``--agents teamster,plastic-model,learns-team,
 plastic-policy --trials 8 --steps 500 --eval-steps 50 --points 5 --changed mirror --changed-steps 2500 --out
@@ -16,6 +17,7 @@ Part B, section 4.1.4: ``embodied-adhoc teamster pursuit`` with the given option
 table of captures per 500 steps after learning each team (Table 4.4's layout) and PLASTIC-Policy / TEAMSTER
 evaluated on the teammate-aware team after learning it, beside the reference's PLASTIC-Policy.
 The thesis's scale (8 trials, T = 5000) takes hours on two CPU cores; smaller options give a smaller study.
+``--size 10`` runs part B on section 4.1.5's 10x10 world (part A stays the reference's 5x5 world).
 
 Part C, the navigation maps (``--maps ntu,isr,pentagon``; ``--skip-pursuit`` leaves out A and B): with each team,
 the team's own policy in the ad hoc seat ("Original Teammate"), a random agent and PLASTIC-Model that knows the
@@ -132,6 +134,10 @@ def _changed(args: argparse.Namespace) -> list[str]:
     return ["--changed", args.changed] + steps
 
 
+def _wave(args: argparse.Namespace) -> list[str]:
+    return [] if args.wave is None else ["--wave", str(args.wave)]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--trials", type=int, default=8)
@@ -159,6 +165,12 @@ def main() -> None:
         "--eval-episodes", type=int, default=8, help="maps' protocol: episodes per evaluation"
     )
     parser.add_argument("--skip-pursuit", action="store_true", help="parts A and B left out")
+    parser.add_argument(
+        "--size", type=int, default=5, help="part B: pursuit's torus side (section 4.1.5's larger world: 10)"
+    )
+    parser.add_argument(
+        "--wave", type=int, default=None, help="UCT simulations per wave (default the planner's)"
+    )
     args = parser.parse_args()
 
     for map_name in [m for m in args.maps.split(",") if m]:
@@ -190,7 +202,7 @@ def main() -> None:
                 out,
                 "--quiet",
             ]
-            command += _changed(args)
+            command += _changed(args) + _wave(args)
             if cli_main(command) != 0:
                 raise SystemExit(2)
             print("\n" + Path(out, "table.md").read_text())
@@ -228,7 +240,7 @@ def main() -> None:
         args.out,
         "--quiet",
     ]
-    command += _changed(args)
+    command += _changed(args) + ["--size", str(args.size)] + _wave(args)
     if cli_main(command) != 0:
         raise SystemExit(2)
     summary = json.loads(Path(args.out, "summary.json").read_text())
