@@ -76,8 +76,22 @@ def _agents(domain, options) -> tuple[str, ...]:
             return POMDP_AGENTS + ("random",)
         if options.get("pairs"):  # the shipped ATLPO library is trained for four predators
             return ("original", "random")
-        return GridTrialDomain.agent_names
-    return tuple(domain.agent_names)
+        return tuple(name for name in GridTrialDomain.agent_names if _shipped(name, domain.name))
+    return tuple(name for name in domain.agent_names if _shipped(name, domain.name))
+
+
+def _shipped(agent: str, domain: str) -> bool:
+    """Whether the package ships what ``agent`` needs on ``domain`` (the generalist is trained per domain: one
+    without shipped weights is the user's to train, ``train ppo-generalist --domain D``)."""
+    if agent != "ppo-generalist":
+        return True
+    from embodied_adhoc.errors import ConfigError
+    from embodied_adhoc.learning.generalist import shipped_weights
+
+    try:
+        return shipped_weights(domain).is_file()
+    except ConfigError:  # none shipped for this domain
+        return False
 
 
 def _trajectory(session, env, job):
