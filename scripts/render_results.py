@@ -830,7 +830,7 @@ FIGURES = {
                     ".venv/bin/embodied-adhoc",
                     "pomdp",
                     "solve",
-                    "sarsop-TagAvoid.pomdp",
+                    "{corpus}/sarsop-TagAvoid.pomdp",
                     "--beliefs",
                     "1000",
                     "--seed",
@@ -1263,8 +1263,15 @@ def git(*args: str) -> str:
     return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
 
 
+CORPUS = (ROOT.parent / "shared" / "pomdp").resolve()
+"""The .pomdp benchmark corpus beside the checkout (where tests/decision read it too); the package ships tiger only."""
+
+
 def expand(argv: Sequence[str], out: str) -> list[str]:
-    return [part.replace("{python}", ".venv/bin/python").replace("{out}", out) for part in argv]
+    return [
+        part.replace("{python}", ".venv/bin/python").replace("{out}", out).replace("{corpus}", str(CORPUS))
+        for part in argv
+    ]
 
 
 CODE = ("embodied_adhoc", "scripts", "assets", "scenes", "pyproject.toml", "constraints.txt")
