@@ -44,3 +44,30 @@ def sample_path(
     for belief, successors in reversed(path):
         upper.update(belief, successors)
     return [belief for belief, _ in path]
+
+
+def explore(
+    upper: SawtoothBound,
+    lower: Callable[[np.ndarray], np.ndarray],
+    b0: np.ndarray,
+    precision: float,
+    updates: int,
+) -> None:
+    """Excess-gap paths from b0, each backing up the upper bound along it, for ``updates`` updates in all (the
+    last path is cut to the updates left)."""
+    depth = max_depth(upper, lower, b0, precision)
+    while updates > 0:
+        # Paths aim at half the precision: they stop where the gap is within their target, and the lower bound
+        # is not backed up along them, so aiming at the precision itself leaves a gap at b0 just above it.
+        path = sample_path(upper, lower, b0, precision / 2, min(depth, updates))
+        if not path:
+            break  # the gap at b0 is within precision
+        updates -= len(path)
+
+
+def max_depth(
+    upper: SawtoothBound, lower: Callable[[np.ndarray], np.ndarray], b0: np.ndarray, precision: float
+) -> int:
+    """Beyond this depth any gap at b0's scale is within precision / gamma^depth, so paths end there anyway."""
+    gamma, scale = upper.pomdp.discount, float(upper.values(b0)[0] - lower(b0[None, :])[0])
+    return int(np.clip(np.log(max(precision, 1e-9) / max(scale, 1e-9)) / np.log(gamma), 20, 1000))

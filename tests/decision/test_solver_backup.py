@@ -146,7 +146,7 @@ def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
     ones from the acceptance products); the result must be bit-identical to one product over the whole stage."""
     import scipy.sparse as sp
 
-    from embodied_adhoc.decision import perseus as perseus_module
+    from embodied_adhoc.decision import perseus_stages as stages
     from embodied_adhoc.decision.backup import blind_policy_vectors
 
     pomdp = _single_state_observation_pomdp()
@@ -158,7 +158,7 @@ def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
     values = (rows @ alphas.T).max(axis=1)  # the solver's own products (CSR), so ties compare exactly
     rng = np.random.default_rng(0)
     for _ in range(4):  # a few stages, so that old vectors are kept and batches grow
-        stage = perseus_module._perseus_iteration(operator, beliefs, rows, alphas, actions, values, rng, 32)
+        stage = stages.perseus_stage(operator, beliefs, rows, alphas, actions, values, rng, 32)
         scores_t = np.stack(stage.score_rows)
         np.testing.assert_array_equal(scores_t, (rows @ stage.vectors.T).T)
         np.testing.assert_array_equal(stage.values, scores_t.max(axis=0))
@@ -225,12 +225,12 @@ def test_threads_do_not_change_the_solve(name, update, monkeypatch):
 
 @pytest.mark.parametrize("name", ["sarsop-TagAvoid.pomdp", "single-state"])
 def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
-    """Gauss-Seidel stages (perseus._perseus_iteration with a _Seidel): V_{n+1} >= V_n on B, the stage's values on
+    """Gauss-Seidel stages (perseus_stages.perseus_stage with a Seidel): V_{n+1} >= V_n on B, the stage's values on
     B are the
     products with its vectors, later backups continue with vectors of the same stage, and every vector of the plan
     graph is at most the value of doing its action and then its continuations (equal unless a continuation was
     replaced by a dominating vector): the closed set the lower bound rests on."""
-    from embodied_adhoc.decision import perseus as perseus_module
+    from embodied_adhoc.decision import perseus_stages as stages
     from embodied_adhoc.decision.backup import blind_policy_vectors
     from embodied_adhoc.decision.plan_graph import PlanGraph
 
@@ -239,7 +239,7 @@ def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
     # A belief set whose first stages already improve several beliefs with different vectors (with seed 2 or 4 Tag's
     # first six stages keep only 1-3 new vectors each, one of which covers every belief, so none continues another)
     beliefs = collect_beliefs(pomdp, 300, np.random.default_rng(0))
-    rows = perseus_module._belief_rows(beliefs)
+    rows = stages.belief_rows(beliefs)
     graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
     current = np.arange(len(graph))
     alphas, actions = graph.vectors[current], graph.actions[current]
@@ -248,16 +248,14 @@ def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
     rng = np.random.default_rng(0)
     same_stage = 0
     for _ in range(6):
-        seidel = perseus_module._Seidel(graph, current, owner, old_rows)
-        stage = perseus_module._perseus_iteration(
-            operator, beliefs, rows, alphas, actions, values, rng, 32, seidel
-        )
+        seidel = stages.Seidel(graph, current, owner, old_rows)
+        stage = stages.perseus_stage(operator, beliefs, rows, alphas, actions, values, rng, 32, seidel)
         new_rows = seidel.extended[len(current) :]
         same_stage += int(np.isin(graph.children[new_rows], new_rows).sum())
         assert np.all(stage.values >= values)
         np.testing.assert_array_equal(stage.values, np.asarray(rows @ stage.vectors.T).max(axis=1))
         extended_witness = np.concatenate([witness, seidel.new_witness])
-        current = perseus_module._record(graph, seidel.extended, stage, rows, extended_witness)
+        current = stages.record_stage(graph, seidel.extended, stage, rows, extended_witness)
         witness, owner, old_rows = stage.witness, stage.owner, stage.score_rows
         alphas, actions, values = graph.vectors[current], graph.actions[current], stage.values
         np.testing.assert_array_equal(alphas[owner], alphas[np.argmax(np.asarray(rows @ alphas.T), axis=1)])
