@@ -47,10 +47,9 @@ class RowProducts:
 
     Row ``i`` of a CSR product is the sum over that row's entries in stored order whichever rows are computed with
     it, so the split results are bit-identical to one product; scipy's kernel releases the GIL, so the parts run on
-    separate cores (a 20,000 x 626 float32 matrix at 10 % times 626 x 2,000: 1.73-1.88x on 2 threads when the
-    second core is free). ``threads=1``
-    (the library default: chapter-5 runs already use worker processes) never starts a thread. Parts are balanced
-    by stored entries; products under ``_SPLIT_MIN_WORK`` multiply-adds run whole (a thread hand-off costs more).
+    separate cores. ``threads=1`` (the library default: parallel sweeps already use worker processes) never starts
+    a thread. Parts are balanced by stored entries; products under ``_SPLIT_MIN_WORK`` multiply-adds run whole (a
+    thread hand-off costs more).
     """
 
     def __init__(self, threads: int = 1) -> None:
@@ -251,7 +250,8 @@ class BackupOperator:
             np.count_nonzero(single) * 8 >= self.pomdp.n_states
         ):  # else the per-state maxima cost more than they save
             # Their best vector is the first one best at that state where that provably equals the product's argmax
-            # (_state_best; the pursuit model: 63 % of a batch's branches); the others stay in the product.
+            # (_state_best; in models that observe their state, most of a batch's branches); the others stay in
+            # the product.
             top, leader, clean = self._state_best(prepared)
             lone = single[rows]
             lone_rows, lone_states = rows[lone], states[lone]
@@ -300,7 +300,7 @@ class BackupOperator:
 
         Each action's value ``b . R_a + gamma sum_z max_k (b T_a O_z) . alpha_k`` is computed from the branch
         scores alone; the vector (two sparse products over all states) is built only for the best action of
-        each belief (the pursuit model: about a quarter of a solve went into vectors of actions not chosen).
+        each belief (vectors of actions not chosen would be a large share of a solve).
         """
         prepared = alphas if isinstance(alphas, PreparedAlphas) else self.prepare(alphas)
         alphas = prepared.alphas

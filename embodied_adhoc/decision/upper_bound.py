@@ -28,7 +28,8 @@ def fast_informed_bound(pomdp: POMDP, tolerance: float = 1e-6, max_iterations: i
     n_states = pomdp.n_states
     # Per action, only the possible (s, z) pairs: the sparse (pairs x S') matrix of T(s, a, s') O(z | s', a)
     # and the start state of each pair. Pairs with P(z | s, a) = 0 add max_a' 0 = 0 to the sum over z, so they
-    # are left out (a dense (Z, S, A) array per action took 11.6 s on overcooked's 1,730 identity observations).
+    # are left out (a dense (Z, S, A) array per action grows with Z x S x A, prohibitive for models with many
+    # observations such as identity observations).
     joined = [
         _joint_rows(transition, observation)
         for transition, observation in zip(pomdp.transitions, pomdp.observations, strict=True)
