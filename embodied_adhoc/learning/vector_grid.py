@@ -23,6 +23,11 @@ returns the first observation of the new episode with reward 0 and both flags Fa
 
 ``infos``: ``task`` (1-based) and ``team`` (index into ``team_names``) of every sub-env's current episode, with
 their ``_task``/``_team`` masks (ground truth for evaluation and for training per-environment policies).
+With ``teammate_info=True`` (for training only: LIAM's reconstruction targets, never an agent's input) every
+``step`` adds ``teammate_observations`` (num_envs, N-1, channels, view, view), the teammates' egocentric windows of
+the state they acted in (the state the previous step's observation shows), and ``teammate_actions``
+(num_envs, N-1), the actions they took in it; their masks ``_teammate_observations``/``_teammate_actions`` are
+False on a sub-env's reset step, where no one acts.
 """
 
 from __future__ import annotations
@@ -55,6 +60,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         num_envs: int,
         max_episode_steps: int | None = None,
         environments: list[tuple[int, str]] | None = None,
+        teammate_info: bool = False,
         **env_kwargs,
     ) -> None:
         import embodied_adhoc.envs  # noqa: F401  (registers the ids)
@@ -100,6 +106,11 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.needs_reset = np.zeros(num_envs, bool)
         self.rngs: list[np.random.Generator] = []
         self.observers = np.zeros((num_envs, 1), np.int64)
+        self.teammate_info = bool(teammate_info)
+        self.teammates = np.broadcast_to(
+            np.arange(1, cfg.n_agents, dtype=np.int64), (num_envs, cfg.n_agents - 1)
+        )
+        self._teammate_step: dict = {}
         # the current episode's task offsets and team parameters per sub-env, rewritten row by row at resets
         self.episode_offsets = self.offsets[self.task_index]
         self.episode_teams = self.team_table.take(self.team_index)
@@ -201,7 +212,19 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
             self._step_batch(stepping, actions.astype(np.int64), terminated, truncated)
         for index in np.flatnonzero(resetting).tolist():
             self._reset_one(index, None)
-        return self._observations(), terminated.astype(np.float64), terminated, truncated, self._infos()
+        infos = self._infos()
+        if self.teammate_info:
+            if not stepping.any():  # every sub-env reset: nobody acted, the (masked) arrays are zeros
+                shape = (self.num_envs, self.teammates.shape[1])
+                self._teammate_step = {
+                    "teammate_observations": np.zeros(
+                        (*shape, *self.single_observation_space.shape), np.float32
+                    ),
+                    "teammate_actions": np.zeros(shape, np.int64),
+                }
+            infos.update(self._teammate_step)
+            infos.update({"_teammate_observations": stepping, "_teammate_actions": stepping.copy()})
+        return self._observations(), terminated.astype(np.float64), terminated, truncated, infos
 
     def _step_batch(self, stepping: np.ndarray, actions: np.ndarray, terminated, truncated) -> None:
         """One step of every sub-env in ``stepping``; the others are planned too but keep their state."""
@@ -217,6 +240,11 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         offsets, teams = self.episode_offsets, self.episode_teams
         team = self.planner.actions(b, offsets, self.interchangeable, teams, team_uniforms)
         team[:, 0] = actions
+        if self.teammate_info:  # before the move: the windows the teammates chose their actions from
+            self._teammate_step = {
+                "teammate_observations": egocentric_batch(self.rules, b, self.teammates, self.view),
+                "teammate_actions": team[:, 1:].copy(),
+            }
         plan = self.rules.plan_batch(b, offsets, self.interchangeable, team, prey_uniforms)
         keep = ~stepping
         b.agents[...] = np.where(keep[:, None, None], b.agents, plan.agents)
