@@ -107,6 +107,11 @@ class RecurrentActorCritic(nn.Module):
 
     def unroll(self, observations, previous, hidden, starts):
         """T steps of B sequences from state ``hidden``: (logits (T, B, A), values (T, B))."""
+        states = self.unroll_states(observations, previous, hidden, starts)
+        return self.actor(states), self.critic(states).squeeze(-1)
+
+    def unroll_states(self, observations, previous, hidden, starts):
+        """T steps of B sequences from state ``hidden``: the GRU states (T, B, H)."""
         steps, batch = starts.shape
         latent = self.encoder(observations.reshape(steps * batch, *observations.shape[2:]))
         latent = latent.reshape(steps, batch, -1)
@@ -114,8 +119,7 @@ class RecurrentActorCritic(nn.Module):
         for t in range(steps):
             hidden = self._cell(latent[t], previous[t], hidden, starts[t])
             states.append(hidden)
-        states = torch.stack(states)
-        return self.actor(states), self.critic(states).squeeze(-1)
+        return torch.stack(states)
 
 
 @dataclass
@@ -234,15 +238,26 @@ def train_recurrent_ppo(
     folder: str | Path | None = None,
     progress: Callable[[int, dict], None] | None = None,
     stop_after: int | None = None,
+    auxiliary=None,
 ) -> RecurrentPpoResult:
     """Train on ``GridVectorEnv(domain, config.num_envs, **env_kwargs)`` for ``config.total_steps`` env steps.
 
     With ``folder`` the run checkpoints there (:data:`CHECKPOINT`) and, if a checkpoint of the same settings is
     there, resumes from it; ``stop_after`` ends this call after that many updates in all (checkpointed), so a
-    later call continues. ``progress(env_steps, row)`` is called after every update."""
+    later call continues. ``progress(env_steps, row)`` is called after every update.
+
+    ``auxiliary`` adds a training-only loss term (LIAM's reconstruction, :mod:`embodied_adhoc.learning.liam`):
+    ``auxiliary.vector_kwargs`` (extra GridVectorEnv arguments, not part of the run's identity),
+    ``auxiliary.network(network, recurrent)`` builds the model, ``auxiliary.record(t, infos)`` sees every
+    rollout step's infos and ``auxiliary.loss(model, index)`` -> (loss, stats), called right after the PPO
+    objective of the sub-envs ``index``, is added to it (stats of the last evaluation go in the curve's rows)."""
     env_kwargs = dict(env_kwargs)
-    rng, device, env, observation, network = start_training(domain, env_kwargs, config)
-    model = RecurrentActorCritic(network, config.recurrent).to(device)
+    vector_kwargs = env_kwargs if auxiliary is None else {**env_kwargs, **auxiliary.vector_kwargs}
+    rng, device, env, observation, network = start_training(domain, vector_kwargs, config)
+    if auxiliary is None:
+        model = RecurrentActorCritic(network, config.recurrent).to(device)
+    else:
+        model = auxiliary.network(network, config.recurrent).to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate, eps=1e-5)
     steps, envs = config.rollout_steps, config.num_envs
     result = RecurrentPpoResult(model, total_updates=max(1, config.total_steps // (steps * envs)))
@@ -299,7 +314,9 @@ def train_recurrent_ppo(
                 distribution = torch.distributions.Categorical(logits=logits)
                 action = distribution.sample()
             action_buf[t], logprob_buf[t], value_buf[t] = action, distribution.log_prob(action), value
-            observation, reward, terminated, truncated, _ = env.step(action.cpu().numpy())
+            observation, reward, terminated, truncated, infos = env.step(action.cpu().numpy())
+            if auxiliary is not None:
+                auxiliary.record(t, infos)
             result.env_steps += envs
             ended = torch.as_tensor(terminated | truncated, device=device)
             lengths = lengths + (~resetting).long()
@@ -344,13 +361,17 @@ def train_recurrent_ppo(
         for _ in range(config.epochs):
             order = rng.permutation(envs)
             for chunk in np.array_split(order, config.minibatches):
-                loss = segment_loss(model, segment, torch.as_tensor(chunk, device=device), config)[0]
+                index = torch.as_tensor(chunk, device=device)
+                loss = segment_loss(model, segment, index, config)[0]
+                if auxiliary is not None:
+                    loss = loss + auxiliary.loss(model, index)[0]
                 optimiser.zero_grad()
                 loss.backward()
                 nn.utils.clip_grad_norm_(model.parameters(), config.max_grad_norm)
                 optimiser.step()
         with torch.no_grad():
             after = segment_loss(model, segment, every, config)
+            extra = {} if auxiliary is None else auxiliary.loss(model, every)[1]
         result.updates += 1
         result.seconds += time.perf_counter() - began
         row = {
@@ -365,6 +386,7 @@ def train_recurrent_ppo(
             "policy_loss": after[1].item(),
             "value_loss": after[2].item(),
             "entropy": after[3].item(),
+            **extra,
         }
         result.history.append(row)
         if checkpoint is not None and (
