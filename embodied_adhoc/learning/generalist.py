@@ -78,12 +78,13 @@ def shipped_weights(domain: str) -> Path:
     return path
 
 
-def load_generalist(path: str | Path) -> tuple[RecurrentActorCritic, dict]:
+def load_generalist(path: str | Path, kind: str = "ppo-generalist") -> tuple[RecurrentActorCritic, dict]:
     """(network in eval mode, metadata) of a weights file written by :func:`train_generalist_run` (safetensors:
-    tensors only, nothing executable is read)."""
+    tensors only, nothing executable is read); ``kind`` the agent the file must hold (``liam`` ships the same
+    network)."""
     _, metadata = load_weights(path)
-    if metadata.get("kind") != "ppo-generalist":
-        raise WeightsError(f"{path}: not a ppo-generalist (kind={metadata.get('kind')!r})")
+    if metadata.get("kind") != kind:
+        raise WeightsError(f"{path}: not a {kind} (kind={metadata.get('kind')!r})")
     model = RecurrentActorCritic(NetworkConfig(**metadata["network"]), int(metadata["recurrent"]))
     load_into(model, path)
     return model.eval(), metadata
@@ -150,7 +151,7 @@ _LOADED: dict[tuple[str, float], tuple[RecurrentActorCritic, dict]] = {}
 
 
 def generalist_agent(
-    domain: str, path: str | Path | None, grid, name: str = "ppo-generalist"
+    domain: str, path: str | Path | None, grid, name: str = "ppo-generalist", kind: str = "ppo-generalist"
 ) -> GeneralistAgent:
     """The agent of the weights at ``path`` (None: the shipped ones, :func:`shipped_weights`) for an episode on
     ``grid`` (a ``GridConfig``): the weights must be of ``domain`` and trained on the same grid, else one line
@@ -160,7 +161,7 @@ def generalist_agent(
     path = shipped_weights(domain) if path is None else Path(path)
     key = (str(path.resolve()), path.stat().st_mtime if path.exists() else 0.0)
     if key not in _LOADED:
-        _LOADED[key] = load_generalist(path)
+        _LOADED[key] = load_generalist(path, kind)
     model, metadata = _LOADED[key]
     if metadata["domain"] != domain:
         raise ConfigError(
