@@ -229,13 +229,13 @@ class GeneralistTraining:
         return {"teams": list(TRAIN_TEAMS)}
 
 
-def curve_csv(history: list[dict]) -> str:
-    """The training curve, one row per update (:data:`CURVE_FIELDS`)."""
+def curve_csv(history: list[dict], fields: tuple[str, ...] = CURVE_FIELDS) -> str:
+    """The training curve, one row per update (:data:`CURVE_FIELDS`, or ``fields``)."""
     buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=CURVE_FIELDS, extrasaction="ignore", lineterminator="\n")
+    writer = csv.DictWriter(buffer, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
     writer.writeheader()
     for row in history:
-        writer.writerow({k: "" if row.get(k) is None else row[k] for k in CURVE_FIELDS})
+        writer.writerow({k: "" if row.get(k) is None else row[k] for k in fields})
     return buffer.getvalue()
 
 
