@@ -11,8 +11,8 @@ ground, 1 held, 2 in the container); it returns where the human goes (a neighbou
 ``library.graph``, or ``human_node`` to stay) and the ball it picks up at its node (``-1``: none). The env applies
 it with the lab's rules (a human holding a ball waits for the robot; ``domains.lab.apply_step``), and an outcome
 with ``dropped=True`` while the human holds a ball puts that ball back on the ground. A human may also define
-``answer(rng, human_node) -> node or None``: what it says when the robot asks "where are you?" (the abstract env
-passes that node through the speech confusion; ``None`` is no reply); without it the human says where it is. The
+``answer(rng, human_node) -> node or None``: what it says when the robot asks "where are you?" (both lab envs
+pass that node through their speech channel; ``None`` is no reply); without it the human says where it is. The
 agents keep their models: a different human is a model mismatch, which is what a user's human is for.
 
 ``human`` is ``None`` or ``"scripted"`` (the library's), a plug-in spec of :mod:`embodied_adhoc.plugins` (kind

@@ -293,7 +293,15 @@ class ToxicWasteEnv(gymnasium.Env):
         speech_audio = None
         counts = self._counts
         if self.speech is not None and action == lib.locate_action:
-            heard, utterances, speech_audio = self.speech.ask(truth.human_node, self._speech_rng)
+            said = self._human.reply(
+                truth.human_node
+            )  # the human's own answer (a plug-in may lie or keep quiet)
+            if said is None:
+                heard, utterances = None, ["(no reply)"]
+            else:
+                heard, utterances, speech_audio = self.speech.ask(said, self._speech_rng)
+                if said != truth.human_node:
+                    utterances.append(f"(the human said node {said}; it is at node {truth.human_node})")
             counts["replies"] += 1
             if self.speech_failure > 0 and self._failure_rng.random() < self.speech_failure:
                 heard = None  # the reply was lost (noise, the human did not answer): no location heard

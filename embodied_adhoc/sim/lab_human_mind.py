@@ -10,7 +10,9 @@ the physics.
 The policy has the lab's human interface (``domains.lab_human.LabHuman``, or a plug-in of ``envs.lab_humans``):
 ``step(rng, human_node, ball_status) -> HumanOutcome``, called only when the human holds no ball; a human holding
 a ball waits where it is and hands the ball over when the robot is in its area and stays or asks (thesis section
-7.1), so it makes no draw then.
+7.1), so it makes no draw then. When the robot asks where it is, the human says so (:meth:`HumanMind.reply`: the
+policy's ``answer`` where it has one) and the speech channel carries what it said. A policy's ``dropped`` outcome
+(letting a held ball fall) is not acted out: the walker has no such motion.
 """
 
 from __future__ import annotations
@@ -51,3 +53,9 @@ class HumanMind:
         if outcome.next_node != here:
             return HumanCommand.move_to(outcome.next_node)
         return HumanCommand.stay()
+
+    def reply(self, human_node: int) -> int | None:
+        """Where the human says it is when the robot asks "where are you?" (``human_node``: its true area): its
+        policy's ``answer(rng, human_node)`` if it has one (None: no reply), else its area."""
+        answer = getattr(self.policy, "answer", None)
+        return human_node if answer is None else answer(self.rng, human_node)

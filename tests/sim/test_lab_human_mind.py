@@ -93,3 +93,30 @@ def test_the_physics_lab_senses_with_the_models_own_parameter():
         assert env.library.observation_model.robot(2)[2] == pytest.approx(0.8)
     finally:
         env.close()
+
+
+class Liar:
+    """The library's scripted human, who says it is at the door (``say``) or keeps quiet (``say=None``)."""
+
+    def __init__(self, scripted, say) -> None:
+        self.scripted, self.say = scripted, say
+
+    def step(self, rng, human_node, ball_status):
+        return self.scripted.step(rng, human_node, ball_status)
+
+    def answer(self, rng, human_node):
+        return self.say
+
+
+@pytest.mark.parametrize(("say", "heard"), [(0, 0), (None, 5)])
+def test_the_physics_human_answers_for_itself(say, heard):
+    from embodied_adhoc.envs.toxic_waste import ToxicWasteEnv
+
+    env = ToxicWasteEnv(speech="perfect", human=lambda library, task: Liar(library.humans[task], say))
+    try:
+        env.reset(seed=0, options={"task": 0, "robot_node": 1, "human_node": 3})
+        observation, _, _, _, info = env.step(env.library.locate_action)
+        assert info["human_node"] != 0  # the human is not at the door, whatever it says
+        assert observation[1] == heard  # perfect speech hears what was said; no reply reads as none (5)
+    finally:
+        env.close()
