@@ -63,8 +63,8 @@ CURVE_FIELDS = (
 )
 
 
-def weights_name(domain: str) -> str:
-    return f"{domain}-ppo-generalist.safetensors"
+def weights_name(domain: str, kind: str = "ppo-generalist") -> str:
+    return f"{domain}-{kind}.safetensors"
 
 
 def shipped_weights(domain: str) -> Path:
@@ -243,21 +243,28 @@ def train_generalist_run(
     settings: GeneralistTraining,
     progress: Callable[[int, dict], None] | None = None,
     stop_after: int | None = None,
+    auxiliary=None,
+    kind: str = "ppo-generalist",
 ) -> dict:
     """Train (resuming a checkpoint in ``settings.out`` of the same settings) and write the weights
     (:func:`weights_name`), ``curve.csv`` and ``training.json``; the checkpoint is removed once the weights are
     written. A folder whose weights exist already is not retrained: its report is returned. With ``stop_after``
-    the run stops after that many updates in all, checkpointed."""
+    the run stops after that many updates in all, checkpointed.
+
+    ``auxiliary`` (a training-only loss, see :func:`train_recurrent_ppo`) and ``kind`` make another agent of the
+    same network (``liam``): the auxiliary's ``curve_fields`` join the curve, ``exported(model)`` is the network
+    the weights file holds and ``metadata`` joins its header, whose kind is ``kind``."""
     if settings.threads:
         torch.set_num_threads(settings.threads)
     out = Path(settings.out)
-    weights, report_path = out / weights_name(settings.domain), out / "training.json"
+    weights, report_path = out / weights_name(settings.domain, kind), out / "training.json"
     if weights.exists() and report_path.exists() and not (out / CHECKPOINT).exists():
         return json.loads(report_path.read_text())
     config, env_kwargs = settings.config(), settings.env_kwargs()
     started = time.perf_counter()
-    result = train_recurrent_ppo(settings.domain, env_kwargs, config, out, progress, stop_after)
-    atomic_write_text(out / "curve.csv", curve_csv(result.history))
+    result = train_recurrent_ppo(settings.domain, env_kwargs, config, out, progress, stop_after, auxiliary)
+    fields = CURVE_FIELDS + tuple(getattr(auxiliary, "curve_fields", ()))
+    atomic_write_text(out / "curve.csv", curve_csv(result.history, fields))
     report = {
         "settings": asdict(settings),
         "finished": result.finished,
@@ -270,7 +277,12 @@ def train_generalist_run(
         "final": result.history[-1] if result.history else None,
     }
     if result.finished:
-        save_weights(weights, result.model, generalist_metadata(settings.domain, env_kwargs, config, result))
+        metadata = generalist_metadata(settings.domain, env_kwargs, config, result)
+        model = result.model
+        if auxiliary is not None:
+            model = auxiliary.exported(model)
+            metadata.update(auxiliary.metadata)
+        save_weights(weights, model, {**metadata, "kind": kind})
         atomic_write_text(report_path, json.dumps(report, indent=1) + "\n")
         (out / CHECKPOINT).unlink(missing_ok=True)
     return report
