@@ -76,7 +76,54 @@ def handle_generalist(args: argparse.Namespace) -> int:
     return 0
 
 
-def _plot_curve(csv_path, png_path, domain: str) -> None:
+def handle_liam(args: argparse.Namespace) -> int:
+    for name in ("steps", "envs", "rollout", "threads"):
+        if getattr(args, name) < 1:
+            raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
+    if not args.reconstruction >= 0.0:
+        raise ConfigError(f"--reconstruction {args.reconstruction}: give a weight >= 0")
+    from tqdm import tqdm
+
+    from embodied_adhoc.learning.liam import LiamTraining, train_liam_run
+    from embodied_adhoc.learning.ppo import pick_device
+
+    pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
+    settings = LiamTraining(
+        args.domain,
+        str(args.out),
+        args.steps,
+        args.seed,
+        args.envs,
+        args.rollout,
+        args.device,
+        args.threads,
+        reconstruction_coef=args.reconstruction,
+    )
+    config = settings.config()  # settings that do not fit together are refused before training starts
+    batch = config.num_envs * config.rollout_steps
+    total = max(1, config.total_steps // batch) * batch  # whole updates
+    with tqdm(total=total, unit="step", desc=f"liam {args.domain}", disable=args.quiet) as bar:
+
+        def progress(steps: int, row: dict) -> None:
+            length = row["mean_episode_length"]
+            bar.set_postfix_str(
+                f"episode length {'-' if length is None else f'{length:.1f}'} "
+                f"reconstruction {row['reconstruction_loss']:.3f}"
+            )
+            bar.update(steps - bar.n)
+
+        report = train_liam_run(settings, progress)
+    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain, agent="liam")
+    final = report["final"] or {}
+    print(
+        f"liam {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
+        f"({report['steps_per_second']} steps/s) -> {args.out}; last update: mean episode length "
+        f"{final.get('mean_episode_length')}, reconstruction loss {final.get('reconstruction_loss')}"
+    )
+    return 0
+
+
+def _plot_curve(csv_path, png_path, domain: str, agent: str = "ppo-generalist") -> None:
     """Episode length and solved fraction against env steps, from the training curve's CSV."""
     import csv
 
@@ -98,7 +145,7 @@ def _plot_curve(csv_path, png_path, domain: str) -> None:
     for axis in (left, right):
         axis.set_xlabel("env steps")
         axis.grid(alpha=0.3)
-    figure.suptitle(f"ppo-generalist {domain}: training episodes (teams drawn from the train population)")
+    figure.suptitle(f"{agent} {domain}: training episodes (teams drawn from the train population)")
     try:
         with atomic_path(png_path) as temporary:
             figure.savefig(temporary, format="png", dpi=110, bbox_inches="tight")
@@ -192,3 +239,31 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
     )
     generalist.set_defaults(func=handle_generalist)
+    liam = kinds.add_parser(
+        "liam",
+        help="the recurrent PPO policy with agent modelling (LIAM): its GRU state also decodes the teammates",
+        description="LIAM (Papoudakis et al. 2021): train ppo-generalist's GRU actor-critic with, during training "
+        "only, a decoder that reconstructs the teammates' observations and actions from the GRU state, its loss "
+        "added to PPO's. Writes the weights without the decoder (safetensors), curve.csv, curve.png and "
+        "training.json to --out; an interrupted run resumes from the checkpoint there.",
+    )
+    liam.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
+    liam.add_argument(
+        "--steps",
+        type=int,
+        default=200_000,
+        help="env steps in all, rounded down to whole updates (default 200000)",
+    )
+    liam.add_argument("--seed", type=int, default=0)
+    liam.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
+    liam.add_argument("--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length")
+    liam.add_argument(
+        "--reconstruction", type=float, default=1.0, help="weight of the reconstruction loss (default 1)"
+    )
+    liam.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
+    liam.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    liam.add_argument("--quiet", action="store_true", help="no progress bar")
+    liam.add_argument(
+        "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
+    )
+    liam.set_defaults(func=handle_liam)
