@@ -96,8 +96,8 @@ def test_the_gru_state_starts_afresh_at_every_episode_start():
     assert torch.allclose(fresh_values[:, 0], values[3:, 1], atol=1e-5)
 
 
-def _episode(agent, seed: int, steps: int = 12) -> list[int]:
-    env = gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0")
+def _episode(agent, seed: int, steps: int = 12, env_id: str = "EmbodiedAdhoc/ForagingGrid-v0") -> list[int]:
+    env = gymnasium.make(env_id)
     observation, _ = env.reset(seed=seed)
     agent.reset(np.random.default_rng(seed))
     agent.start(observation)
@@ -136,6 +136,15 @@ def test_the_shipped_agent_loads_from_safetensors_and_plays_by_the_protocol():
 
     arena = SimpleNamespace(rules=SimpleNamespace(config=GridConfig()))  # what a plug-in factory receives
     assert _episode(plugin(arena, rng_seed=3), seed=7) == first
+
+
+def test_the_shipped_pursuit_agent_plays_the_pursuit_grid():
+    agent = generalist_agent("pursuit", None, GridConfig(domain="pursuit"))
+    first = _episode(agent, seed=5, env_id="EmbodiedAdhoc/PursuitGrid-v0")
+    assert first and all(0 <= a <= 4 for a in first)
+    assert _episode(agent, seed=5, env_id="EmbodiedAdhoc/PursuitGrid-v0") == first
+    with pytest.raises(ConfigError, match="a pursuit agent"):
+        generalist_agent("foraging", shipped_weights("pursuit"), GridConfig())
 
 
 def test_the_agent_refuses_another_grid_and_observation_indices():
