@@ -251,8 +251,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     liam.add_argument(
         "--steps",
         type=int,
-        default=200_000,
-        help="env steps in all, rounded down to whole updates (default 200000)",
+        default=120_000,
+        help="env steps in all, rounded down to whole updates (default 120000)",
     )
     liam.add_argument("--seed", type=int, default=0)
     liam.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")

@@ -48,7 +48,7 @@ from embodied_adhoc.paths import assets_dir
 KIND = "liam"
 SHIPPED_FOLDER = "liam"
 SHIPPED_COMMAND = (
-    "embodied-adhoc train liam --domain {domain} --steps 200000 --seed 0 --threads 1 "
+    "embodied-adhoc train liam --domain {domain} --steps 120000 --seed 0 --threads 1 "
     "--out assets/liam/{domain}"
 )
 RECONSTRUCTION_FIELDS = ("reconstruction_loss", "observation_mse", "action_cross_entropy", "action_accuracy")

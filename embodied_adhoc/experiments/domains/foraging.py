@@ -10,7 +10,8 @@ hoc robot's seat), ``random`` (uniform over the 5 actions), ``atlpo-mf`` (thesis
 the pre-trained library shipped with the package, or of ``--library DIR``; it reads the egocentric arrays
 themselves, ``observes_raw``, and its task posterior is the classifier's marginal over the tasks) and
 ``ppo-generalist`` (the library-free recurrent PPO agent shipped with the package, trained against tau0-tau2;
-it keeps no task posterior). The observation index reported to the runner is a CRC-32 fingerprint of the
+it keeps no task posterior) and ``liam`` (the same network trained with LIAM's reconstruction of the teammates,
+:mod:`embodied_adhoc.learning.liam`). The observation index reported to the runner is a CRC-32 fingerprint of the
 egocentric observation (these domains have no finite observation library), or on the pair variant
 (``--pairs``) the pursuit POMDP's index that its ``obs["observation_index"]`` holds.
 """
@@ -105,6 +106,10 @@ class GridTrialSession:
             from embodied_adhoc.learning.generalist import generalist_agent
 
             return generalist_agent(self.domain, None, self.rules.config, name=name)
+        if name == "liam":
+            from embodied_adhoc.learning.liam import liam_agent
+
+            return liam_agent(self.domain, None, self.rules.config, name=name)
         raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
 
     def observation_index(self, observation) -> int:
@@ -141,7 +146,7 @@ def env_kwargs(options: dict) -> dict:
 
 class GridTrialDomain:
     backends = ("abstract", "mujoco")
-    agent_names = ("original", "random", "atlpo-mf", "ppo-generalist")
+    agent_names = ("original", "random", "atlpo-mf", "ppo-generalist", "liam")
     default_agents = ("original", "random")
     privileged_agents = ("original",)  # observes_state: marked in the tables
 
