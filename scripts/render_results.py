@@ -572,9 +572,14 @@ def tag_extract(outputs: dict[str, str]) -> dict:
     }
 
 
+def simulated_interval(simulated: dict) -> tuple[float, float]:
+    """The 95 % interval of a ``pomdp solve --simulate`` mean (the CLI prints its half-width)."""
+    return simulated["mean"] - simulated["ci95"], simulated["mean"] + simulated["ci95"]
+
+
 def tag_tables(data: dict) -> list[Table]:
     simulated = data["simulation"]
-    low, high = simulated["ci95"]
+    low, high = simulated_interval(simulated)
     headers = [
         "file",
         "stages",
@@ -599,7 +604,7 @@ def tag_tables(data: dict) -> list[Table]:
 def tag_compare(published: dict, check: dict) -> list[str]:
     """A second kernel's claimed value lies in the published bracket, its simulated mean in the published CI."""
     failures = compare_bracket(published, check)
-    low, high = published["simulation"]["ci95"]
+    low, high = simulated_interval(published["simulation"])
     mean = check["simulation"]["mean"]
     if not low <= mean <= high:
         failures.append(f"simulated mean {mean:.3f} outside the published [{low:.3f}, {high:.3f}]")
