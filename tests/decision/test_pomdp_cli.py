@@ -133,8 +133,8 @@ def test_bad_solve_options_fail_before_any_work(flags, fragments):
 
 
 def test_save_policy_writes_exactly_the_path_asked_or_fails_before_solving(tmp_path):
-    """numpy used to append '.npz' to the temporary name: the solve crashed after its work and left
-    '.p.partial-PID.bin.npz' behind. Now PATH is written as given; a folder or a path under a file fails first."""
+    """numpy appends '.npz' to a temporary name without it, so the policy file is written through a stream: PATH
+    is written as given, with no '.p.partial-PID.bin.npz' left behind; a folder or a path under a file fails first."""
     target = tmp_path / "p.bin"
     ok = run("solve", "tiger.95.POMDP", "--solver", "qmdp", "--save-policy", str(target), "--json")
     assert ok.returncode == 0, ok.stderr
@@ -182,7 +182,7 @@ def test_bad_model_files_are_one_line_naming_file_and_line(tmp_path, body, line,
 
 
 def test_a_model_too_large_for_dense_arrays_is_read_sparse(tmp_path):
-    """200,000 states with 'identity' used to need dense 200,000 x 200,000 arrays (MemoryError)."""
+    """200,000 states with 'identity' would need dense 200,000 x 200,000 arrays: the model is read sparse."""
     model = tmp_path / "big.pomdp"
     model.write_text(HEADER.format(states=200_000) + "T: * identity\nO: * uniform\nR: * : 3 : * : * 1\n")
     result = run("info", str(model), "--json")
