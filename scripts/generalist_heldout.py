@@ -1,6 +1,7 @@
 """The ppo-generalist beside ATLPO-MF, the library member that knows the task, the original teammate and random,
 on the train teams (tau0-tau2, what it was trained with) and the held-out teams of the ATLPO split (noisy and mixed
-teams it never saw), with the held-out protocol of ``embodied_adhoc.learning.atlpo_heldout``: the same episodes
+teams it never saw), and the liam agent where one is shipped (or ``--liam FILE``), with the held-out
+protocol of ``embodied_adhoc.learning.atlpo_heldout``: the same episodes
 (seeds, tasks cycling 1..4) for every agent, scores normalised between random (0) and the original teammate (1),
 IQM and mean with percentile-bootstrap intervals.
 
@@ -26,6 +27,11 @@ def main() -> None:
     parser.add_argument("--max-steps", type=int, default=200)
     parser.add_argument("--weights", default=None, help="ppo-generalist weights (default: the shipped ones)")
     parser.add_argument("--library", default=None, help="ATLPO library folder (default: the shipped one)")
+    parser.add_argument(
+        "--liam",
+        default=None,
+        help="liam weights scored beside it (default: the shipped ones, where shipped)",
+    )
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
     if args.episodes < 1 or args.max_steps < 1:
@@ -46,6 +52,19 @@ def main() -> None:
     torch.set_num_threads(1)
     library, classifier = load_library(args.library or shipped_library(args.domain))
     model, metadata = load_generalist(args.weights or shipped_weights(args.domain))
+    extra_agents = {"ppo-generalist": lambda: GeneralistAgent(model)}
+    liam_path = args.liam
+    if liam_path is None:
+        from embodied_adhoc.errors import ConfigError
+        from embodied_adhoc.learning.liam import shipped_weights as shipped_liam
+
+        try:
+            liam_path = shipped_liam(args.domain)
+        except ConfigError:  # none shipped for this domain: the table goes without it
+            liam_path = None
+    if liam_path is not None:
+        liam_model, liam_metadata = load_generalist(liam_path, kind="liam")
+        extra_agents["liam"] = lambda: GeneralistAgent(liam_model, name="liam")
     started = time.perf_counter()
     results, scores = {}, {}
     for split, teams in (("train", train_teams(args.domain)), ("held-out", held_out_teams(args.domain))):
@@ -56,12 +75,12 @@ def main() -> None:
             args.episodes,
             args.seed,
             args.max_steps,
-            extra_agents={"ppo-generalist": lambda: GeneralistAgent(model)},
+            extra_agents=extra_agents,
         )
         results[split] = cell
         scores[split] = normalised_scores([cell], summarise_sample)
     seconds = time.perf_counter() - started
-    agents = ("ppo-generalist", "atlpo-mf", "known-task")
+    agents = (*extra_agents, "atlpo-mf", "known-task")
     lines = [
         f"{args.domain}: normalised score (random 0, original teammate 1), IQM [95 % bootstrap CI] over "
         f"{args.episodes} episodes per team (tasks cycling 1..4, cap {args.max_steps}); mean steps (solved %)",
@@ -86,6 +105,12 @@ def main() -> None:
         f"ppo-generalist: {metadata['env_steps']} training env steps, {metadata['seconds']} s of training; "
         f"evaluation {seconds:.0f} s",
     ]
+    if "liam" in extra_agents:
+        lines.insert(
+            -1,
+            f"liam ({liam_path}): {liam_metadata['env_steps']} training env steps, "
+            f"{liam_metadata['seconds']} s of training",
+        )
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "results.json").write_text(
         json.dumps({"settings": vars(args) | {"out": str(args.out)}, "results": results, "scores": scores})
