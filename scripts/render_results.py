@@ -22,7 +22,12 @@ Each table states its class, derived from the runs in its result file, never typ
   mean lies inside the published 95 % interval, every thesis claim keeps its verdict; for a solver value the
   second kernel's lower bound lies in the published [lower, upper] bracket);
 * *timing*: seconds and ratios of seconds, which depend on the host and its load; recorded, never compared;
-* *not re-checked*: only one kernel has run it.
+* *not re-checked*: only one kernel has run it;
+* "... (the part checked)": every check ran some of the commands or rows only, and the class holds for those.
+
+Tables that no file in ``results/`` holds are marked the same way: ``RECORDED`` ones are generated from a result
+file that ships as an asset (its provenance inside; class *not re-run*), and ``UNRUN`` ones render as a block that
+names the command, what a run costs and the class the table will have, and prints no number.
 
 ``--check`` renders in memory and exits 1 when a committed page differs from what the committed result files
 render, naming the page, the table and the command to re-run (fast: nothing is solved or simulated)::
