@@ -214,6 +214,9 @@ class LearnedEnvironment:
             },
         )
         self.steps = 0
+        self.simulator_inputs: dict[
+            int, tuple[np.ndarray, np.ndarray]
+        ] = {}  # PursuitSimulator's, by batch size
 
     def transition_probs(self, states: np.ndarray, actions: np.ndarray) -> np.ndarray:
         """(B, 5, 5) ``p_n(move | x, a)`` for every agent n (each row sums to 1: Eq. 4.3's factors)."""
@@ -289,7 +292,7 @@ class PursuitSimulator:
 
     def __init__(self, environment: LearnedEnvironment, team: LearnedTeam) -> None:
         self.environment, self.team, self.features = environment, team, environment.features
-        self.buffers = environment.__dict__.setdefault("_simulator_buffers", {})
+        self.buffers = environment.simulator_inputs
 
     def _inputs(self, count: int) -> tuple[np.ndarray, np.ndarray]:
         """(count, 3, 43) team and (count, 5, 70) transition input arrays, constant columns set."""
