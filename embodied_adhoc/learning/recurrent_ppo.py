@@ -249,8 +249,10 @@ def train_recurrent_ppo(
     ``auxiliary`` adds a training-only loss term (LIAM's reconstruction, :mod:`embodied_adhoc.learning.liam`):
     ``auxiliary.vector_kwargs`` (extra GridVectorEnv arguments, not part of the run's identity),
     ``auxiliary.network(network, recurrent)`` builds the model, ``auxiliary.record(t, infos)`` sees every
-    rollout step's infos and ``auxiliary.loss(model, index)`` -> (loss, stats), called right after the PPO
-    objective of the sub-envs ``index``, is added to it (stats of the last evaluation go in the curve's rows)."""
+    rollout step's infos (with ``records_steps`` also ``auxiliary.record_step(t, action, reward, terminated)``:
+    the ego's action and the env's reward and ends) and ``auxiliary.loss(model, index)`` -> (loss, stats), called
+    right after the PPO objective of the sub-envs ``index``, is added to it (stats of the last evaluation go in
+    the curve's rows)."""
     env_kwargs = dict(env_kwargs)
     vector_kwargs = env_kwargs if auxiliary is None else {**env_kwargs, **auxiliary.vector_kwargs}
     rng, device, env, observation, network = start_training(domain, vector_kwargs, config)
@@ -317,6 +319,8 @@ def train_recurrent_ppo(
             observation, reward, terminated, truncated, infos = env.step(action.cpu().numpy())
             if auxiliary is not None:
                 auxiliary.record(t, infos)
+                if getattr(auxiliary, "records_steps", False):  # targets built from the ego's own steps
+                    auxiliary.record_step(t, action, reward, terminated)
             result.env_steps += envs
             ended = torch.as_tensor(terminated | truncated, device=device)
             lengths = lengths + (~resetting).long()
