@@ -151,17 +151,24 @@ _LOADED: dict[tuple[str, float], tuple[RecurrentActorCritic, dict]] = {}
 
 
 def generalist_agent(
-    domain: str, path: str | Path | None, grid, name: str = "ppo-generalist", kind: str = "ppo-generalist"
+    domain: str,
+    path: str | Path | None,
+    grid,
+    name: str = "ppo-generalist",
+    kind: str = "ppo-generalist",
+    loader: Callable[[Path, str], tuple] | None = None,
 ) -> GeneralistAgent:
     """The agent of the weights at ``path`` (None: the shipped ones, :func:`shipped_weights`) for an episode on
     ``grid`` (a ``GridConfig``): the weights must be of ``domain`` and trained on the same grid, else one line
-    saying which. Weights are read once per process; each call gets its own agent (its own GRU state)."""
+    saying which. Weights are read once per process; each call gets its own agent (its own GRU state).
+    ``loader(path, kind)`` -> (network, metadata) reads another network with the same step interface (meliba's;
+    default :func:`load_generalist`)."""
     from embodied_adhoc.learning.atlpo import grid_differences
 
     path = shipped_weights(domain) if path is None else Path(path)
     key = (str(path.resolve()), path.stat().st_mtime if path.exists() else 0.0)
     if key not in _LOADED:
-        _LOADED[key] = load_generalist(path, kind)
+        _LOADED[key] = (loader or load_generalist)(path, kind)
     model, metadata = _LOADED[key]
     if metadata["domain"] != domain:
         raise ConfigError(
