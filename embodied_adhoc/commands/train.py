@@ -123,6 +123,54 @@ def handle_liam(args: argparse.Namespace) -> int:
     return 0
 
 
+def handle_meliba(args: argparse.Namespace) -> int:
+    for name in ("steps", "envs", "rollout", "threads", "latent"):
+        if getattr(args, name) < 1:
+            raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
+    if not args.kl >= 0.0:
+        raise ConfigError(f"--kl {args.kl}: give a weight >= 0")
+    from tqdm import tqdm
+
+    from embodied_adhoc.learning.meliba import MelibaTraining, train_meliba_run
+    from embodied_adhoc.learning.ppo import pick_device
+
+    pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
+    settings = MelibaTraining(
+        args.domain,
+        str(args.out),
+        args.steps,
+        args.seed,
+        args.envs,
+        args.rollout,
+        args.device,
+        args.threads,
+        latent=args.latent,
+        kl_coef=args.kl,
+    )
+    config = settings.config()  # settings that do not fit together are refused before training starts
+    batch = config.num_envs * config.rollout_steps
+    total = max(1, config.total_steps // batch) * batch  # whole updates
+    with tqdm(total=total, unit="step", desc=f"meliba {args.domain}", disable=args.quiet) as bar:
+
+        def progress(steps: int, row: dict) -> None:
+            length = row["mean_episode_length"]
+            bar.set_postfix_str(
+                f"episode length {'-' if length is None else f'{length:.1f}'} elbo {row['elbo_loss']:.3f} "
+                f"variance {row['posterior_variance']:.3f}"
+            )
+            bar.update(steps - bar.n)
+
+        report = train_meliba_run(settings, progress)
+    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain, agent="meliba")
+    final = report["final"] or {}
+    print(
+        f"meliba {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
+        f"({report['steps_per_second']} steps/s) -> {args.out}; last update: mean episode length "
+        f"{final.get('mean_episode_length')}, negative ELBO {final.get('elbo_loss')}"
+    )
+    return 0
+
+
 def _plot_curve(csv_path, png_path, domain: str, agent: str = "ppo-generalist") -> None:
     """Episode length and solved fraction against env steps, from the training curve's CSV."""
     import csv
@@ -258,7 +306,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     liam.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
     liam.add_argument("--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length")
     liam.add_argument(
-        "--reconstruction", type=float, default=1.0, help="weight of the reconstruction loss (default 1)"
+        "--reconstruction", type=float, default=0.1, help="weight of the reconstruction loss (default 0.1)"
     )
     liam.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
     liam.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
@@ -267,3 +315,33 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
     )
     liam.set_defaults(func=handle_liam)
+    meliba = kinds.add_parser(
+        "meliba",
+        help="a PPO policy conditioned on a variational belief over its teammates (MeLIBA / VariBAD)",
+        description="MeLIBA (Zintgraf et al. 2021, after VariBAD): a recurrent encoder over the ego's own "
+        "trajectory gives a Gaussian posterior over a latent teammate/task embedding, trained (ELBO) with a "
+        "training-only decoder of future rewards and teammates' actions; a PPO policy reads the window and the "
+        "posterior's mean and variance. Writes the weights without the decoder (safetensors), curve.csv, "
+        "curve.png and training.json to --out; an interrupted run resumes from the checkpoint there.",
+    )
+    meliba.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
+    meliba.add_argument(
+        "--steps",
+        type=int,
+        default=120_000,
+        help="env steps in all, rounded down to whole updates (default 120000)",
+    )
+    meliba.add_argument("--seed", type=int, default=0)
+    meliba.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
+    meliba.add_argument(
+        "--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length"
+    )
+    meliba.add_argument("--latent", type=int, default=8, help="size of the latent embedding (default 8)")
+    meliba.add_argument("--kl", type=float, default=0.1, help="weight of the ELBO's KL term (default 0.1)")
+    meliba.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
+    meliba.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    meliba.add_argument("--quiet", action="store_true", help="no progress bar")
+    meliba.add_argument(
+        "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
+    )
+    meliba.set_defaults(func=handle_meliba)

@@ -37,7 +37,7 @@ __all__ = [
 ]
 
 LAB_ENV_ID = "EmbodiedAdhoc/ToxicWaste-v0"
-FORAGING_AGENTS = ("atlpo-mf", "original", "random", "ppo-generalist", "liam")
+FORAGING_AGENTS = ("atlpo-mf", "original", "random", "ppo-generalist", "liam", "meliba")
 
 
 def prepare_recorded(

@@ -11,8 +11,9 @@ the pre-trained library shipped with the package, or of ``--library DIR``; it re
 themselves, ``observes_raw``, and its task posterior is the classifier's marginal over the tasks) and
 ``ppo-generalist`` (the library-free recurrent PPO agent shipped with the package, trained against tau0-tau2;
 it keeps no task posterior) and ``liam`` (the same network trained with LIAM's reconstruction of the teammates,
-:mod:`embodied_adhoc.learning.liam`). The observation index reported to the runner is a CRC-32 fingerprint of the
-egocentric observation (these domains have no finite observation library), or on the pair variant
+:mod:`embodied_adhoc.learning.liam`) and ``meliba`` (a policy conditioned on a variational belief over its
+teammates, :mod:`embodied_adhoc.learning.meliba`). The observation index reported to the runner is a CRC-32
+fingerprint of the egocentric observation (these domains have no finite observation library), or on the pair variant
 (``--pairs``) the pursuit POMDP's index that its ``obs["observation_index"]`` holds.
 """
 
@@ -110,6 +111,10 @@ class GridTrialSession:
             from embodied_adhoc.learning.liam import liam_agent
 
             return liam_agent(self.domain, None, self.rules.config, name=name)
+        if name == "meliba":
+            from embodied_adhoc.learning.meliba import meliba_agent
+
+            return meliba_agent(self.domain, None, self.rules.config, name=name)
         raise ConfigError(f"agent '{name}': the grid arenas offer {GridTrialDomain.agent_names}")
 
     def observation_index(self, observation) -> int:
@@ -146,7 +151,7 @@ def env_kwargs(options: dict) -> dict:
 
 class GridTrialDomain:
     backends = ("abstract", "mujoco")
-    agent_names = ("original", "random", "atlpo-mf", "ppo-generalist", "liam")
+    agent_names = ("original", "random", "atlpo-mf", "ppo-generalist", "liam", "meliba")
     default_agents = ("original", "random")
     privileged_agents = ("original",)  # observes_state: marked in the tables
 
