@@ -58,7 +58,7 @@ RECONSTRUCTION_FIELDS = ("reconstruction_loss", "observation_mse", "action_cross
 class LiamConfig(RecurrentPpoConfig):
     """Recurrent PPO settings plus the decoder's: its hidden width and the reconstruction loss's weight."""
 
-    reconstruction_coef: float = 1.0
+    reconstruction_coef: float = 0.1
     decoder_hidden: int = 128
 
     def __post_init__(self) -> None:
@@ -230,7 +230,7 @@ def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
 class LiamTraining(GeneralistTraining):
     """The ``train liam`` settings: ``train ppo-generalist``'s plus the reconstruction loss's weight."""
 
-    reconstruction_coef: float = 1.0
+    reconstruction_coef: float = 0.1
 
     def config(self) -> LiamConfig:
         return LiamConfig(**asdict(super().config()), reconstruction_coef=self.reconstruction_coef)
