@@ -1,7 +1,7 @@
 """The ppo-generalist beside ATLPO-MF, the library member that knows the task, the original teammate and random,
 on the train teams (tau0-tau2, what it was trained with) and the held-out teams of the ATLPO split (noisy and mixed
-teams it never saw), and the liam agent where one is shipped (or ``--liam FILE``), with the held-out
-protocol of ``embodied_adhoc.learning.atlpo_heldout``: the same episodes
+teams it never saw), and the liam and meliba agents where shipped (or ``--liam FILE``, ``--meliba FILE``), with
+the held-out protocol of ``embodied_adhoc.learning.atlpo_heldout``: the same episodes
 (seeds, tasks cycling 1..4) for every agent, scores normalised between random (0) and the original teammate (1),
 IQM and mean with percentile-bootstrap intervals.
 
@@ -31,6 +31,11 @@ def main() -> None:
         "--liam",
         default=None,
         help="liam weights scored beside it (default: the shipped ones, where shipped)",
+    )
+    parser.add_argument(
+        "--meliba",
+        default=None,
+        help="meliba weights scored beside it (default: the shipped ones, where shipped)",
     )
     parser.add_argument("--out", type=Path, required=True)
     args = parser.parse_args()
@@ -65,6 +70,20 @@ def main() -> None:
     if liam_path is not None:
         liam_model, liam_metadata = load_generalist(liam_path, kind="liam")
         extra_agents["liam"] = lambda: GeneralistAgent(liam_model, name="liam")
+    meliba_path = args.meliba
+    if meliba_path is None:
+        from embodied_adhoc.errors import ConfigError
+        from embodied_adhoc.learning.meliba import shipped_weights as shipped_meliba
+
+        try:
+            meliba_path = shipped_meliba(args.domain)
+        except ConfigError:  # none shipped for this domain: the table goes without it
+            meliba_path = None
+    if meliba_path is not None:
+        from embodied_adhoc.learning.meliba import load_meliba
+
+        meliba_model, meliba_metadata = load_meliba(meliba_path)
+        extra_agents["meliba"] = lambda: GeneralistAgent(meliba_model, name="meliba")
     started = time.perf_counter()
     results, scores = {}, {}
     for split, teams in (("train", train_teams(args.domain)), ("held-out", held_out_teams(args.domain))):
@@ -110,6 +129,12 @@ def main() -> None:
             -1,
             f"liam ({liam_path}): {liam_metadata['env_steps']} training env steps, "
             f"{liam_metadata['seconds']} s of training",
+        )
+    if "meliba" in extra_agents:
+        lines.insert(
+            -1,
+            f"meliba ({meliba_path}): {meliba_metadata['env_steps']} training env steps, "
+            f"{meliba_metadata['seconds']} s of training",
         )
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "results.json").write_text(
