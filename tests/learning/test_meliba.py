@@ -45,6 +45,15 @@ def test_tiny_training_is_deterministic_given_the_seed():
     assert not torch.equal(other.model.state_dict()["belief.weight"], one["belief.weight"])
 
 
+def test_an_interrupted_run_resumes_to_the_uninterrupted_weights(tmp_path):
+    whole = train_meliba("foraging", TEAMS, TINY)
+    assert train_meliba("foraging", TEAMS, TINY, tmp_path, stop_after=1).updates == 1
+    resumed = train_meliba("foraging", TEAMS, TINY, tmp_path)
+    assert resumed.updates == 2
+    one, two = whole.model.state_dict(), resumed.model.state_dict()
+    assert all(torch.equal(one[k], two[k]) for k in one)
+
+
 def test_the_kl_term_is_nonnegative_and_zero_only_between_equal_gaussians():
     generator = torch.Generator().manual_seed(0)
     mu_q, mu_p, logvar_q, logvar_p = (3 * torch.randn(512, 8, generator=generator) for _ in range(4))
