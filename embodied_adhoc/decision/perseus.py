@@ -109,6 +109,12 @@ class PerseusConfig:
     # (time.process_time), as SARSOP's pomdpsol does (clock()). The clock never decides what is computed, only
     # after how many whole iterations the time limit stops the solve.
     clock: str = "wall"
+    # Pruning of the plan graph (plan_graph.PlanGraph.prune_dominated): the rows outside V_n that a vector of V_n
+    # dominates at every state are dropped, their plans' parents continuing with the dominating vector, whenever
+    # the graph holds twice the rows it kept after the last pruning (after a stage), and once more on return. The
+    # value of the saved policy's vectors is unchanged at every belief, and the graph stays within twice its pruned
+    # size. False: keep every row reachable from V_n.
+    prune: bool = True
 
     def __post_init__(self) -> None:
         for invalid, message in self._checks():
@@ -278,6 +284,7 @@ class _Anytime:
     backups: int = 0  # beliefs backed up so far (stages, trials, full backups): what rounds are sized by
     stage_backups: int = 0
     trial_steps: int = 0
+    pruned_size: int = 0  # the graph's rows after the last pruning (PerseusConfig.prune)
 
     @classmethod
     def begin(cls, pomdp, config, operator, beliefs, rng, greedy_q, start, progress) -> _Anytime:
@@ -320,6 +327,7 @@ class _Anytime:
             max_beliefs=max_beliefs,
             witness=np.full(len(current), -1),
             round_start=bounds,
+            pruned_size=len(graph),
         )
 
     @property
@@ -336,6 +344,13 @@ class _Anytime:
             self.graph.vectors[current],
             self.graph.actions[current],
         )
+
+    def prune(self, force: bool = False) -> None:
+        """Prune the plan graph of dominated rows once it doubled since the last pruning (or when ``force``d)."""
+        if not self.config.prune or (not force and len(self.graph) < 2 * self.pruned_size):
+            return
+        self.use(self.graph.prune_dominated(self.current))
+        self.pruned_size = len(self.graph)
 
     def lower_b0(self) -> float:
         return float(dot(self.b0, self.alphas.T).max())
@@ -436,6 +451,7 @@ def _stage(state: _Anytime) -> None:
     state.witness = stage.witness if stage.witness is not None else np.full(len(current), -1)
     state.owner = stage.owner
     state.use(current)
+    state.prune()
     state.values = stage.values
     lower_b0 = state.lower_b0()
     state.stage_gain, state.bounds = lower_b0 - state.bounds.lower, _Bounds(lower_b0, state.bounds.upper)
@@ -564,6 +580,7 @@ def _finish(state: _Anytime) -> AlphaVectorPolicy:
         n_stage_vectors=len(state.current),
         discount=state.pomdp.discount,  # closed plan values: save() may store them rounded down (policy.py)
     )
+    state.prune(force=True)
     state.graph.keep_closure(state.current, force=True)
     return AlphaVectorPolicy(state.graph.vectors, state.graph.actions, stats=stats)
 

@@ -17,6 +17,12 @@ from __future__ import annotations
 
 import numpy as np
 
+_KEY_STATES = (
+    8  # per row, the states its dominance test reads first (where it is closest to the roots' envelope)
+)
+_DOMINATOR_TRIES = 8  # candidate dominators tested per row, in root order
+_PRUNE_BLOCK = 512  # rows whose (rows x roots) candidate table is built at once
+
 
 class PlanGraph:
     """Vectors (M, S), their first actions (M,) and continuation rows (M, Z) into the same arrays.
@@ -70,6 +76,27 @@ class PlanGraph:
         """Continue with ``replacement[row]`` wherever a plan continued with ``row`` (a dominating vector)."""
         self._children[: self._size] = replacement[self.children]
 
+    def prune_dominated(self, roots: np.ndarray) -> np.ndarray:
+        """Drop the rows outside ``roots`` that a root dominates at every state, continuing with that root wherever
+        a plan continued with them, then the rows no longer reachable; returns the rows of ``roots`` afterwards.
+
+        ``max_k alpha_k . b`` over the kept rows is unchanged at every belief (a dropped row is below a kept one
+        everywhere), and every kept plan still earns at least its vector: its continuations only got larger
+        pointwise, and the Bellman operator of a plan is monotone (cycles through a root included). Comparisons
+        are exact, so the result is the same on any host.
+        """
+        roots = np.asarray(roots, dtype=np.int64)
+        others = np.setdiff1d(np.arange(len(self)), roots)
+        if others.size == 0 or roots.size == 0:
+            return roots
+        found, dominator = _dominated(self.vectors[others], self.vectors[roots])
+        if not found.any():
+            return roots
+        replacement = np.arange(len(self))
+        replacement[others[found]] = roots[dominator[found]]
+        self.redirect(replacement)
+        return self.keep_closure(roots, force=True)
+
     def closure(self, roots: np.ndarray) -> np.ndarray:
         """Sorted rows reachable from ``roots`` through continuations (the roots included)."""
         reached = np.zeros(len(self), dtype=bool)
@@ -98,6 +125,43 @@ class PlanGraph:
         self._children = renumber[self.children[keep]]
         self._size = keep.size
         return renumber[roots]
+
+
+def _dominated(rows: np.ndarray, dominators: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per row of ``rows``: whether a row of ``dominators`` is >= it at every state, and the first one found.
+
+    A row above the dominators' pointwise envelope at some state has none; for the others, a dominator must be
+    >= the row at the states where it comes closest to that envelope (``_KEY_STATES`` of them), and the first
+    ``_DOMINATOR_TRIES`` dominators passing that filter are compared at every state."""
+    found = np.zeros(len(rows), dtype=bool)
+    dominator = np.zeros(len(rows), dtype=np.int64)
+    envelope = dominators.max(axis=0)
+    keys = min(_KEY_STATES, rows.shape[1])
+    for first in range(0, len(rows), _PRUNE_BLOCK):
+        part = rows[first : first + _PRUNE_BLOCK]
+        margin = part - envelope
+        open_rows = np.flatnonzero(margin.max(axis=1) <= 0.0)
+        if open_rows.size == 0:
+            continue
+        margin = margin[open_rows]
+        states = np.argpartition(-margin, keys - 1, axis=1)[:, :keys]  # (open, keys)
+        passes = np.ones((open_rows.size, len(dominators)), dtype=bool)
+        for k in range(keys):
+            column = states[:, k]
+            passes &= dominators[:, column].T >= part[open_rows, column][:, None]
+        for _ in range(_DOMINATOR_TRIES):
+            if not passes.any():
+                break
+            has = passes.any(axis=1)
+            candidate = np.argmax(passes, axis=1)
+            which = np.flatnonzero(has)
+            ok = np.all(dominators[candidate[which]] >= part[open_rows[which]], axis=1)
+            hit = which[ok]
+            found[first + open_rows[hit]] = True
+            dominator[first + open_rows[hit]] = candidate[hit]
+            passes[hit] = False
+            passes[which[~ok], candidate[which[~ok]]] = False
+    return found, dominator
 
 
 def _grown(array: np.ndarray, capacity: int) -> np.ndarray:

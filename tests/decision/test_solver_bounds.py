@@ -52,6 +52,8 @@ CASES = [
         "hallway.POMDP", {"n_beliefs": 300, "time_limit": 3.0}, 300, marks=pytest.mark.slow, id="hallway"
     ),
     ("4x3.95.POMDP", {"n_beliefs": 200, "expand": True, "time_limit": 2.0}, 1000),
+    # a fixed-length solve whose plan graph is pruned of dominated rows several times (PerseusConfig.prune)
+    ("hallway.POMDP", {"n_beliefs": 60, "expand": True, "max_iterations": 12, "seed": 3}, 400),
     pytest.param(
         "sarsop-TagAvoid.pomdp", {"n_beliefs": 1000}, 500, marks=pytest.mark.slow, id="tag-defaults"
     ),
@@ -68,7 +70,7 @@ CASES = [
 @pytest.mark.parametrize(("name", "settings", "episodes"), CASES)
 def test_saved_policy_earns_its_lower_bound_and_stays_below_the_upper(name, settings, episodes, tmp_path):
     pomdp = _model(name)
-    solved = perseus(pomdp, PerseusConfig(seed=0, **settings))
+    solved = perseus(pomdp, PerseusConfig(**{"seed": 0, **settings}))
     policy = AlphaVectorPolicy.load(solved.save(tmp_path / "policy.npz"))
     stats = policy.stats  # read back from the file's metadata
     # the file stores vectors rounded down (policy.py) and the bound of the stored set: still earned, barely lower
