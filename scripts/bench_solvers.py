@@ -10,7 +10,8 @@ Prints three tables:
    solved with 5,000 beliefs until convergence (the thesis: 2.5 h).
 4. Time to value: the lower and upper bounds at b0 of the anytime solver (the CLI's defaults: 1,000 beliefs,
    expansion) at 1, 5, 20 and 60 s, next to SARSOP's at the same times: measured in the same run when a
-   ``pomdpsol`` binary is on the PATH (optional, never a dependency), else the recorded figures.
+   ``pomdpsol`` binary is on the PATH (optional, never a dependency), else the recorded figures; then the peak
+   memory (resident set) of the whole run and the vectors it saved, and SARSOP's peak memory when measured.
 
     .venv/bin/python scripts/bench_solvers.py --only-anytime --problems sarsop-TagAvoid.pomdp hallway2.POMDP
 
@@ -21,7 +22,10 @@ Prints three tables:
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
 import re
+import resource
 import shutil
 import subprocess
 import sys
@@ -247,36 +251,63 @@ def _at(trace: list[tuple[float, float, float]], seconds: float) -> tuple[float,
     return (before[-1][1], before[-1][2]) if before else None
 
 
-def sarsop_trace(path: Path, seconds: float) -> list[tuple[float, float, float]] | None:
-    """Run ``pomdpsol`` for ``seconds`` and parse its progress table (time, #trial, #backup, lb, ub, ...)."""
+def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, float]], float] | None:
+    """Run ``pomdpsol`` for ``seconds``: its progress table (time, #trial, #backup, lb, ub, ...) parsed, and its
+    peak resident memory in MB (from the rusage of its own wait, so other children do not count)."""
     binary = shutil.which("pomdpsol")
     if binary is None:
         return None
     with tempfile.TemporaryDirectory() as folder:
-        result = subprocess.run(
+        process = subprocess.Popen(
             [binary, str(path), "--timeout", f"{seconds:g}", "--output", str(Path(folder) / "out.policy")],
-            capture_output=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
             text=True,
-            check=False,
         )
+        output = process.stdout.read()
+        _, status, usage = os.wait4(process.pid, 0)
+        process.returncode = os.waitstatus_to_exitcode(status)
     trace = []
-    for line in result.stdout.splitlines():
+    for line in output.splitlines():
         fields = line.split()
         if len(fields) >= 5 and all(re.fullmatch(r"-?[0-9.]+(e[-+]?[0-9]+)?", f) for f in fields[:5]):
             trace.append((float(fields[0]), float(fields[3]), float(fields[4])))
-    return trace
+    return trace, usage.ru_maxrss / 1024  # Linux: kilobytes
+
+
+def _measured_solve(path: Path, config: PerseusConfig, results) -> None:
+    """In a fresh process: the solve's progress points, its saved vectors and the process' peak memory (MB)."""
+    points: list[tuple[float, float, float]] = []
+    policy = perseus(
+        read_pomdp(path), config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0))
+    )
+    results.put((points, len(policy.alphas), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
+
+
+def perseus_measured(
+    path: Path, config: PerseusConfig
+) -> tuple[list[tuple[float, float, float]], int, float]:
+    """Progress points, saved vectors and peak resident memory (MB) of one solve, run in a spawned process so
+    that the peak is that solve's alone (reading the file included, as the CLI does)."""
+    context = multiprocessing.get_context("spawn")
+    results = context.Queue()
+    child = context.Process(target=_measured_solve, args=(path, config, results))
+    child.start()
+    points, vectors, peak = results.get()
+    child.join()
+    return points, vectors, peak
 
 
 def anytime_row(name: str, args: Args) -> None:
     pomdp = read_pomdp(args.corpus / name)
     horizon = max(args.checkpoints)
     # SARSOP first, then Perseus, one after the other in the same run: same machine, same load (roughly).
-    measured = sarsop_trace(args.corpus / name, horizon)
-    points: list[tuple[float, float, float]] = []
+    sarsop = sarsop_trace(args.corpus / name, horizon)
+    measured, sarsop_peak = (None, None) if sarsop is None else sarsop
     # pomdpsol times itself in CPU seconds (clock()), so under load "20 s" of it is far more than 20 s of wall
     # clock; --clock cpu runs Perseus on its CPU clock too (the CLI's default), so both get the same CPU seconds.
     config = PerseusConfig(n_beliefs=1000, time_limit=horizon, seed=args.seed, expand=True, clock=args.clock)
-    perseus(pomdp, config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0)))
+    points, vectors, peak = perseus_measured(args.corpus / name, config)
     cells = []
     for seconds in args.checkpoints:
         ours = _at(points, seconds)
@@ -290,6 +321,8 @@ def anytime_row(name: str, args: Args) -> None:
         else:
             lb, _, sarsop_seconds = SARSOP.get(name, (math.nan, math.nan, math.nan))
             cells.append(f"{lb:g} at {sarsop_seconds:g} s (recorded)" if seconds == 20.0 else "-")
+    cells.append(f"{peak:.0f} MB, {vectors:,} vectors")
+    cells.append("-" if sarsop_peak is None else f"{sarsop_peak:.0f} MB")
     print(f"| {name} | {pomdp.n_states} | " + " | ".join(cells) + " |", flush=True)
 
 
@@ -304,8 +337,8 @@ def anytime_table(args: Args) -> None:
         f"{args.clock} seconds)\n"
     )
     header = " | ".join(f"Perseus {t:g} s | SARSOP {t:g} s" for t in args.checkpoints)
-    print(f"| file | S | {header} |")
-    print("|---|---|" + "---|" * (2 * len(args.checkpoints)))
+    print(f"| file | S | {header} | Perseus peak memory, saved vectors | SARSOP peak memory |")
+    print("|---|---|" + "---|" * (2 * len(args.checkpoints) + 2))
     for name in args.problems:
         anytime_row(name, args)
 
