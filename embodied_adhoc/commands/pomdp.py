@@ -12,7 +12,7 @@ from pathlib import Path
 
 from embodied_adhoc.commands.arguments import bounded, output_file, seed
 
-SOLVERS = ("perseus", "qmdp", "vi")
+SOLVERS = ("perseus", "hsvi", "qmdp", "vi")
 
 
 _POSITIVE_INT = bounded(int, 1, "an integer >= 1")
@@ -35,7 +35,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     solve = commands.add_parser("solve", help="solve a .pomdp file and report V(b0)")
     _add_file(solve)
-    solve.add_argument("--solver", choices=SOLVERS, default="perseus", help="default: perseus")
+    solve.add_argument(
+        "--solver",
+        choices=SOLVERS,
+        default="perseus",
+        help="default: perseus; hsvi = heuristic search value iteration (trials from b0 guided by the bounds' "
+        "gap; uses --precision, --trials, --time-limit, --clock, --threads)",
+    )
+    solve.add_argument(
+        "--trials",
+        type=_POSITIVE_INT,
+        default=None,
+        metavar="N",
+        help="hsvi: stop after N trials (default 100000); the same N gives the same policy on any host",
+    )
     solve.add_argument(
         "--beliefs", type=_POSITIVE_INT, default=1000, help="Perseus belief-set size (default 1000)"
     )
@@ -187,6 +200,14 @@ def _solve(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--save-policy needs an alpha-vector policy: use --solver perseus or qmdp (vi solves the MDP)"
         )
+    if args.solver == "hsvi" and args.horizon is not None:
+        raise ConfigError(
+            "--solver hsvi solves the infinite-horizon problem: drop --horizon or use --solver perseus"
+        )
+    if args.trials is not None and args.solver != "hsvi":
+        raise ConfigError(
+            f"--trials counts HSVI trials: add --solver hsvi, or drop --trials for {args.solver}"
+        )
     pomdp = _load(args)
     if args.solver == "perseus" and args.beliefs * pomdp.n_states > MAX_BELIEF_ENTRIES:
         raise ConfigError(
@@ -211,6 +232,8 @@ def _solve(args: argparse.Namespace) -> int:
             from embodied_adhoc.decision.qmdp import qmdp
 
             policy = qmdp(pomdp, horizon=args.horizon)
+        elif args.solver == "hsvi":
+            policy = _hsvi(pomdp, args)
         else:
             from embodied_adhoc.decision.perseus import PerseusConfig, perseus
             from embodied_adhoc.experiments.executors import available_cpus
@@ -253,6 +276,20 @@ def _solve(args: argparse.Namespace) -> int:
     else:
         _print_report(report)
     return 0
+
+
+def _hsvi(pomdp, args: argparse.Namespace):
+    from embodied_adhoc.decision.hsvi import HsviConfig, hsvi
+    from embodied_adhoc.experiments.executors import available_cpus
+
+    config = HsviConfig(
+        epsilon=args.precision,
+        max_trials=args.trials or HsviConfig.max_trials,
+        time_limit=args.time_limit,
+        clock=args.clock,
+        threads=available_cpus() if args.threads is None else args.threads,
+    )
+    return hsvi(pomdp, config, progress=None if args.quiet else _progress_printer())
 
 
 def _effective_horizon(discount: float) -> int:
