@@ -45,6 +45,7 @@ from embodied_adhoc.decision.beliefs import _key as _belief_key
 from embodied_adhoc.decision.beliefs import collect_beliefs
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus_stages import (
+    DenseRows,
     Seidel,
     Stage,
     belief_rows,
@@ -258,7 +259,7 @@ class _Anytime:
     progress: ProgressCallback | None
     graph: PlanGraph
     upper: SawtoothBound
-    beliefs: np.ndarray
+    beliefs: DenseRows  # B, read as dense rows from `rows`
     rows: sp.csr_matrix  # the beliefs for value products (belief_rows)
     known: set[bytes]  # keys of the beliefs of B, so that expansion adds new ones only
     current: np.ndarray  # rows of V_n in the graph
@@ -313,7 +314,7 @@ class _Anytime:
             progress=progress,
             graph=graph,
             upper=upper,
-            beliefs=beliefs,
+            beliefs=DenseRows(rows),
             rows=rows,
             known=known,
             current=current,
@@ -381,8 +382,8 @@ class _Anytime:
 
     def add_beliefs(self, new: list[np.ndarray]) -> None:
         added = np.asarray(new)
-        self.beliefs = np.vstack([self.beliefs, added])
-        self.rows = belief_rows(self.beliefs)
+        self.rows = sp.vstack([self.rows, belief_rows(added)], format="csr")
+        self.beliefs = DenseRows(self.rows)
         self.values = np.concatenate([self.values, dot(added, self.alphas.T).max(axis=1)])
         self.on_beliefs, self.owner, self.old_rows = False, None, None
 

@@ -417,6 +417,24 @@ def full_backup_check(
     return residual, fixes
 
 
+class DenseRows:
+    """A CSR belief set read as dense rows (``rows[index]`` is the dense belief or beliefs, bit for bit the ones it
+    was built from): the set is kept once, sparse, and only the batches being backed up are dense (Tag's beliefs
+    hold a few of its 870 states each, so the dense set would be twenty times the CSR one)."""
+
+    def __init__(self, rows: sp.csr_matrix) -> None:
+        self.rows = rows
+        self.shape = rows.shape
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, index) -> np.ndarray:
+        if np.ndim(index) == 0 and not isinstance(index, slice):
+            return self.rows[int(index)].toarray()[0]
+        return self.rows[index].toarray()
+
+
 def belief_rows(beliefs: np.ndarray) -> np.ndarray | sp.csr_matrix:
     """The belief set for value products ``B @ Gamma^T``, as CSR even when dense: scipy's products sum each row in
     one fixed order (products.py), so values on B and the ties they decide do not depend on the BLAS kernel."""
