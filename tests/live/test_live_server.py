@@ -405,6 +405,12 @@ def test_an_idle_or_non_reading_page_loses_its_slot(served, monkeypatch):
     assert served.live.session.notes[1]["why"] == "idle"
 
 
+async def _ping_every(ws, seconds: float) -> None:
+    while True:
+        await asyncio.sleep(seconds)
+        await ws.send(json.dumps({"type": "ping", "t": 0}))
+
+
 PLAN = {
     "episodes": [{"agent": "hotspot", "seed": 1}, {"agent": "random", "seed": 2}],
     "questionnaire": [{"id": "helpful", "text": "The robot was a helpful teammate.", "scale": 5}],
@@ -430,6 +436,8 @@ def test_a_study_runs_its_episodes_with_a_questionnaire_and_summarises(tmp_path)
 
             async def scenario(port=served.port):
                 async with websockets.connect(f"ws://127.0.0.1:{port}/ws", max_size=None) as ws:
+                    # The real page pings every 5 s; without it a slow host's episode outlasts the idle timeout.
+                    keepalive = asyncio.create_task(_ping_every(ws, 5.0))
                     hello = json.loads(await ws.recv())
                     for position in (1, 2):
                         assert hello["study"]["position"] == position and hello["study"]["of"] == 2
@@ -453,6 +461,7 @@ def test_a_study_runs_its_episodes_with_a_questionnaire_and_summarises(tmp_path)
                         assert any("questionnaire.helpful" in m for m in errors)
                         hello = seen[-1]
                     assert hello["type"] == "study_complete"
+                    keepalive.cancel()
 
             asyncio.run(scenario())
         finally:
