@@ -12,7 +12,9 @@ export MUJOCO_GL=egl PYOPENGL_PLATFORM=egl
 if [ "$#" -gt 0 ]; then
     exec .venv/bin/python -m pytest -q "$@"
 fi
-.venv/bin/python -m pytest -q
+# One pytest worker per core (pytest-xdist); TEST_WORKERS=1 runs the suite in one process.
+WORKERS=(-n "${TEST_WORKERS:-auto}")
+.venv/bin/python -m pytest -q "${WORKERS[@]}"
 KERNEL_SUBSET=(
     tests/decision/test_solver_backup.py
     tests/decision/test_solver_golden.py
@@ -24,5 +26,5 @@ KERNEL_SUBSET=(
 )
 for kernel in Haswell Sandybridge; do
     echo "== host-independence subset under OPENBLAS_CORETYPE=$kernel"
-    OPENBLAS_CORETYPE="$kernel" .venv/bin/python -m pytest -q "${KERNEL_SUBSET[@]}"
+    OPENBLAS_CORETYPE="$kernel" .venv/bin/python -m pytest -q "${WORKERS[@]}" "${KERNEL_SUBSET[@]}"
 done
