@@ -40,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         choices=SOLVERS,
         default="perseus",
         help="default: perseus; hsvi = heuristic search value iteration (trials from b0 guided by the bounds' "
-        "gap; uses --precision, --trials, --time-limit, --clock, --threads)",
+        "gap; uses --precision, --trials, --max-depth, --time-limit, --clock, --threads)",
     )
     solve.add_argument(
         "--trials",
@@ -48,6 +48,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="N",
         help="hsvi: stop after N trials (default 100000); the same N gives the same policy on any host",
+    )
+    solve.add_argument(
+        "--max-depth",
+        type=_POSITIVE_INT,
+        default=None,
+        metavar="D",
+        help="hsvi: deepest belief of a trial (default: where the initial gap meets its discounted target, "
+        "20 to 1000 steps)",
     )
     solve.add_argument(
         "--beliefs", type=_POSITIVE_INT, default=1000, help="Perseus belief-set size (default 1000)"
@@ -204,10 +212,11 @@ def _solve(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--solver hsvi solves the infinite-horizon problem: drop --horizon or use --solver perseus"
         )
-    if args.trials is not None and args.solver != "hsvi":
-        raise ConfigError(
-            f"--trials counts HSVI trials: add --solver hsvi, or drop --trials for {args.solver}"
-        )
+    for flag, value in (("--trials", args.trials), ("--max-depth", args.max_depth)):
+        if value is not None and args.solver != "hsvi":
+            raise ConfigError(
+                f"{flag} is an HSVI setting: add --solver hsvi, or drop {flag} for {args.solver}"
+            )
     pomdp = _load(args)
     if args.solver == "perseus" and args.beliefs * pomdp.n_states > MAX_BELIEF_ENTRIES:
         raise ConfigError(
@@ -285,6 +294,7 @@ def _hsvi(pomdp, args: argparse.Namespace):
     config = HsviConfig(
         epsilon=args.precision,
         max_trials=args.trials or HsviConfig.max_trials,
+        max_depth=args.max_depth,
         time_limit=args.time_limit,
         clock=args.clock,
         threads=available_cpus() if args.threads is None else args.threads,

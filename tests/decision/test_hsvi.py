@@ -79,29 +79,15 @@ def test_cli_refuses_hsvi_with_a_horizon_and_trials_without_hsvi(capsys):
     assert "--solver hsvi" in capsys.readouterr().err
     assert main(["pomdp", "solve", str(TIGER), "--trials", "3"]) == 2
     assert "--trials" in capsys.readouterr().err
+    assert main(["pomdp", "solve", str(TIGER), "--solver", "qmdp", "--max-depth", "3"]) == 2
+    assert "--max-depth is an HSVI setting" in capsys.readouterr().err
 
 
 def test_cli_solves_with_hsvi(capsys):
     import json
 
-    assert (
-        main(
-            [
-                "pomdp",
-                "solve",
-                str(TIGER),
-                "--solver",
-                "hsvi",
-                "--trials",
-                "2",
-                "--precision",
-                "1",
-                "--json",
-                "--quiet",
-            ]
-        )
-        == 0
-    )
+    flags = ["--solver", "hsvi", "--trials", "2", "--max-depth", "20", "--json", "--quiet"]
+    assert main(["pomdp", "solve", str(TIGER), *flags]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["solver"] == "hsvi" and report["iterations"] == 2
     assert report["lower"] <= report["upper"] and report["value_b0"] == report["lower"]
