@@ -80,16 +80,24 @@ def _agents(domain, options) -> tuple[str, ...]:
     return tuple(name for name in domain.agent_names if _shipped(name, domain.name))
 
 
+# The library-free agents are trained per domain; one without shipped weights is the user's to train.
+_LEARNED = {
+    "ppo-generalist": "embodied_adhoc.learning.generalist",
+    "liam": "embodied_adhoc.learning.liam",
+    "meliba": "embodied_adhoc.learning.meliba",
+}
+
+
 def _shipped(agent: str, domain: str) -> bool:
-    """Whether the package ships what ``agent`` needs on ``domain`` (the generalist is trained per domain: one
-    without shipped weights is the user's to train, ``train ppo-generalist --domain D``)."""
-    if agent != "ppo-generalist":
+    """Whether the package ships what ``agent`` needs on ``domain`` (``train AGENT --domain D`` makes the rest)."""
+    if agent not in _LEARNED:
         return True
+    import importlib
+
     from embodied_adhoc.errors import ConfigError
-    from embodied_adhoc.learning.generalist import shipped_weights
 
     try:
-        return shipped_weights(domain).is_file()
+        return importlib.import_module(_LEARNED[agent]).shipped_weights(domain).is_file()
     except ConfigError:  # none shipped for this domain
         return False
 
