@@ -39,136 +39,102 @@ def handle_atlpo(args: argparse.Namespace) -> int:
     return 0
 
 
-def handle_generalist(args: argparse.Namespace) -> int:
+def _length(row: dict) -> str:
+    length = row["mean_episode_length"]
+    return f"episode length {'-' if length is None else f'{length:.1f}'}"
+
+
+def _train_recurrent(args, agent: str, settings, run, postfix, last) -> int:
+    """The recurrent PPO agents' shared run: checks, device, progress bar, curve plot and the closing line;
+    ``postfix(row)`` and ``last(final)`` give each agent's own progress and summary text."""
     for name in ("steps", "envs", "rollout", "threads"):
         if getattr(args, name) < 1:
             raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
     from tqdm import tqdm
 
-    from embodied_adhoc.learning.generalist import GeneralistTraining, train_generalist_run
     from embodied_adhoc.learning.ppo import pick_device
 
     pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
-    settings = GeneralistTraining(
-        args.domain, str(args.out), args.steps, args.seed, args.envs, args.rollout, args.device, args.threads
-    )
+    settings = settings()
     config = settings.config()  # settings that do not fit together are refused before training starts
     batch = config.num_envs * config.rollout_steps
     total = max(1, config.total_steps // batch) * batch  # whole updates
-    with tqdm(total=total, unit="step", desc=f"ppo-generalist {args.domain}", disable=args.quiet) as bar:
+    with tqdm(total=total, unit="step", desc=f"{agent} {args.domain}", disable=args.quiet) as bar:
 
         def progress(steps: int, row: dict) -> None:
-            length, solved = row["mean_episode_length"], row["solved"]
-            bar.set_postfix_str(
-                f"episode length {'-' if length is None else f'{length:.1f}'} "
-                f"solved {'-' if solved is None else f'{solved:.2f}'}"
-            )
+            bar.set_postfix_str(postfix(row))
             bar.update(steps - bar.n)
 
-        report = train_generalist_run(settings, progress)
-    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain)
-    final = report["final"] or {}
+        report = run(settings, progress)
+    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain, agent=agent)
     print(
-        f"ppo-generalist {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
+        f"{agent} {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
         f"({report['steps_per_second']} steps/s) -> {args.out}; last update: mean episode length "
-        f"{final.get('mean_episode_length')}, solved {final.get('solved')}"
+        f"{(report['final'] or {}).get('mean_episode_length')}, {last(report['final'] or {})}"
     )
     return 0
+
+
+def _common(args) -> tuple:
+    return (
+        args.domain,
+        str(args.out),
+        args.steps,
+        args.seed,
+        args.envs,
+        args.rollout,
+        args.device,
+        args.threads,
+    )
+
+
+def handle_generalist(args: argparse.Namespace) -> int:
+    from embodied_adhoc.learning.generalist import GeneralistTraining, train_generalist_run
+
+    def postfix(row: dict) -> str:
+        solved = row["solved"]
+        return f"{_length(row)} solved {'-' if solved is None else f'{solved:.2f}'}"
+
+    return _train_recurrent(
+        args,
+        "ppo-generalist",
+        lambda: GeneralistTraining(*_common(args)),
+        train_generalist_run,
+        postfix,
+        lambda final: f"solved {final.get('solved')}",
+    )
 
 
 def handle_liam(args: argparse.Namespace) -> int:
-    for name in ("steps", "envs", "rollout", "threads"):
-        if getattr(args, name) < 1:
-            raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
     if not args.reconstruction >= 0.0:
         raise ConfigError(f"--reconstruction {args.reconstruction}: give a weight >= 0")
-    from tqdm import tqdm
-
     from embodied_adhoc.learning.liam import LiamTraining, train_liam_run
-    from embodied_adhoc.learning.ppo import pick_device
 
-    pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
-    settings = LiamTraining(
-        args.domain,
-        str(args.out),
-        args.steps,
-        args.seed,
-        args.envs,
-        args.rollout,
-        args.device,
-        args.threads,
-        reconstruction_coef=args.reconstruction,
+    return _train_recurrent(
+        args,
+        "liam",
+        lambda: LiamTraining(*_common(args), reconstruction_coef=args.reconstruction),
+        train_liam_run,
+        lambda row: f"{_length(row)} reconstruction {row['reconstruction_loss']:.3f}",
+        lambda final: f"reconstruction loss {final.get('reconstruction_loss')}",
     )
-    config = settings.config()  # settings that do not fit together are refused before training starts
-    batch = config.num_envs * config.rollout_steps
-    total = max(1, config.total_steps // batch) * batch  # whole updates
-    with tqdm(total=total, unit="step", desc=f"liam {args.domain}", disable=args.quiet) as bar:
-
-        def progress(steps: int, row: dict) -> None:
-            length = row["mean_episode_length"]
-            bar.set_postfix_str(
-                f"episode length {'-' if length is None else f'{length:.1f}'} "
-                f"reconstruction {row['reconstruction_loss']:.3f}"
-            )
-            bar.update(steps - bar.n)
-
-        report = train_liam_run(settings, progress)
-    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain, agent="liam")
-    final = report["final"] or {}
-    print(
-        f"liam {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
-        f"({report['steps_per_second']} steps/s) -> {args.out}; last update: mean episode length "
-        f"{final.get('mean_episode_length')}, reconstruction loss {final.get('reconstruction_loss')}"
-    )
-    return 0
 
 
 def handle_meliba(args: argparse.Namespace) -> int:
-    for name in ("steps", "envs", "rollout", "threads", "latent"):
-        if getattr(args, name) < 1:
-            raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
+    if args.latent < 1:
+        raise ConfigError(f"--latent {args.latent}: give a positive integer")
     if not args.kl >= 0.0:
         raise ConfigError(f"--kl {args.kl}: give a weight >= 0")
-    from tqdm import tqdm
-
     from embodied_adhoc.learning.meliba import MelibaTraining, train_meliba_run
-    from embodied_adhoc.learning.ppo import pick_device
 
-    pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
-    settings = MelibaTraining(
-        args.domain,
-        str(args.out),
-        args.steps,
-        args.seed,
-        args.envs,
-        args.rollout,
-        args.device,
-        args.threads,
-        latent=args.latent,
-        kl_coef=args.kl,
+    return _train_recurrent(
+        args,
+        "meliba",
+        lambda: MelibaTraining(*_common(args), latent=args.latent, kl_coef=args.kl),
+        train_meliba_run,
+        lambda row: f"{_length(row)} elbo {row['elbo_loss']:.3f} variance {row['posterior_variance']:.3f}",
+        lambda final: f"negative ELBO {final.get('elbo_loss')}",
     )
-    config = settings.config()  # settings that do not fit together are refused before training starts
-    batch = config.num_envs * config.rollout_steps
-    total = max(1, config.total_steps // batch) * batch  # whole updates
-    with tqdm(total=total, unit="step", desc=f"meliba {args.domain}", disable=args.quiet) as bar:
-
-        def progress(steps: int, row: dict) -> None:
-            length = row["mean_episode_length"]
-            bar.set_postfix_str(
-                f"episode length {'-' if length is None else f'{length:.1f}'} elbo {row['elbo_loss']:.3f} "
-                f"variance {row['posterior_variance']:.3f}"
-            )
-            bar.update(steps - bar.n)
-
-        report = train_meliba_run(settings, progress)
-    _plot_curve(args.out / "curve.csv", args.out / "curve.png", args.domain, agent="meliba")
-    final = report["final"] or {}
-    print(
-        f"meliba {args.domain}: {report['env_steps']} env steps in {report['train_seconds']} s "
-        f"({report['steps_per_second']} steps/s) -> {args.out}; last update: mean episode length "
-        f"{final.get('mean_episode_length')}, negative ELBO {final.get('elbo_loss')}"
-    )
-    return 0
 
 
 def _plot_curve(csv_path, png_path, domain: str, agent: str = "ppo-generalist") -> None:
@@ -260,63 +226,35 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="folder for the weights, library.json and training.json (not an existing file)",
     )
     atlpo.set_defaults(func=handle_atlpo)
-    generalist = kinds.add_parser(
+    generalist = _recurrent_parser(
+        kinds,
         "ppo-generalist",
+        300_000,
         help="one recurrent (GRU) PPO policy against teams drawn from the train population",
         description="The library-free ad hoc agent: a GRU actor-critic trained with PPO on the vector grid env, "
         "each episode's task and team drawn from the train population (tau0-tau2, tasks 1-4). Writes the "
         "weights (safetensors), curve.csv, curve.png and training.json to --out; an interrupted run resumes from "
         "the checkpoint there (same settings, same result).",
     )
-    generalist.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
-    generalist.add_argument(
-        "--steps",
-        type=int,
-        default=300_000,
-        help="env steps in all, rounded down to whole updates (default 300000)",
-    )
-    generalist.add_argument("--seed", type=int, default=0)
-    generalist.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
-    generalist.add_argument(
-        "--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length (default 64)"
-    )
-    generalist.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
-    generalist.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
-    generalist.add_argument("--quiet", action="store_true", help="no progress bar")
-    generalist.add_argument(
-        "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
-    )
     generalist.set_defaults(func=handle_generalist)
-    liam = kinds.add_parser(
+    liam = _recurrent_parser(
+        kinds,
         "liam",
+        120_000,
         help="the recurrent PPO policy with agent modelling (LIAM): its GRU state also decodes the teammates",
         description="LIAM (Papoudakis et al. 2021): train ppo-generalist's GRU actor-critic with, during training "
         "only, a decoder that reconstructs the teammates' observations and actions from the GRU state, its loss "
         "added to PPO's. Writes the weights without the decoder (safetensors), curve.csv, curve.png and "
         "training.json to --out; an interrupted run resumes from the checkpoint there.",
     )
-    liam.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
-    liam.add_argument(
-        "--steps",
-        type=int,
-        default=120_000,
-        help="env steps in all, rounded down to whole updates (default 120000)",
-    )
-    liam.add_argument("--seed", type=int, default=0)
-    liam.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
-    liam.add_argument("--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length")
     liam.add_argument(
         "--reconstruction", type=float, default=0.1, help="weight of the reconstruction loss (default 0.1)"
     )
-    liam.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
-    liam.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
-    liam.add_argument("--quiet", action="store_true", help="no progress bar")
-    liam.add_argument(
-        "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
-    )
     liam.set_defaults(func=handle_liam)
-    meliba = kinds.add_parser(
+    meliba = _recurrent_parser(
+        kinds,
         "meliba",
+        120_000,
         help="a PPO policy conditioned on a variational belief over its teammates (MeLIBA / VariBAD)",
         description="MeLIBA (Zintgraf et al. 2021, after VariBAD): a recurrent encoder over the ego's own "
         "trajectory gives a Gaussian posterior over a latent teammate/task embedding, trained (ELBO) with a "
@@ -324,24 +262,30 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "posterior's mean and variance. Writes the weights without the decoder (safetensors), curve.csv, "
         "curve.png and training.json to --out; an interrupted run resumes from the checkpoint there.",
     )
-    meliba.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
-    meliba.add_argument(
-        "--steps",
-        type=int,
-        default=120_000,
-        help="env steps in all, rounded down to whole updates (default 120000)",
-    )
-    meliba.add_argument("--seed", type=int, default=0)
-    meliba.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
-    meliba.add_argument(
-        "--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length"
-    )
     meliba.add_argument("--latent", type=int, default=8, help="size of the latent embedding (default 8)")
     meliba.add_argument("--kl", type=float, default=0.1, help="weight of the ELBO's KL term (default 0.1)")
-    meliba.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
-    meliba.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
-    meliba.add_argument("--quiet", action="store_true", help="no progress bar")
-    meliba.add_argument(
+    meliba.set_defaults(func=handle_meliba)
+
+
+def _recurrent_parser(kinds, name: str, steps: int, **texts) -> argparse.ArgumentParser:
+    """The flags every recurrent PPO agent's training takes (``_train_recurrent`` reads them)."""
+    parser = kinds.add_parser(name, **texts)
+    parser.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
+    parser.add_argument(
+        "--steps",
+        type=int,
+        default=steps,
+        help=f"env steps in all, rounded down to whole updates (default {steps})",
+    )
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--envs", type=int, default=32, help="parallel sub-envs (default 32)")
+    parser.add_argument(
+        "--rollout", type=int, default=64, help="steps per sub-env per update, the BPTT length (default 64)"
+    )
+    parser.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
+    parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument(
         "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"
     )
-    meliba.set_defaults(func=handle_meliba)
+    return parser
