@@ -67,13 +67,16 @@ def weights_name(domain: str, kind: str = "ppo-generalist") -> str:
     return f"{domain}-{kind}.safetensors"
 
 
-def shipped_weights(domain: str) -> Path:
-    """The pre-trained agent of ``domain`` shipped in the package's data, made by :data:`SHIPPED_COMMAND`."""
-    path = assets_dir() / SHIPPED_FOLDER / domain / weights_name(domain)
+def shipped_weights(
+    domain: str, kind: str = "ppo-generalist", folder: str | None = None, command: str | None = None
+) -> Path:
+    """The pre-trained ``kind`` agent of ``domain`` shipped in the package's data (in ``folder``, made by
+    ``command``; by default the generalist's :data:`SHIPPED_FOLDER` and :data:`SHIPPED_COMMAND`)."""
+    path = assets_dir() / (folder or SHIPPED_FOLDER) / domain / weights_name(domain, kind)
     if not path.is_file():
         raise ConfigError(
-            f"no pre-trained ppo-generalist for {domain!r} in {path.parent}; train one with "
-            f"`{SHIPPED_COMMAND.format(domain=domain)}`"
+            f"no pre-trained {kind} for {domain!r} in {path.parent}; train one with "
+            f"`{(command or SHIPPED_COMMAND).format(domain=domain)}`"
         )
     return path
 

@@ -36,6 +36,7 @@ from embodied_adhoc.learning.generalist import (
     generalist_agent,
     train_generalist_run,
 )
+from embodied_adhoc.learning.generalist import shipped_weights as generalist_shipped_weights
 from embodied_adhoc.learning.generalist import weights_name as generalist_weights_name
 from embodied_adhoc.learning.networks import NetworkConfig
 from embodied_adhoc.learning.recurrent_ppo import (
@@ -43,7 +44,6 @@ from embodied_adhoc.learning.recurrent_ppo import (
     RecurrentPpoConfig,
     train_recurrent_ppo,
 )
-from embodied_adhoc.paths import assets_dir
 
 KIND = "liam"
 SHIPPED_FOLDER = "liam"
@@ -204,13 +204,7 @@ def weights_name(domain: str) -> str:
 
 def shipped_weights(domain: str) -> Path:
     """The pre-trained LIAM agent of ``domain`` shipped in the package's data, made by :data:`SHIPPED_COMMAND`."""
-    path = assets_dir() / SHIPPED_FOLDER / domain / weights_name(domain)
-    if not path.is_file():
-        raise ConfigError(
-            f"no pre-trained liam for {domain!r} in {path.parent}; train one with "
-            f"`{SHIPPED_COMMAND.format(domain=domain)}`"
-        )
-    return path
+    return generalist_shipped_weights(domain, KIND, SHIPPED_FOLDER, SHIPPED_COMMAND)
 
 
 def liam_agent(domain: str, path: str | Path | None, grid, name: str = KIND) -> GeneralistAgent:

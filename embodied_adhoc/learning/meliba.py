@@ -44,6 +44,7 @@ from embodied_adhoc.learning.generalist import (
     generalist_agent,
     train_generalist_run,
 )
+from embodied_adhoc.learning.generalist import shipped_weights as generalist_shipped_weights
 from embodied_adhoc.learning.generalist import weights_name as generalist_weights_name
 from embodied_adhoc.learning.liam import teammate_count
 from embodied_adhoc.learning.networks import Encoder, NetworkConfig
@@ -53,7 +54,6 @@ from embodied_adhoc.learning.recurrent_ppo import (
     train_recurrent_ppo,
 )
 from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights
-from embodied_adhoc.paths import assets_dir
 
 KIND = "meliba"
 SHIPPED_FOLDER = "meliba"
@@ -319,13 +319,7 @@ def load_meliba(path: str | Path, kind: str = KIND) -> tuple[MelibaNetwork, dict
 
 def shipped_weights(domain: str) -> Path:
     """The pre-trained MeLIBA agent of ``domain`` shipped in the package's data, made by :data:`SHIPPED_COMMAND`."""
-    path = assets_dir() / SHIPPED_FOLDER / domain / weights_name(domain)
-    if not path.is_file():
-        raise ConfigError(
-            f"no pre-trained meliba for {domain!r} in {path.parent}; train one with "
-            f"`{SHIPPED_COMMAND.format(domain=domain)}`"
-        )
-    return path
+    return generalist_shipped_weights(domain, KIND, SHIPPED_FOLDER, SHIPPED_COMMAND)
 
 
 def meliba_agent(domain: str, path: str | Path | None, grid, name: str = KIND) -> GeneralistAgent:
