@@ -68,6 +68,7 @@ def handle_evaluate(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
+    from embodied_adhoc.bench.populations import BENCH_DOMAINS
     from embodied_adhoc.checks import positive_int
 
     bench = subparsers.add_parser(
@@ -81,7 +82,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     teammates.add_argument(
         "--domain",
         required=True,
-        help="toxic-waste, pursuit-task or gridworld (the domains with a population)",
+        help="a domain with a population: " + ", ".join(BENCH_DOMAINS),
     )
     teammates.add_argument("--json", action="store_true", help="print the members as JSON")
     teammates.set_defaults(func=handle_teammates)
@@ -110,7 +111,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--episodes", type=positive_int, default=32, metavar="N", help="per teammate (default 32)"
     )
     evaluate.add_argument("--seed", type=int, default=0)
-    evaluate.add_argument("--backend", default="abstract", choices=("abstract",))
+    evaluate.add_argument(
+        "--backend",
+        default="abstract",
+        choices=("abstract", "mujoco"),
+        help="abstract (default) or mujoco: the physics lab (toxic-waste only; MUJOCO_GL=egl), scored between the "
+        "abstract lab's bounds",
+    )
     evaluate.add_argument(
         "--workers", type=int, default=1, metavar="W", help="worker processes (0 = one per CPU)"
     )
