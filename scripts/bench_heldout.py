@@ -2,10 +2,16 @@
 validation suite beside it), written to ``results/benchmark-heldout.json`` with its provenance, and the table
 between the ``<!-- bench:heldout start/end -->`` markers of ``docs/benchmark.md`` rendered from that file.
 
-    .venv/bin/python scripts/bench_heldout.py                 # run (resumable under runs/bench-*) and render
+    .venv/bin/python scripts/bench_heldout.py                 # run (resumable under runs/bench/) and render
+    .venv/bin/python scripts/bench_heldout.py --domains ntu,cit   # these domains only, merged into the file
+    .venv/bin/python scripts/bench_heldout.py --physics       # the lab's physics subset beside its abstract runs
     .venv/bin/python scripts/bench_heldout.py --render-only   # render the page from the result file
 
-Every agent of a domain runs on every member for the same episodes; the lab runs on its abstract backend.
+Every agent of a domain runs on every member for the same episodes on the abstract backends. A run replaces the
+entries of the suites and domains it ran in the result file and keeps the others, each entry with the commit,
+BLAS kernel and wall seconds of its own run. ``--physics`` runs :data:`PHYSICS_AGENTS` on
+:data:`PHYSICS_MEMBERS` of the lab's held-out split on the MuJoCo backend and on the abstract one for the same
+episodes, and compares the two per agent with Welch's test (``experiments.stats.welch_test``).
 """
 
 from __future__ import annotations
@@ -16,19 +22,26 @@ import json
 import platform
 import subprocess
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
+
+from embodied_adhoc.bench.populations import CHAPTER5
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / "results" / "benchmark-heldout.json"
 PAGE = ROOT / "docs" / "benchmark.md"
 START, END = "<!-- bench:heldout start -->", "<!-- bench:heldout end -->"
+CHAPTER5_AGENTS = ("atpo", "bopa", "perseus", "value-iteration", "random-picker", "random")
 AGENTS = {
     "toxic-waste": ("hotspot", "atpo", "bopa", "known-task", "oracle", "random"),
-    "pursuit-task": ("atpo", "bopa", "perseus", "value-iteration", "random-picker", "random"),
-    "gridworld": ("atpo", "bopa", "perseus", "value-iteration", "random-picker", "random"),
+    **dict.fromkeys(CHAPTER5, CHAPTER5_AGENTS),  # the power plant has no bopa: evaluate leaves it out there
 }
 PRIVILEGED = ("oracle", "bopa", "value-iteration")
+PHYSICS_MEMBERS = ("order-210", "wander-p40", "quiet-p100", "mislead-p50")
+"""The lab's held-out humans run on physics: those whose behaviour the physics lab acts out (its walker does not
+let a ball fall, so ``drop-p30`` is not among them)."""
+PHYSICS_AGENTS = ("hotspot", "known-task")
 
 
 @dataclass
@@ -36,7 +49,10 @@ class Args:
     episodes: int = 32  # per member and agent
     seed: int = 0
     suites: tuple[str, ...] = ("heldout", "validation")
+    domains: tuple[str, ...] = tuple(AGENTS)
     out: str = "runs/bench"  # one folder per suite and domain below it
+    physics: bool = False
+    physics_episodes: int = 8  # per member and agent on each backend
     render_only: bool = False
 
 
@@ -45,48 +61,130 @@ def parse() -> Args:
     parser.add_argument("--episodes", type=int, default=Args.episodes)
     parser.add_argument("--seed", type=int, default=Args.seed)
     parser.add_argument("--suites", default=",".join(Args.suites))
+    parser.add_argument("--domains", default=",".join(Args.domains), help="default: every domain")
     parser.add_argument("--out", default=Args.out)
+    parser.add_argument(
+        "--physics", action="store_true", help="run the lab's physics subset only (MUJOCO_GL=egl)"
+    )
+    parser.add_argument("--physics-episodes", type=int, default=Args.physics_episodes)
     parser.add_argument("--render-only", action="store_true")
     ns = parser.parse_args()
-    return Args(ns.episodes, ns.seed, tuple(ns.suites.split(",")), ns.out, ns.render_only)
+    domains = tuple(d for d in ns.domains.split(",") if d)
+    unknown = [d for d in domains if d not in AGENTS]
+    if unknown:
+        parser.error(f"--domains {','.join(unknown)}: choose from {', '.join(AGENTS)}")
+    if ns.episodes < 2 or ns.physics_episodes < 2:
+        parser.error("--episodes and --physics-episodes: at least 2 (the intervals resample episodes)")
+    return Args(
+        ns.episodes,
+        ns.seed,
+        tuple(ns.suites.split(",")),
+        domains,
+        ns.out,
+        ns.physics,
+        ns.physics_episodes,
+        ns.render_only,
+    )
 
 
-def run(args: Args) -> dict:
-    from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
+def _provenance() -> dict:
     from embodied_adhoc.experiments.identity import blas_kernel
 
+    commit = subprocess.run(
+        ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True
+    ).stdout.strip()
+    return {
+        "command": " ".join([".venv/bin/python", "scripts/bench_heldout.py", *sys.argv[1:]]),
+        "commit": commit,
+        "kernel": blas_kernel(),
+        "python": platform.python_version(),
+    }
+
+
+def run(args: Args, previous: dict) -> dict:
+    """The suites and domains of ``args`` run (or resumed), merged into ``previous`` (the result file's data)."""
+    from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
+
     started = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
-    results = {}
+    provenance = _provenance()
+    results = {suite: dict(domains) for suite, domains in previous.get("suites", {}).items()}
     for suite_name in args.suites:
-        for domain, agents in AGENTS.items():
+        for domain in args.domains:
             suite = resolve_suite(suite_name, (domain,))
             out = Path(args.out) / f"{suite_name}-{domain}"
-            summary = evaluate(agents, suite, out, episodes=args.episodes, seed=args.seed, progress=True)
+            clock = time.perf_counter()
+            summary = evaluate(
+                AGENTS[domain], suite, out, episodes=args.episodes, seed=args.seed, progress=True
+            )
             results.setdefault(suite_name, {})[domain] = summary["domains"][domain] | {
                 "version": summary["version"],
                 "episodes": summary["episodes"],
                 "seed": summary["seed"],
                 "bootstrap": summary["bootstrap"],
+                # this entry's own run: what it ran at, and its wall time (cold or warm caches: see the docs)
+                "commit": provenance["commit"],
+                "kernel": provenance["kernel"],
+                "wall_s": round(time.perf_counter() - clock, 1),
             }
     checks = best_response_check(results)
     print(
         f"best-response check: {checks['checked']} (teammate, agent) cells, {len(checks['above'])} above",
         file=sys.stderr,
     )
-    commit = subprocess.run(
-        ["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True
-    ).stdout.strip()
-    return {
+    return previous | {
         "figure": "benchmark-heldout",
-        "command": " ".join([".venv/bin/python", "scripts/bench_heldout.py", *sys.argv[1:]]),
-        "commit": commit,
-        "kernel": blas_kernel(),
-        "python": platform.python_version(),
+        **provenance,
         "started": started,
         "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "suites": results,
         "best_response_check": checks,
     }
+
+
+def run_physics(args: Args, previous: dict) -> dict:
+    """:data:`PHYSICS_AGENTS` on :data:`PHYSICS_MEMBERS` on both lab backends (same episodes), compared per agent."""
+    from embodied_adhoc.bench.evaluate import Suite, backend_difference, evaluate
+    from embodied_adhoc.bench.populations import LAB, find_member
+
+    specs = tuple(find_member(LAB, name) for name in PHYSICS_MEMBERS)
+    suite = Suite("heldout", specs[0].version, {LAB: specs})
+    scores, summaries, wall = {}, {}, {}
+    for backend in ("abstract", "mujoco"):
+        clock = time.perf_counter()
+        out = Path(args.out) / f"physics-{backend}"
+        found: dict = {}
+        summary = evaluate(
+            PHYSICS_AGENTS,
+            suite,
+            out,
+            episodes=args.physics_episodes,
+            seed=args.seed,
+            backend=backend,
+            progress=True,
+            scores=found,
+        )
+        wall[backend] = round(time.perf_counter() - clock, 1)
+        scores[backend], summaries[backend] = found[LAB], summary["domains"][LAB]
+    physics = {
+        **_provenance(),
+        "members": list(PHYSICS_MEMBERS),
+        "agents": list(PHYSICS_AGENTS),
+        "episodes": args.physics_episodes,
+        "seed": args.seed,
+        "wall_s": wall,
+        "bounds": "each member's exact bounds of the abstract lab (the physics lab has no tabular model)",
+        **{
+            backend: {
+                "aggregate": summaries[backend]["aggregate"],
+                "teammates": [
+                    {"name": row["name"], "agents": row["agents"]} for row in summaries[backend]["teammates"]
+                ],
+            }
+            for backend in ("abstract", "mujoco")
+        },
+        "difference": backend_difference(scores["abstract"], scores["mujoco"], list(PHYSICS_MEMBERS)),
+    }
+    return previous | {"physics": physics}
 
 
 def best_response_check(results: dict) -> dict:
@@ -183,13 +281,32 @@ def render(result: dict) -> None:
     PAGE.write_text(f"{head}{START}\n{table(result)}\n{END}{tail}")
 
 
+def dumps(value, indent: int = 0) -> str:
+    """JSON with one level per line and lists of numbers or names on one line (the file stays small and diffable);
+    floats to 6 significant digits, far below the intervals' widths."""
+    pad, inner = " " * indent, " " * (indent + 1)
+    if isinstance(value, dict):
+        if not value:
+            return "{}"
+        items = [f"{inner}{json.dumps(str(k))}: {dumps(v, indent + 1)}" for k, v in value.items()]
+        return "{\n" + ",\n".join(items) + f"\n{pad}}}"
+    if isinstance(value, list | tuple):
+        if all(not isinstance(v, dict | list | tuple) for v in value):
+            return "[" + ", ".join(dumps(v) for v in value) + "]"
+        return "[\n" + ",\n".join(f"{inner}{dumps(v, indent + 1)}" for v in value) + f"\n{pad}]"
+    if isinstance(value, float):
+        return json.dumps(float(f"{value:.6g}"))
+    return json.dumps(value)
+
+
 def main() -> int:
     args = parse()
     if not args.render_only:
         from embodied_adhoc.atomic import atomic_write_text
 
-        result = run(args)
-        atomic_write_text(RESULT, json.dumps(result, indent=1) + "\n")
+        previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}
+        result = run_physics(args, previous) if args.physics else run(args, previous)
+        atomic_write_text(RESULT, dumps(result) + "\n")
     render(json.loads(RESULT.read_text()))
     print(table(json.loads(RESULT.read_text())))
     return 0

@@ -3,14 +3,21 @@
 A member is ``factory(library, m)`` returning the teammate's policy ``pi(b | x)`` (S x B) in model ``m``'s task,
 built from its :class:`~embodied_adhoc.bench.populations.TeammateSpec` parameters (``family``):
 
-* ``named``: a teammate of the thesis: the library's own (``greedy``; pursuit's ``aware``) or ``optimal`` (the
-  MMDP's optimal marginal, ``domains.chapter5.library.optimal_teammate_policy``);
+* ``named``: a teammate of the thesis: the library's own (``greedy``; pursuit's ``aware``; overcooked's cooks) or
+  ``optimal`` (the MMDP's optimal marginal, ``domains.chapter5.library.optimal_teammate_policy``: the maps' and the
+  power plant's own teammate);
 * ``softmax``: softmax-rational over the task's Q-values, ``pi(b | x) ∝ exp(Q(x, b) / temperature)`` with
   ``Q(x, b) = max_a Q*(x, (a, b))`` of the task's MMDP (the teammate expects the agent to play its part);
 * ``epsilon``: the ``base`` teammate, with probability ``epsilon`` a uniformly drawn action instead;
-* ``lazy``: the ``base`` teammate, with probability ``p`` the stay action instead;
-* ``goal-mix``: each step, with probability ``other`` the ``base`` teammate of the next task's goal (model
-  ``(m + 1) mod M``), else its own: a teammate the library does not hold (``other = 1``: it pursues another goal).
+* ``lazy``: the ``base`` teammate, with probability ``p`` the stay action instead (``stay``; overcooked's ``noop``;
+  the power plant's human staying in its room);
+* ``goal-mix``: each step, with probability ``other`` the ``base`` teammate of the next task's goal (the first model
+  after ``m``, cyclically, with other rewards on the same states), else its own: a teammate the library does not
+  hold (``other = 1``: it pursues another goal); refused where no other task shares the states (the power plant's
+  tasks have their own, pursuit-teammate's and overcooked's models differ in the teammate only);
+* ``mix``: each step one of the library's ``teammates`` drawn with the given ``weights`` (a mixed team).
+
+``base`` defaults to the library's ``greedy`` teammate where it has one, else ``optimal``.
 
 Every policy is a function of the state, so the world's model (Fig. 5.2's reduction) is exact and its best
 response is value iteration (:mod:`embodied_adhoc.bench.bounds`). A plug-in spec
@@ -25,7 +32,8 @@ from embodied_adhoc.errors import ConfigError
 
 __all__ = ["FAMILIES", "Chapter5MemberFactory"]
 
-FAMILIES = ("named", "softmax", "epsilon", "lazy", "goal-mix")
+FAMILIES = ("named", "softmax", "epsilon", "lazy", "goal-mix", "mix")
+STAY_NAMES = ("stay", "noop")
 
 
 def _n_teammate(library, m: int) -> int:
@@ -56,13 +64,42 @@ def _softmax(library, m: int, temperature: float) -> np.ndarray:
     return weights / weights.sum(axis=1, keepdims=True)
 
 
+def default_base(library) -> str:
+    """The teammate the parametric families perturb: the library's ``greedy`` where it has one, else ``optimal``
+    (the teammate the maps' and the power plant's models hold)."""
+    return "greedy" if "greedy" in library.teammates else "optimal"
+
+
 def _stay(library, m: int) -> int:
-    names = library.pomdps[m].action_names
-    if _n_teammate(library, m) != library.n_actions or "stay" not in names:
-        raise ConfigError(
-            f"benchmark family 'lazy' needs a 'stay' action shared by both agents in {library.domain}"
-        )
-    return names.index("stay")
+    """The teammate's stay action: by name where the joint actions are named ``agent-teammate``, the power plant's
+    human's after its moves."""
+    if library.domain == "power-plant":
+        from embodied_adhoc.domains.chapter5.power_plant import N_MOVES
+
+        return N_MOVES  # the human's actions are its moves, then staying in its room
+    mmdp = library.mmdps[m]
+    names = getattr(mmdp, "action_names", None) or ()
+    first = library.pomdps[m].action_names[0] + "-"
+    own = [name[len(first) :] for name in names[: _n_teammate(library, m)] if name.startswith(first)]
+    for stay in STAY_NAMES:
+        if stay in own:
+            return own.index(stay)
+    raise ConfigError(
+        f"benchmark family 'lazy' needs a teammate stay action ({'/'.join(STAY_NAMES)}) in {library.domain}"
+    )
+
+
+def other_task(library, m: int) -> int | None:
+    """The first model after ``m`` (cyclically) with other rewards on the same states: the next task's goal; None
+    where there is none."""
+    models = library.native_pomdps or library.pomdps
+    for step in range(1, library.n_models):
+        k = (m + step) % library.n_models
+        if models[k].n_states == models[m].n_states and not np.array_equal(
+            library.mmdps[k].rewards, library.mmdps[m].rewards
+        ):
+            return k
+    return None
 
 
 class Chapter5MemberFactory:
@@ -84,7 +121,12 @@ class Chapter5MemberFactory:
             return _named(library, m, params["teammate"])
         if family == "softmax":
             return _softmax(library, m, float(params["temperature"]))
-        base = _named(library, m, params.get("base", "greedy"))
+        if family == "mix":
+            weights = np.asarray(params["weights"], dtype=np.float64)
+            policies = [_named(library, m, name) for name in params["teammates"]]
+            return sum(w * policy for w, policy in zip(weights / weights.sum(), policies, strict=True))
+        base_name = params.get("base") or default_base(library)
+        base = _named(library, m, base_name)
         if family == "epsilon":
             epsilon = float(params["epsilon"])
             return (1.0 - epsilon) * base + epsilon / base.shape[1]
@@ -92,9 +134,14 @@ class Chapter5MemberFactory:
             stay = np.zeros_like(base)
             stay[:, _stay(library, m)] = 1.0
             return (1.0 - float(params["p"])) * base + float(params["p"]) * stay
+        k = other_task(library, m)
+        if k is None:
+            raise ConfigError(
+                f"benchmark teammate {self.name}: family 'goal-mix' needs another task on the same states; "
+                f"{library.domain}'s models have none"
+            )
         other = float(params["other"])
-        elsewhere = _named(library, (m + 1) % library.n_models, params.get("base", "greedy"))
-        return (1.0 - other) * base + other * elsewhere
+        return (1.0 - other) * base + other * _named(library, k, base_name)
 
     def __repr__(self) -> str:
         return f"Chapter5MemberFactory({self.name!r})"

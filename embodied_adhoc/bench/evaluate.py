@@ -22,7 +22,7 @@ import numpy as np
 from embodied_adhoc.bench.populations import BENCH_DOMAINS, SUITE_VERSION, load_population, members
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["SUITES", "Suite", "evaluate", "resolve_suite"]
+__all__ = ["SUITES", "Suite", "backend_difference", "evaluate", "resolve_suite"]
 
 SUITES = ("heldout", "validation", "train")
 PROFILE_TAUS = np.round(np.linspace(-0.25, 1.25, 31), 4)
@@ -121,11 +121,14 @@ def evaluate(
     progress: bool = False,
     reps: int | None = None,
     plots: bool = True,
+    scores: dict | None = None,
 ) -> dict:
     """Run (or resume) the suite for ``agents`` and write ``OUT/summary.json`` (returned) and the plots.
 
     ``executor`` is the trial runner's (``local`` or ``ray``); the members of a population file given by
-    ``params`` are known to this process and its forked workers only, so they need ``local``."""
+    ``params`` are known to this process and its forked workers only, so they need ``local``. ``scores``, if
+    given, receives per domain ``{agent: normalised scores (episodes x members)}``, the per-episode data the
+    summary aggregates (e.g. for :func:`backend_difference`)."""
     from embodied_adhoc.atomic import atomic_write_text
     from embodied_adhoc.bench.bounds import member_bounds, normalise, start_state
     from embodied_adhoc.bench.scores import BENCH_REPS
@@ -208,6 +211,8 @@ def evaluate(
             rows.append(row)
             close_sessions()  # one member's worlds and policies at a time in memory
         stacked = {a: np.stack(columns, axis=1) for a, columns in matrices.items()}
+        if scores is not None:
+            scores[domain_name] = stacked
         summary["domains"][domain_name] = {
             "agents": list(run_agents),
             "teammates": rows,
@@ -228,6 +233,37 @@ def evaluate(
 
         plot_summary(summary, out)
     return summary
+
+
+def backend_difference(first: dict, second: dict, members: list[str]) -> dict:
+    """Per agent of both ``{agent: normalised scores (episodes x members)}`` (the same members, e.g. the abstract
+    and the physics lab): each side's mean, their difference (second - first) and Welch's unequal-variances t-test
+    (two-sided, ``experiments.stats.welch_test``) on the per-episode scores, pooled over the members and per
+    member."""
+    from embodied_adhoc.experiments.stats import welch_test
+
+    def compare(a: np.ndarray, b: np.ndarray) -> dict:
+        t, p = welch_test(a, b)
+        return {
+            "first_mean": float(a.mean()),
+            "second_mean": float(b.mean()),
+            "difference": float(b.mean() - a.mean()),
+            "t": t,
+            "p": p,
+            "n": [int(a.size), int(b.size)],
+        }
+
+    result = {}
+    for agent in (a for a in first if a in second):
+        a, b = np.asarray(first[agent]), np.asarray(second[agent])
+        result[agent] = {
+            **compare(a.ravel(), b.ravel()),
+            "per_member": {name: compare(a[:, k], b[:, k]) for k, name in enumerate(members)},
+        }
+    return _finite(
+        {"method": "Welch's unequal-variances t-test, two-sided, on per-episode normalised scores"}
+        | {"agents": result}
+    )
 
 
 def _finite(value):

@@ -12,8 +12,8 @@ on ``--human`` / ``--teammate``, and :meth:`TeammateSpec.trial_options` the tria
 * *held-out*: reported results only.
 
 The three are disjoint by name and by parameters (``tests/bench`` checks it). :data:`SUITE_VERSION` changes
-whenever a member is added, removed or re-parameterised; results carry it. A user's own population, a JSON file
-(:func:`load_population`), is a suite of its own.
+whenever a member is added, removed or re-parameterised; results carry it. A user's own population, a JSON
+file (:func:`load_population`), is a suite of its own.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from embodied_adhoc.domains.chapter5 import CHAPTER5_DOMAINS
 from embodied_adhoc.errors import ConfigError
 
 __all__ = [
@@ -35,12 +36,31 @@ __all__ = [
     "population",
 ]
 
-SUITE_VERSION = "1"
+SUITE_VERSION = "2"
 SPLITS = ("train", "validation", "held-out")
 LAB = "toxic-waste"
-CHAPTER5 = ("pursuit-task", "gridworld")
+CHAPTER5 = tuple(d for d in CHAPTER5_DOMAINS if d not in ("panic-buttons", "map"))
 BENCH_DOMAINS = (LAB, *CHAPTER5)
-"""The domains with a population: the toxic-waste lab (abstract backend) and two chapter-5 domains."""
+"""The domains with a population: the toxic-waste lab and the chapter-5 domains of Table 5.5 (not panic buttons,
+whose library picks the teammate, nor a user's map file)."""
+_THESIS_TEAMMATES = {
+    # the teammates the domain's own library holds (its train split); the maps' and the power plant's is the MMDP's
+    # optimal teammate
+    "pursuit-task": ("greedy",),
+    "gridworld": ("greedy",),
+    "pursuit-teammate": ("greedy", "aware"),
+    "pursuit-both": ("greedy", "aware"),
+    "overcooked": ("optimal", "upper", "lower", "random"),
+}
+_NO_OTHER_TASK = ("pursuit-teammate", "power-plant", "overcooked")
+"""Domains without another task on the same states: no goal-switching member
+(``chapter5_members.other_task``)."""
+_MIXED_TEAMS = {
+    "pursuit-teammate": ("greedy", "aware"),
+    "pursuit-both": ("greedy", "aware"),
+    "overcooked": ("upper", "lower"),
+}
+"""Domains whose library holds several teammates: a held-out member mixes two of them per step."""
 
 _SUITE_SPLIT = {"train": "train", "validation": "validation", "heldout": "held-out", "held-out": "held-out"}
 
@@ -146,26 +166,55 @@ def _chapter5(domain: str) -> tuple[TeammateSpec, ...]:
     def mate(name, split, label, **params):
         return TeammateSpec(name, domain, split, label, params)
 
-    own = mate("greedy", "train", "thesis teammate (the library's)", family="named", teammate="greedy")
+    thesis = _THESIS_TEAMMATES.get(domain, ("optimal",))
     specs = [
-        own,
-        mate("optimal", "train", "thesis: the MMDP's optimal teammate", family="named", teammate="optimal"),
+        mate(name, "train", "thesis teammate (the library's)", family="named", teammate=name)
+        for name in thesis
+    ]
+    if "optimal" not in thesis:
+        specs.append(
+            mate(
+                "optimal", "train", "thesis: the MMDP's optimal teammate", family="named", teammate="optimal"
+            )
+        )
+    goals = domain not in _NO_OTHER_TASK
+    specs += [
         mate("softmax-t03", "train", "softmax-rational", family="softmax", temperature=0.3),
         mate("eps-p10", "train", "epsilon-greedy", family="epsilon", epsilon=0.10),
         mate("lazy-p20", "train", "lazy (stays)", family="lazy", p=0.20),
         mate("softmax-t1", "validation", "softmax-rational", family="softmax", temperature=1.0),
         mate("eps-p30", "validation", "epsilon-greedy", family="epsilon", epsilon=0.30),
         mate("lazy-p40", "validation", "lazy (stays)", family="lazy", p=0.40),
-        mate("goal-mix-p50", "validation", "goal-switching (per step)", family="goal-mix", other=0.5),
+        *(
+            [mate("goal-mix-p50", "validation", "goal-switching (per step)", family="goal-mix", other=0.5)]
+            if goals
+            else []
+        ),
         mate("softmax-t3", "held-out", "softmax-rational", family="softmax", temperature=3.0),
         mate("softmax-t10", "held-out", "softmax-rational", family="softmax", temperature=10.0),
         mate("eps-p50", "held-out", "epsilon-greedy", family="epsilon", epsilon=0.50),
         mate("lazy-p60", "held-out", "lazy (stays)", family="lazy", p=0.60),
-        mate("other-goal", "held-out", "pursues another task's goal", family="goal-mix", other=1.0),
+        *(
+            [mate("other-goal", "held-out", "pursues another task's goal", family="goal-mix", other=1.0)]
+            if goals
+            else []
+        ),
     ]
     if domain == "pursuit-task":  # the thesis's teammate-aware predator, which this library does not hold
         specs.append(
             mate("aware", "held-out", "thesis: teammate-aware predator", family="named", teammate="aware")
+        )
+    if domain in _MIXED_TEAMS:
+        first, second = _MIXED_TEAMS[domain]
+        specs.append(
+            mate(
+                f"mix-{first}-{second}",
+                "held-out",
+                "mixed team: the library's teammates drawn per step",
+                family="mix",
+                teammates=[first, second],
+                weights=[0.5, 0.5],
+            )
         )
     return tuple(specs)
 
