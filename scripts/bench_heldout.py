@@ -101,13 +101,13 @@ def _provenance() -> dict:
     }
 
 
-def run(args: Args, previous: dict) -> dict:
-    """The suites and domains of ``args`` run (or resumed), merged into ``previous`` (the result file's data)."""
+def run(args: Args) -> dict:
+    """The suites and domains of ``args`` run (or resumed): the result file's fields for them."""
     from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
 
     started = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     provenance = _provenance()
-    results = {suite: dict(domains) for suite, domains in previous.get("suites", {}).items()}
+    results: dict = {}
     for suite_name in args.suites:
         for domain in args.domains:
             suite = resolve_suite(suite_name, (domain,))
@@ -126,22 +126,31 @@ def run(args: Args, previous: dict) -> dict:
                 "kernel": provenance["kernel"],
                 "wall_s": round(time.perf_counter() - clock, 1),
             }
-    checks = best_response_check(results)
-    print(
-        f"best-response check: {checks['checked']} (teammate, agent) cells, {len(checks['above'])} above",
-        file=sys.stderr,
-    )
-    return previous | {
+    return {
         "figure": "benchmark-heldout",
         **provenance,
         "started": started,
         "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "suites": results,
-        "best_response_check": checks,
     }
 
 
-def run_physics(args: Args, previous: dict) -> dict:
+def merge(previous: dict, fresh: dict) -> dict:
+    """The result file's data with ``fresh``'s suites and domains (or physics part) replacing their old entries,
+    the others kept, and the best-response check over all of them."""
+    suites = {suite: dict(domains) for suite, domains in previous.get("suites", {}).items()}
+    for suite, domains in fresh.get("suites", {}).items():
+        suites.setdefault(suite, {}).update(domains)
+    merged = previous | fresh | {"suites": suites}
+    checks = best_response_check(suites)
+    print(
+        f"best-response check: {checks['checked']} (teammate, agent) cells, {len(checks['above'])} above",
+        file=sys.stderr,
+    )
+    return merged | {"best_response_check": checks}
+
+
+def run_physics(args: Args) -> dict:
     """:data:`PHYSICS_AGENTS` on :data:`PHYSICS_MEMBERS` on both lab backends (same episodes), compared per agent."""
     from embodied_adhoc.bench.evaluate import Suite, backend_difference, evaluate
     from embodied_adhoc.bench.populations import LAB, find_member
@@ -184,7 +193,7 @@ def run_physics(args: Args, previous: dict) -> dict:
         },
         "difference": backend_difference(scores["abstract"], scores["mujoco"], list(PHYSICS_MEMBERS)),
     }
-    return previous | {"physics": physics}
+    return {"physics": physics}
 
 
 def best_response_check(results: dict) -> dict:
@@ -304,9 +313,9 @@ def main() -> int:
     if not args.render_only:
         from embodied_adhoc.atomic import atomic_write_text
 
-        previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}
-        result = run_physics(args, previous) if args.physics else run(args, previous)
-        atomic_write_text(RESULT, dumps(result) + "\n")
+        fresh = run_physics(args) if args.physics else run(args)
+        previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}  # read now: runs may overlap
+        atomic_write_text(RESULT, dumps(merge(previous, fresh)) + "\n")
     render(json.loads(RESULT.read_text()))
     print(table(json.loads(RESULT.read_text())))
     return 0
