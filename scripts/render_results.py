@@ -42,6 +42,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import hashlib
+import importlib.util
 import json
 import os
 import re
@@ -124,6 +125,9 @@ class Figure:
     """whether its one command prints Markdown tables (a check may then add arguments and print fewer rows)"""
     timing_tables: tuple[str, ...] = ()
     """keys of its tables that print seconds or rates (class *timing*, never compared; kept under ``"timing"``)"""
+    prose: Callable[[dict], dict[str, tuple[str | None, str]]] | None = None
+    """the data -> sentences that pages embed beside the tables (``results:NAME.KEY`` blocks), each with the key
+    of the table whose numbers it reads (None: the figure's one table), so that a page types no measurement"""
 
 
 # ------------------------------------------------------------------------------------------ extraction
@@ -663,6 +667,114 @@ def speech_confusions_tables(data: dict) -> list[Table]:
     return [Table("agents", "", headers, rows)]
 
 
+def welch_p(a: dict, b: dict) -> float:
+    """Welch's unequal-variance t-test of two agents' mean steps, from their summaries (mean, sample sd, trials)."""
+    from scipy import stats
+
+    return float(
+        stats.ttest_ind_from_stats(
+            a["steps_mean"],
+            a["steps_sd"],
+            a["trials"],
+            b["steps_mean"],
+            b["steps_sd"],
+            b["trials"],
+            equal_var=False,
+        ).pvalue
+    )
+
+
+def significance(p: float) -> str:
+    return "significant" if p < 0.05 else "not significant"
+
+
+def speech_confusions_prose(data: dict) -> dict[str, tuple[str | None, str]]:
+    thesis, measured = data["runs"]["thesis"], data["runs"]["measured"]
+    between = [
+        f"{SPEECH_AGENT_LABELS.get(agent, agent)} p = {welch_p(thesis[agent], measured[agent]):.3g}"
+        for agent in ("hotspot", "known-task")
+    ]
+    within = [welch_p(run["hotspot"], run["known-task"]) for run in (thesis, measured)]
+    verdict = "no" if all(welch_p(thesis[a], measured[a]) >= 0.05 for a in ("hotspot", "known-task")) else "a"
+    return {
+        "welch": (
+            None,
+            f"Welch t-tests of the steps to finish, measured vs thesis matrix: {', '.join(between)}: {verdict} "
+            f"significant difference to the team at alpha 0.05. HOTSPOT vs known-task: p = {within[0]:.3g} "
+            f"(thesis matrix, {significance(within[0])}), {within[1]:.3g} (measured, {significance(within[1])}).",
+        )
+    }
+
+
+ABLATION_CELL = re.compile(rf"^(?P<mean>{NUMBER}) ± (?P<sd>{NUMBER})(?: \(p (?P<p>[^)]*)\))?$")
+EPISODES_PER_CELL = re.compile(r"(?P<episodes>\d+) episodes per cell")
+
+
+def ablation_extract(outputs: dict[str, str]) -> dict:
+    """The deviations table and the episodes per cell its caption names (the check's intervals need them)."""
+    (table,) = markdown_tables(outputs["ablate"])
+    match = EPISODES_PER_CELL.search(table["caption"])
+    if match is None:
+        sys.exit(f"fig7-12-ablation: the table's caption names no episode count: {table['caption']!r}")
+    return {"tables": [table], "episodes": int(match["episodes"])}
+
+
+ABLATION_THESIS_ROW = "thesis (original's result files)"
+
+
+def ablation_prose(data: dict) -> dict[str, tuple[str | None, str]]:
+    """Which model and protocol rows agree with the thesis (every agent's Welch p >= 0.05) and which row comes
+    closest to each of the thesis's bars, read off the table."""
+    (table,) = data["tables"]
+    agents = table["headers"][1:]
+    thesis = next(row for row in table["rows"] if row[0] == ABLATION_THESIS_ROW)
+    rows = [row for row in table["rows"] if row[0] != ABLATION_THESIS_ROW]
+
+    def cell(row: Sequence[str], agent: str) -> tuple[float, float]:
+        match = ABLATION_CELL.match(row[1 + agents.index(agent)])
+        return float(match["mean"]), float(match["p"]) if match["p"] not in (None, "n/a") else float("nan")
+
+    agree = [row[0] for row in rows if all(cell(row, agent)[1] >= 0.05 for agent in agents)]
+    closest = []
+    for agent in agents:
+        target = cell(thesis, agent)[0]
+        best = min(rows, key=lambda row: abs(cell(row, agent)[0] - target))
+        mean, p = cell(best, agent)
+        closest.append(f"{agent} {mean:.2f} in \u201c{best[0]}\u201d (thesis {target:.2f}, p {p:.3g})")
+    quoted = ", ".join(f"\u201c{label}\u201d" for label in agree) or "none"
+    return {
+        "readings": (
+            None,
+            f"At {data['episodes']} episodes per cell, the rows in which no agent differs from the thesis (Welch, "
+            f"alpha 0.05): {quoted}. The row closest to each thesis bar: {'; '.join(closest)}.",
+        )
+    }
+
+
+def ablation_compare(published: dict, check: dict) -> list[str]:
+    """Every cell's second-kernel mean lies inside the published mean's 95 % t-interval (from the published sd
+    and the episodes per cell); the rows are matched by their label."""
+    failures = []
+    (ours,), (theirs,) = published["tables"], check["tables"]
+    others = {row[0]: row for row in theirs["rows"]}
+    half = T_975.get(published["episodes"], 1.96) / published["episodes"] ** 0.5
+    for row in ours["rows"]:
+        other = others.get(row[0])
+        if other is None:
+            failures.append(f"{row[0]}: no such row in the check")
+            continue
+        for header, cell, their in zip(ours["headers"][1:], row[1:], other[1:], strict=True):
+            mine, seen = ABLATION_CELL.match(cell), ABLATION_CELL.match(their)
+            if mine is None or mine["p"] is None:
+                continue  # the thesis's row: constants
+            mean, sd = float(mine["mean"]), float(mine["sd"])
+            if seen is None or not mean - half * sd <= float(seen["mean"]) <= mean + half * sd:
+                failures.append(
+                    f"{row[0]} / {header}: {their} outside the published {mean:.2f} ± {half * sd:.2f}"
+                )
+    return failures
+
+
 FIGURES = {
     figure.name: figure
     for figure in (
@@ -868,9 +980,49 @@ FIGURES = {
             speech_confusions_tables,
             arenas_compare,
             ("docs/speech.md",),
+            prose=speech_confusions_prose,
             partial_checks=True,
             notes="The matrix is both the env's channel and the agents' model; a task counts as identified when its "
             "posterior leads every other task by more than 1e-6.",
+        ),
+        Figure(
+            "fig7-12",
+            "Fig. 7.12 in the pursuit arena: seven agents on the grid twin and on MuJoCo physics "
+            "(32 episodes per agent and backend, seed 0, cap 150)",
+            {
+                "reproduce": [
+                    "{python}",
+                    "scripts/reproduce_fig7_12.py",
+                    "--out",
+                    "{out}",
+                    "--workers",
+                    "2",
+                    "--markdown",
+                ]
+            },
+            markdown_extract("reproduce"),
+            markdown_figure_tables(("steps", "claims")),
+            compare_markdown_tables,
+            ("docs/arenas.md",),
+            markdown=True,
+            notes="Steps are counted to entering the capture state; the thesis counts one more per captured trial, "
+            "hence its column in our count. ATPO's four policies are solved in the run (`pursuit_pairs.ATPO_SOLVER`).",
+        ),
+        Figure(
+            "fig7-12-ablation",
+            "Fig. 7.12's deviations from the thesis: the decision layer under the original experiment's model and "
+            "protocol variants (32 episodes per cell, seed 0, cap 150)",
+            {"ablate": ["{python}", "scripts/ablate_fig7_12.py", "--episodes", "32", "--markdown"]},
+            ablation_extract,
+            markdown_figure_tables(("steps",)),
+            ablation_compare,
+            ("docs/arenas.md",),
+            prose=ablation_prose,
+            checked="every second-kernel mean lies inside the published mean's 95 % t-interval (the published sd "
+            "over the episodes per cell)",
+            notes="Steps to the capture reward (the original's count: ours + 1 per captured episode), mean ± sd "
+            "(ddof 1) and the Welch p-value against the thesis's 32 trials; the same episode draws in every row "
+            "of a column.",
         ),
         Figure(
             "table5-3",
@@ -916,14 +1068,6 @@ UNRUN = {
             "MUJOCO_GL=egl OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/reproduce_fig7_12.py --out DIR "
             "--workers 2 --markdown",
             "about 6.5 min of wall time and 7.5 min of CPU on two workers, ATPO's four policies solved in the run",
-            STATISTICAL,
-        ),
-        Unrun(
-            "fig7-12-ablation",
-            "Fig. 7.12's deviations from the thesis: the decision layer under the original experiment's model "
-            "and protocol variants",
-            ".venv/bin/python scripts/ablate_fig7_12.py --episodes 32 --markdown; the same with --episodes 256",
-            "nine model and protocol variants x four agents x 288 episodes, with every variant's policies solved",
             STATISTICAL,
         ),
         Unrun(
@@ -1241,6 +1385,83 @@ RECORDED = {
 }
 
 
+@dataclass(frozen=True)
+class SelfRendered:
+    """A result file that its own script writes and renders into its own marked block of a page (one run, with its
+    provenance at the file's top level and no check runs in it). This script renders that block the same way (the
+    script's own function, so the two never disagree), checks it with the other pages, and states the file's class
+    in its ``results:NAME`` block, in the index and in the README's headline."""
+
+    name: str
+    title: str
+    source: str
+    """the result file, relative to the repository root"""
+    script: str
+    """the script that writes the file and renders its block (its ``table(result)`` gives the block's text)"""
+    page: str
+    markers: tuple[str, str]
+    """the script's own start and end markers on ``page``"""
+    klass: str
+    """the class a second kernel's run inside the file's intervals would give it"""
+
+
+SELF_RENDERED = {
+    entry.name: entry
+    for entry in (
+        SelfRendered(
+            "benchmark-heldout",
+            "The held-out benchmark: the shipped agents against held-out teammates, normalised scores per domain",
+            "results/benchmark-heldout.json",
+            "scripts/bench_heldout.py",
+            "docs/benchmark.md",
+            ("<!-- bench:heldout start -->", "<!-- bench:heldout end -->"),
+            STATISTICAL,
+        ),
+    )
+}
+
+
+def self_rendered_script(entry: SelfRendered):
+    """The entry's script as a module (its ``table`` function and constants)."""
+    path = ROOT / entry.script
+    spec = importlib.util.spec_from_file_location(f"_self_rendered_{path.stem}", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # its dataclasses resolve annotations through sys.modules
+    spec.loader.exec_module(module)
+    return module
+
+
+def self_rendered_class(entry: SelfRendered, data: dict) -> str:
+    return (
+        f"not re-checked (one run, under the {data['kernel']} kernel only; class once a second kernel's run lies "
+        f"inside its intervals: {entry.klass})"
+    )
+
+
+def self_rendered_block(entry: SelfRendered, page: Path) -> str:
+    data = json.loads((ROOT / entry.source).read_text())
+    return (
+        f"Class: **{self_rendered_class(entry, data)}**. *Generated by `{entry.script}` from `{entry.source}`, "
+        f"which `{data['command']}` wrote at commit {data['commit'][:10]} on {data['started'][:10]}; "
+        f"`{SCRIPT} --check` checks the table against the file.*"
+    )
+
+
+def with_self_rendered_tables(page: Path, text: str) -> str:
+    """``text`` with the blocks that a self-rendering script writes on ``page`` as that script renders them."""
+    for entry in SELF_RENDERED.values():
+        if page != ROOT / entry.page:
+            continue
+        start, end = entry.markers
+        if start not in text or end not in text:
+            sys.exit(f"{entry.page}: the markers {start} and {end} of `{entry.script}` are missing")
+        head, rest = text.split(start, 1)
+        tail = rest.split(end, 1)[1]
+        table = self_rendered_script(entry).table(json.loads((ROOT / entry.source).read_text()))
+        text = f"{head}{start}\n{table}\n{end}{tail}"
+    return text
+
+
 def recorded_block(entry: Recorded, key: str | None, page: Path) -> str:
     data = json.loads((ROOT / entry.source).read_text())
     tables = [t for t in entry.tables(data) if key is None or t.key == key]
@@ -1288,13 +1509,13 @@ CODE = ("embodied_adhoc", "scripts", "assets", "scenes", "pyproject.toml", "cons
 """What a run executes, taken from the commit: a check counts against a published run of that code only."""
 
 
-def snapshot() -> tuple[str, str, Path]:
-    """HEAD's commit, the SHA-256 of its files under ``CODE`` (names and blobs), and a copy of those files.
+def snapshot(revision: str = "HEAD") -> tuple[str, str, Path]:
+    """``revision``'s commit, the SHA-256 of its files under ``CODE`` (names and blobs), and a copy of those files.
 
     A figure runs from the copy (``PYTHONPATH`` first, ahead of the editable install), so its numbers are
     those of the commit it records: uncommitted edits in the checkout, and edits made while it runs, never
     reach it. This renderer is left out of the digest, since it changes the pages, never a number."""
-    commit = git("rev-parse", "HEAD")
+    commit = git("rev-parse", revision)
     listing = git("ls-tree", "-r", commit, "--", *CODE).splitlines()
     code = hashlib.sha256(
         "\n".join(line for line in listing if not line.endswith(SCRIPT)).encode()
@@ -1314,7 +1535,8 @@ def snapshot() -> tuple[str, str, Path]:
 
 def published_code(figure: Figure, extra: Sequence[str] = ()) -> tuple[str, str, Path] | None:
     """The frozen copy the figure's published run ran from (for a check of some rows, the run that re-made those
-    rows, where one did), while this machine still has it."""
+    rows, where one did): the one this machine kept, or one made again from the recorded commit when this clone
+    has it and its files still give the recorded digest."""
     path = RESULTS / f"{figure.name}.json"
     if not path.exists():
         return None
@@ -1322,7 +1544,15 @@ def published_code(figure: Figure, extra: Sequence[str] = ()) -> tuple[str, str,
     published = next((p for p in published.get("parts", []) if p["extra"] == shlex.join(extra)), published)
     code = published.get("code_sha256", "")
     folder = ROOT / RUN_DIR / f"code-{code[:16]}"
-    return (published["commit"], code, folder) if code and folder.is_dir() else None
+    if code and folder.is_dir():
+        return published["commit"], code, folder
+    known = subprocess.run(
+        ["git", "cat-file", "-e", f"{published['commit']}^{{commit}}"], cwd=ROOT
+    ).returncode
+    if not code or known != 0:
+        return None
+    again = snapshot(published["commit"])
+    return again if again[1] == code else None
 
 
 def run_figure(
@@ -1577,12 +1807,19 @@ def provenance(figure: Figure, document: dict, page: Path) -> str:
 
 
 def fragment(figure: Figure, document: dict, key: str | None, page: Path) -> str:
+    sentences = figure.prose(document["published"]["data"]) if figure.prose else {}
+    if key in sentences:
+        table, sentence = sentences[key]
+        klass = reproducibility(figure, document, table)[0]
+        link = os.path.relpath(PAGES / f"{figure.name}.md", page.parent)
+        return f"{sentence} *(Generated from `results/{figure.name}.json` by `{SCRIPT}`; [{klass}]({link}).)*"
     tables = figure.tables(document["published"]["data"])
     chosen = [t for t in tables if key is None or t.key == key]
     if not chosen:
         sys.exit(
             f"{page.relative_to(ROOT)}: marker results:{figure.name}.{key}: the figure has tables "
             f"{', '.join(t.key for t in tables)}"
+            + (f" and sentences {', '.join(sentences)}" if sentences else "")
         )
     # The embedding page's own prose introduces the tables, so their captions stay on the figure's page.
     blocks = [
@@ -1674,6 +1911,13 @@ def index_page(documents: dict[str, dict]) -> str:
         lines.append(
             f"| {entry.title} | not re-run, from `{entry.source}` (cost: {entry.cost}) | `{command}` |"
         )
+    for entry in SELF_RENDERED.values():
+        data = json.loads((ROOT / entry.source).read_text())
+        link = os.path.relpath(ROOT / entry.page, PAGES)
+        lines.append(
+            f"| [{entry.title}]({link}) | {self_rendered_class(entry, data)}, from `{entry.source}` | "
+            f"`{data['command']}` |"
+        )
     for entry in UNRUN.values():
         lines.append(f"| {entry.title} | not re-run (cost: {entry.cost}) | `{entry.command}` |")
     return "\n".join(lines) + "\n"
@@ -1754,16 +1998,41 @@ def headline(documents: dict[str, dict], page: Path) -> str:
                 link("chapter5", "table5_6"),
             ]
         )
+    if "benchmark-heldout" in SELF_RENDERED:
+        rows.append(heldout_headline(SELF_RENDERED["benchmark-heldout"], page))
     for result, guide in NOT_GENERATED:
         rows.append(
             [result, "not generated", "-", f"[not re-run]({os.path.relpath(ROOT / guide, page.parent)})"]
         )
     table = Table(HEADLINE, "", ["result (thesis figure)", "ours", "thesis", "how it reproduces"], rows)
-    sources = ", ".join(f"`results/{name}.json`" for name in HEADLINE_SOURCES if name in documents)
+    sources = ", ".join(
+        [f"`results/{name}.json`" for name in HEADLINE_SOURCES if name in documents]
+        + [f"`{entry.source}`" for entry in SELF_RENDERED.values()]
+    )
     return (
         f"{table.markdown()}\n\n*Generated by `{SCRIPT}` from {sources}. The rows marked not generated have no "
         "result file yet: their pages give the commands that make them and what a run costs.*"
     )
+
+
+def heldout_headline(entry: SelfRendered, page: Path) -> list[str]:
+    """Per domain of the held-out suite, the agent with the highest IQM among those that do not see the state."""
+    data = json.loads((ROOT / entry.source).read_text())
+    privileged = self_rendered_script(entry).PRIVILEGED
+    cells = []
+    for domain, scope in data["suites"]["heldout"].items():
+        fair = {agent: v for agent, v in scope["aggregate"].items() if agent not in privileged}
+        agent = max(fair, key=lambda name: fair[name]["iqm"])
+        low, high = fair[agent]["iqm_ci"]
+        cells.append(f"{domain} {agent} {fair[agent]['iqm']:.2f} [{low:.2f}, {high:.2f}]")
+    klass = self_rendered_class(entry, data).split(" (")[0]
+    return [
+        "Held-out benchmark: the best agent that does not see the state, per domain, held-out IQM of the "
+        "normalised score (0 random ego, 1 best response; no thesis counterpart)",
+        "; ".join(cells),
+        "-",
+        f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})",
+    ]
 
 
 def marked_pages() -> list[Path]:
@@ -1783,8 +2052,10 @@ def render_markers(page: Path, text: str, documents: dict[str, dict]) -> tuple[s
         if match["edge"] != "start":
             sys.exit(f"{page.relative_to(ROOT)}:{index}: results:{match['name']} ends before it starts")
         name, _, key = match["name"].partition(".")
-        if name not in (HEADLINE, *UNRUN, *RECORDED) and (name not in FIGURES or name not in documents):
-            known = sorted([*documents, *UNRUN, *RECORDED])
+        if name not in (HEADLINE, *UNRUN, *RECORDED, *SELF_RENDERED) and (
+            name not in FIGURES or name not in documents
+        ):
+            known = sorted([*documents, *UNRUN, *RECORDED, *SELF_RENDERED])
             sys.exit(
                 f"{page.relative_to(ROOT)}:{index}: results:{name}: no such figure with a result file "
                 f"(known: {', '.join(known)}); run `{SCRIPT} run {name}`"
@@ -1800,6 +2071,8 @@ def render_markers(page: Path, text: str, documents: dict[str, dict]) -> tuple[s
             block = unrun_block(UNRUN[name], page)
         elif name in RECORDED:
             block = recorded_block(RECORDED[name], key or None, page)
+        elif name in SELF_RENDERED:
+            block = self_rendered_block(SELF_RENDERED[name], page)
         else:
             block = fragment(FIGURES[name], documents[name], key or None, page)
         out += ["", block, "", end]
@@ -1816,7 +2089,7 @@ def expected_pages() -> dict[Path, tuple[str, list[str]]]:
     }
     pages[PAGES / "index.md"] = (index_page(documents), list(documents))
     for page in marked_pages():
-        text = page.read_text()
+        text = with_self_rendered_tables(page, page.read_text())
         rendered, names = render_markers(page, text, documents)
         if names:
             pages[page] = (rendered, names)
@@ -1851,6 +2124,10 @@ def check() -> int:
             continue
         for name in names:
             ours, theirs = ("" if actual is None else _block(actual, name)), _block(expected, name)
+            if name in SELF_RENDERED and actual is not None:
+                # the script's own table lies outside the results block: it counts as part of it
+                start, end = SELF_RENDERED[name].markers
+                ours, theirs = (ours + _between(actual, start, end), theirs + _between(expected, start, end))
             if actual is not None and ours == theirs:
                 continue
             where = "the page is missing" if actual is None else first_difference(ours, theirs)
@@ -1859,6 +2136,13 @@ def check() -> int:
                     f"{relative}: table {name} differs from "
                     f"{', '.join(f'results/{n}.json' for n in HEADLINE_SOURCES)} ({where}); re-render with "
                     f"`.venv/bin/python {SCRIPT} render`, or re-run the figure whose numbers are stale"
+                )
+                continue
+            if name in SELF_RENDERED:
+                entry = SELF_RENDERED[name]
+                print(
+                    f"{relative}: the table of {entry.script} or its class differs from {entry.source}; "
+                    f"re-render with `.venv/bin/python {SCRIPT} render` (or `{entry.script} --render-only`)"
                 )
                 continue
             if name.partition(".")[0] in (*UNRUN, *RECORDED):
@@ -1873,6 +2157,10 @@ def check() -> int:
                 f"(`{script_of(figure)}`): `{regenerate(figure)}`"
             )
     return 1 if failures else 0
+
+
+def _between(text: str, start: str, end: str) -> str:
+    return text.split(start, 1)[1].split(end, 1)[0] if start in text else text
 
 
 def _block(text: str, name: str) -> str:

@@ -39,6 +39,8 @@ def copy_tree(tmp_path: Path) -> Path:
     """The pages, the result files and the renderer, as the check sees them in a checkout."""
     (tmp_path / "scripts").mkdir()
     shutil.copy(SCRIPT, tmp_path / "scripts")
+    for entry in load_script().SELF_RENDERED.values():  # scripts that render their own block of a page
+        shutil.copy(ROOT / entry.script, tmp_path / entry.script)
     shutil.copy(ROOT / "README.md", tmp_path)
     shutil.copytree(
         ROOT / "docs", tmp_path / "docs", ignore=shutil.ignore_patterns("*.mp4", "*.rrd", "*.png")
@@ -365,3 +367,70 @@ def test_two_checks_by_one_kernel_of_different_rows_are_both_kept_and_counted(tm
     klass, how = module.reproducibility(figure, document)
     assert klass == "exact on any host (the part checked)"
     assert "--domains mit" in how and "--domains cit" in how
+
+
+def test_a_self_rendered_table_is_checked_and_its_class_and_headline_come_from_its_file(tmp_path):
+    module = load_script()
+    entry = module.SELF_RENDERED["benchmark-heldout"]
+    root = copy_tree(tmp_path)
+    page = root / entry.page
+    text = page.read_text()
+    start, end = entry.markers
+    assert f"<!-- results:{entry.name} start -->" in text
+    # A hand edit inside the script's own block fails the check and names the script.
+    inside = text.index(start) + len(start)
+    digit = next(i for i in range(inside, text.index(end)) if text[i].isdigit())
+    page.write_text(text[:digit] + str((int(text[digit]) + 1) % 10) + text[digit + 1 :])
+    done = run_check(root)
+    assert done.returncode == 1
+    assert f"{entry.page}: the table of {entry.script}" in done.stdout
+    # The class names the one kernel the file was made on; the headline takes its domains from the file.
+    data = json.loads((ROOT / entry.source).read_text())
+    block = module.self_rendered_block(entry, ROOT / entry.page)
+    assert f"under the {data['kernel']} kernel only" in block and data["command"] in block
+    row = module.heldout_headline(entry, ROOT / "README.md")
+    privileged = module.self_rendered_script(entry).PRIVILEGED
+    for domain, scope in data["suites"]["heldout"].items():
+        fair = {a: v["iqm"] for a, v in scope["aggregate"].items() if a not in privileged}
+        best = max(fair, key=fair.get)
+        assert f"{domain} {best} {fair[best]:.2f} [" in row[1]
+    assert row[3] == f"[not re-checked]({entry.page})"
+
+
+def test_the_ablation_check_holds_each_mean_to_the_published_t_interval():
+    module = load_script()
+    text = (
+        "done: ours\n\nFig. 7.12 ablation: 32 episodes per cell, seed 0, cap 150, steps\n\n"
+        "| model and protocol | oracle | random |\n|---|---|---|\n"
+        "| ours | 7.56 ± 3.63 (p 0.437) | 83.31 ± 57.30 (p 0.603) |\n"
+        "| thesis (original's result files) | 6.75 ± 4.62 | 76.06 ± 53.49 |\n"
+    )
+    published = module.ablation_extract({"ablate": text})
+    assert published["episodes"] == 32
+    # 1.96 x 3.63 / sqrt(32) = 1.26: 8.7 lies inside, 8.9 outside; the thesis row is constants, never compared
+    inside = module.ablation_extract({"ablate": text.replace("7.56 ± 3.63 (p 0.437)", "8.70 ± 3.00 (p 0.2)")})
+    outside = module.ablation_extract(
+        {"ablate": text.replace("7.56 ± 3.63 (p 0.437)", "8.90 ± 3.00 (p 0.1)")}
+    )
+    assert module.ablation_compare(published, published) == []
+    assert module.ablation_compare(published, inside) == []
+    (failure,) = module.ablation_compare(published, outside)
+    assert failure.startswith("ours / oracle: 8.90 ± 3.00 (p 0.1) outside the published 7.56 ± 1.26")
+
+
+def test_a_check_rebuilds_the_published_runs_code_from_its_commit(tmp_path, monkeypatch):
+    module = load_script()
+    monkeypatch.setattr(module, "RUN_DIR", str(tmp_path / "runs"))
+    monkeypatch.setattr(module, "RESULTS", tmp_path)
+    parent = module.git("rev-parse", "HEAD~1")
+    commit, code, _ = module.snapshot(parent)
+    published = {"commit": commit, "code_sha256": code, "extra": ""}
+    (tmp_path / "chapter5.json").write_text(json.dumps({"published": published, "checks": []}))
+    shutil.rmtree(tmp_path / "runs")  # this machine no longer holds the copy the published run ran from
+    again = module.published_code(module.FIGURES["chapter5"])
+    assert again is not None and again[:2] == (commit, code) and again[2].is_dir()
+    # A recorded digest that the commit's files do not give is no copy of the published code.
+    (tmp_path / "chapter5.json").write_text(
+        json.dumps({"published": {**published, "code_sha256": "0" * 64}, "checks": []})
+    )
+    assert module.published_code(module.FIGURES["chapter5"]) is None
