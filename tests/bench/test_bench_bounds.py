@@ -72,11 +72,19 @@ def test_lab_bounds_match_simulated_episodes():
     assert bounds.best > bounds.random
 
 
-def test_chapter5_bounds_match_simulated_episodes():
+@pytest.mark.parametrize(
+    ("domain", "member", "horizon"),
+    [
+        ("gridworld", "eps-p50", 50),
+        ("power-plant", "softmax-t10", 50),  # a state space of its own per task
+        ("overcooked", "mix-upper-lower", 50),  # models that differ in the teammate only
+    ],
+)
+def test_chapter5_bounds_match_simulated_episodes(domain, member, horizon):
     from embodied_adhoc.domains.chapter5.teammates import world_with_teammate
 
-    library, horizon = build_library("gridworld"), 50
-    spec = find_member("gridworld", "eps-p50")
+    library = build_library(domain)
+    spec = find_member(domain, member)
     bounds = member_bounds(spec, library, horizon)
     mdps, starts = world_mdps(spec, library)
     tables = [_q_tables(mdp, horizon) for mdp in mdps]
@@ -96,6 +104,7 @@ def test_chapter5_bounds_match_simulated_episodes():
     _check(random_returns, bounds.random)
     _check(best_returns, bounds.best)
     assert np.allclose([s.sum() for s in starts], 1.0)
+    assert bounds.best > bounds.random
 
 
 def test_normalisation_is_zero_for_random_and_one_for_the_best_response():
