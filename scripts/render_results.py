@@ -716,9 +716,10 @@ def arena_speed_extract(outputs: dict[str, str]) -> dict:
 def arena_speed_tables(data: dict) -> list[Table]:
     runs = data["timing"]["runs"]
     rows = [[domain, r["name"], r["rate"], r["ratio"]] for domain, run in runs.items() for r in run["rates"]]
-    caption = " ".join(f"{domain}: {' '.join(run['notes'])}" for domain, run in runs.items())
+    notes = [[domain, note] for domain, run in runs.items() for note in run["notes"]]
     return [
-        Table("rates", caption, ["run", "env", "steps per CPU s", "ratio to the first row of its run"], rows)
+        Table("rates", "", ["run", "env", "steps per CPU s", "ratio to the first row of its run"], rows),
+        Table("macro-steps", "", ["run", "measurement"], notes),
     ]
 
 
@@ -1093,7 +1094,8 @@ FIGURES = {
         ),
         Figure(
             "arena-speed",
-            "Arena env speed against lbforaging (steps per CPU second, ratios to lbforaging measured in the same run)",
+            "Arena env speed: steps per CPU second, as ratios to a reference measured in the same run (lbforaging "
+            "where it is installed, else the grid twin)",
             {domain: ["{python}", "scripts/bench_arenas.py", "--domain", domain] for domain in ARENA_DOMAINS},
             arena_speed_extract,
             arena_speed_tables,
@@ -1155,13 +1157,6 @@ UNRUN = {
             "--agents original --episodes 4 --max-steps 200 (24 cells)",
             "96 physics episodes of about 10 macro steps each, and random's 8 (tau1, 4 per domain)",
             STATISTICAL,
-        ),
-        Unrun(
-            "arena-speed",
-            "Arena env speed against lbforaging",
-            "MUJOCO_GL=egl .venv/bin/python scripts/bench_arenas.py [--domain pursuit]",
-            "a few minutes; rates swing 2-3x with the machine's load",
-            TIMING,
         ),
         Unrun(
             "teamster-reference",

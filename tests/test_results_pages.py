@@ -434,3 +434,17 @@ def test_a_check_rebuilds_the_published_runs_code_from_its_commit(tmp_path, monk
         json.dumps({"published": {**published, "code_sha256": "0" * 64}, "checks": []})
     )
     assert module.published_code(module.FIGURES["chapter5"]) is None
+
+
+@pytest.mark.parametrize("name", ["pomdp-io", "arena-speed"])
+def test_a_timing_figure_reads_its_scripts_output_back_into_its_result_file(name):
+    module = load_script()
+    figure = module.FIGURES[name]
+    document = json.loads((ROOT / "results" / f"{name}.json").read_text())
+    data = document["published"]["data"]
+    stdout = data["timing"]["stdout"]
+    outputs = stdout if isinstance(stdout, dict) else {next(iter(figure.commands)): stdout}
+    assert figure.extract(outputs) == data
+    assert figure.compare is None  # seconds are never compared across kernels
+    assert all(module.reproducibility(figure, document, t.key)[0] == "timing" for t in figure.tables(data))
+    assert all(table.rows for table in figure.tables(data))
