@@ -39,6 +39,27 @@ AGENTS = {
     "power-plant": tuple(a for a in CHAPTER5_AGENTS if a != "bopa"),  # its tasks share no state space
 }
 PRIVILEGED = ("oracle", "bopa", "value-iteration")
+DROPPED = ("profiles",)
+ROW_DROPPED = ("domain", "split", "version")
+"""Summary fields the result file leaves out (each run's ``summary.json`` under ``--out`` keeps them, with its plots):
+the performance profiles (no table reads them), each teammate row's domain, split and version (its entry's), and of
+the probabilities of improvement the pairs ``b > a`` with ``b`` after ``a`` in the agent order (``P(b > a) = 1 -
+P(a > b)``, ties counting one half)."""
+
+
+def _slim(scope: dict) -> dict:
+    """A domain's summary as the result file keeps it (see :data:`DROPPED`)."""
+    agents = list(scope.get("aggregate", {}))
+    kept = {k: v for k, v in scope.items() if k not in DROPPED}
+    kept["teammates"] = [{k: v for k, v in row.items() if k not in ROW_DROPPED} for row in scope["teammates"]]
+    kept["probability_of_improvement"] = {
+        pair: value
+        for pair, value in scope.get("probability_of_improvement", {}).items()
+        if agents.index(pair.split(" > ")[0]) < agents.index(pair.split(" > ")[1])
+    }
+    return kept
+
+
 PHYSICS_MEMBERS = ("order-210", "wander-p40", "quiet-p100", "mislead-p50")
 """The lab's held-out humans run on physics: those whose behaviour the physics lab acts out (its walker does not
 let a ball fall, so ``drop-p30`` is not among them)."""
@@ -117,7 +138,7 @@ def run(args: Args) -> dict:
             summary = evaluate(
                 AGENTS[domain], suite, out, episodes=args.episodes, seed=args.seed, progress=True
             )
-            results.setdefault(suite_name, {})[domain] = summary["domains"][domain] | {
+            results.setdefault(suite_name, {})[domain] = _slim(summary["domains"][domain]) | {
                 "version": summary["version"],
                 "episodes": summary["episodes"],
                 "seed": summary["seed"],
@@ -139,7 +160,10 @@ def run(args: Args) -> dict:
 def merge(previous: dict, fresh: dict) -> dict:
     """The result file's data with ``fresh``'s suites and domains (or physics part) replacing their old entries,
     the others kept, and the best-response check over all of them."""
-    suites = {suite: dict(domains) for suite, domains in previous.get("suites", {}).items()}
+    suites = {
+        suite: {domain: _slim(scope) for domain, scope in domains.items()}
+        for suite, domains in previous.get("suites", {}).items()
+    }
     for suite, domains in fresh.get("suites", {}).items():
         suites.setdefault(suite, {}).update(domains)
     merged = previous | fresh | {"suites": suites}
@@ -344,12 +368,14 @@ def render(result: dict) -> None:
 
 
 def dumps(value, indent: int = 0) -> str:
-    """JSON with one level per line and lists of numbers or names on one line (the file stays small and diffable);
-    floats to 6 significant digits, far below the intervals' widths."""
+    """JSON with one level per line, and lists of numbers or names and objects of such values on one line (the file
+    stays small and diffable); floats to 6 significant digits, far below the intervals' widths."""
     pad, inner = " " * indent, " " * (indent + 1)
     if isinstance(value, dict):
         if not value:
             return "{}"
+        if all(not isinstance(v, dict) and "\n" not in dumps(v) for v in value.values()):
+            return "{" + ", ".join(f"{json.dumps(str(k))}: {dumps(v)}" for k, v in value.items()) + "}"
         items = [f"{inner}{json.dumps(str(k))}: {dumps(v, indent + 1)}" for k, v in value.items()]
         return "{\n" + ",\n".join(items) + f"\n{pad}}}"
     if isinstance(value, list | tuple):
