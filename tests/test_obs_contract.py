@@ -77,7 +77,9 @@ def _agents(domain, options) -> tuple[str, ...]:
         if options.get("pairs"):  # the shipped ATLPO library is trained for four predators
             return ("original", "random")
         return tuple(name for name in GridTrialDomain.agent_names if _shipped(name, domain.name))
-    return tuple(name for name in domain.agent_names if _shipped(name, domain.name))
+    return tuple(name for name in domain.agent_names if _shipped(name, domain.name)) + _learned_plugins(
+        domain.name
+    )
 
 
 # The library-free agents are trained per domain; one without shipped weights is the user's to train.
@@ -100,6 +102,15 @@ def _shipped(agent: str, domain: str) -> bool:
         return importlib.import_module(_LEARNED[agent]).shipped_weights(domain).is_file()
     except ConfigError:  # none shipped for this domain
         return False
+
+
+def _learned_plugins(domain: str) -> tuple[str, ...]:
+    """The library-free agents on the lab and pursuit-task: plug-ins (``MODULE:plugin``) where weights ship."""
+    from embodied_adhoc.learning.index_domains import INDEX_DOMAINS
+
+    if domain not in INDEX_DOMAINS:
+        return ()
+    return tuple(f"{module}:plugin" for agent, module in _LEARNED.items() if _shipped(agent, domain))
 
 
 def _trajectory(session, env, job):

@@ -14,6 +14,10 @@ import argparse
 from embodied_adhoc.commands.arguments import output_folder
 from embodied_adhoc.errors import ConfigError
 
+RECURRENT_DOMAINS = ("foraging", "pursuit", "toxic-waste", "pursuit-task")
+"""``learning.generalist.DOMAINS``, spelled out so that building the parser imports no torch (a test checks they
+agree)."""
+
 
 def handle_atlpo(args: argparse.Namespace) -> int:
     for name in ("steps", "envs", "episodes", "episode_steps", "iterations"):
@@ -50,6 +54,8 @@ def _train_recurrent(args, agent: str, settings, run, postfix, last) -> int:
     for name in ("steps", "envs", "rollout", "threads"):
         if getattr(args, name) < 1:
             raise ConfigError(f"--{name} {getattr(args, name)}: give a positive integer")
+    if args.teammates < 0:
+        raise ConfigError(f"--teammates {args.teammates}: give a positive count, or 0 for all")
     from tqdm import tqdm
 
     from embodied_adhoc.learning.ppo import pick_device
@@ -98,7 +104,7 @@ def handle_generalist(args: argparse.Namespace) -> int:
     return _train_recurrent(
         args,
         "ppo-generalist",
-        lambda: GeneralistTraining(*_common(args)),
+        lambda: GeneralistTraining(*_common(args), teammates=args.teammates),
         train_generalist_run,
         postfix,
         lambda final: f"solved {final.get('solved')}",
@@ -113,7 +119,9 @@ def handle_liam(args: argparse.Namespace) -> int:
     return _train_recurrent(
         args,
         "liam",
-        lambda: LiamTraining(*_common(args), reconstruction_coef=args.reconstruction),
+        lambda: LiamTraining(
+            *_common(args), teammates=args.teammates, reconstruction_coef=args.reconstruction
+        ),
         train_liam_run,
         lambda row: f"{_length(row)} reconstruction {row['reconstruction_loss']:.3f}",
         lambda final: f"reconstruction loss {final.get('reconstruction_loss')}",
@@ -130,7 +138,7 @@ def handle_meliba(args: argparse.Namespace) -> int:
     return _train_recurrent(
         args,
         "meliba",
-        lambda: MelibaTraining(*_common(args), latent=args.latent, kl_coef=args.kl),
+        lambda: MelibaTraining(*_common(args), teammates=args.teammates, latent=args.latent, kl_coef=args.kl),
         train_meliba_run,
         lambda row: f"{_length(row)} elbo {row['elbo_loss']:.3f} variance {row['posterior_variance']:.3f}",
         lambda final: f"negative ELBO {final.get('elbo_loss')}",
@@ -270,7 +278,18 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def _recurrent_parser(kinds, name: str, steps: int, **texts) -> argparse.ArgumentParser:
     """The flags every recurrent PPO agent's training takes (``_train_recurrent`` reads them)."""
     parser = kinds.add_parser(name, **texts)
-    parser.add_argument("--domain", choices=("foraging", "pursuit"), required=True)
+    parser.add_argument(
+        "--domain",
+        choices=RECURRENT_DOMAINS,
+        required=True,
+        help="a grid arena (teams tau0-tau2) or a benchmark domain (teammates from its train split)",
+    )
+    parser.add_argument(
+        "--teammates",
+        type=int,
+        default=0,
+        help="train against the first N teams / train-split members only (default 0: all of them)",
+    )
     parser.add_argument(
         "--steps",
         type=int,

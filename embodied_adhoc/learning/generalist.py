@@ -30,19 +30,22 @@ from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.learning.networks import NetworkConfig
 from embodied_adhoc.learning.recurrent_ppo import (
     CHECKPOINT,
     RecurrentActorCritic,
     RecurrentPpoConfig,
     generalist_metadata,
+    network_config,
     train_recurrent_ppo,
 )
 from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights, save_weights
 from embodied_adhoc.paths import assets_dir
 
 TRAIN_TEAMS = ("tau0", "tau1", "tau2")
-DOMAINS = ("foraging", "pursuit")
+GRID_DOMAINS = ("foraging", "pursuit")
+DOMAINS = (*GRID_DOMAINS, "toxic-waste", "pursuit-task")
+"""The grid arenas (teams tau0-tau2) and the benchmark's index domains (:mod:`~embodied_adhoc.learning.
+index_domains`, teammates from the benchmark's train split)."""
 SHIPPED_FOLDER = "generalist"
 SHIPPED_COMMAND = (
     "embodied-adhoc train ppo-generalist --domain {domain} --steps 300000 --seed 0 --threads 1 "
@@ -88,7 +91,7 @@ def load_generalist(path: str | Path, kind: str = "ppo-generalist") -> tuple[Rec
     _, metadata = load_weights(path)
     if metadata.get("kind") != kind:
         raise WeightsError(f"{path}: not a {kind} (kind={metadata.get('kind')!r})")
-    model = RecurrentActorCritic(NetworkConfig(**metadata["network"]), int(metadata["recurrent"]))
+    model = RecurrentActorCritic(network_config(metadata["network"]), int(metadata["recurrent"]))
     load_into(model, path)
     return model.eval(), metadata
 
@@ -202,7 +205,12 @@ def train_teams(domain: str) -> tuple:
 
 def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
     """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.generalist:plugin``), for any
-    command that takes plug-ins: built for the grid of the arena's ``library`` (its ``rules.config``)."""
+    command that takes plug-ins: built for the grid of the arena's ``library`` (its ``rules.config``), or for the
+    lab's or pursuit-task's library (:func:`~embodied_adhoc.learning.index_domains.index_agent`)."""
+    from embodied_adhoc.learning.index_domains import index_agent, index_domain
+
+    if index_domain(library) is not None:
+        return index_agent(library, "ppo-generalist")
     grid = library.rules.config
     return generalist_agent(grid.domain, None, grid)
 
@@ -219,13 +227,18 @@ class GeneralistTraining:
     rollout: int = 64
     device: str = "cpu"
     threads: int = 1
+    teammates: int = 0  # the first N teams or train members; 0: all of them
 
     def __post_init__(self) -> None:
         if self.domain not in DOMAINS:
             raise ConfigError(f"--domain {self.domain}: use one of {', '.join(DOMAINS)}")
+        if self.domain in GRID_DOMAINS and not 0 <= self.teammates <= len(TRAIN_TEAMS):
+            raise ConfigError(f"--teammates {self.teammates}: give 1..{len(TRAIN_TEAMS)} or 0 for all")
 
     def config(self) -> RecurrentPpoConfig:
-        minibatches = 4 if self.envs % 4 == 0 else 1
+        # The index domains' networks are small, so an update's cost is the per-step overhead of each unroll:
+        # one minibatch of every sub-env there, four on the grids.
+        minibatches = 4 if self.envs % 4 == 0 and self.domain in GRID_DOMAINS else 1
         return RecurrentPpoConfig(
             total_steps=self.steps,
             num_envs=self.envs,
@@ -236,7 +249,11 @@ class GeneralistTraining:
         )
 
     def env_kwargs(self) -> dict:
-        return {"teams": list(TRAIN_TEAMS)}
+        if self.domain in GRID_DOMAINS:
+            return {"teams": list(TRAIN_TEAMS[: self.teammates or len(TRAIN_TEAMS)])}
+        from embodied_adhoc.learning.index_domains import member_names
+
+        return {"members": member_names(self.domain, self.teammates)}
 
 
 def curve_csv(history: list[dict], fields: tuple[str, ...] = CURVE_FIELDS) -> str:

@@ -75,10 +75,13 @@ class LiamNetwork(RecurrentActorCritic):
     """The generalist's network plus the training-only decoder from the GRU state to the ``teammates``' windows
     and action logits. :meth:`unroll` keeps its GRU states (:attr:`embeddings`) for the reconstruction loss."""
 
-    def __init__(self, network: NetworkConfig, recurrent: int, teammates: int, decoder_hidden: int) -> None:
+    def __init__(
+        self, network: NetworkConfig, recurrent: int, teammates: int, decoder_hidden: int, views: int = 0
+    ) -> None:
         super().__init__(network, recurrent)
-        self.teammates = teammates
-        self.window = (network.channels, network.view, network.view)
+        self.teammates, self.views = teammates, views
+        # a grid teammate's view is its window (regressed); an index domain's is one of ``views`` classes
+        self.window = (views,) if views else (network.channels, network.view, network.view)
         outputs = teammates * (int(np.prod(self.window)) + network.actions)
         self.decoder = nn.Sequential(
             nn.Linear(recurrent, decoder_hidden), nn.ReLU(), nn.Linear(decoder_hidden, outputs)
@@ -108,9 +111,13 @@ class LiamNetwork(RecurrentActorCritic):
 
 def reconstruction_loss(model: LiamNetwork, embeddings, windows, actions) -> tuple[torch.Tensor, dict]:
     """The decoder's loss on (N, H) embeddings against the teammates' (N, K, C, V, V) windows and (N, K)
-    actions: window MSE plus action cross entropy, with the action accuracy as a diagnostic."""
+    actions: window MSE plus action cross entropy, with the action accuracy as a diagnostic. In an index domain
+    the (N, K) views are classes and their term is a cross entropy too (reported as ``observation_mse``)."""
     predicted, logits = model.reconstruct(embeddings)
-    observation_mse = nn.functional.mse_loss(predicted, windows)
+    if model.views:
+        observation_mse = nn.functional.cross_entropy(predicted.reshape(-1, model.views), windows.reshape(-1))
+    else:
+        observation_mse = nn.functional.mse_loss(predicted, windows)
     cross_entropy = nn.functional.cross_entropy(logits.reshape(-1, logits.shape[-1]), actions.reshape(-1))
     loss = observation_mse + cross_entropy
     with torch.no_grad():
@@ -132,12 +139,12 @@ class Reconstruction:
     vector_kwargs = {"teammate_info": True}
     curve_fields = RECONSTRUCTION_FIELDS
 
-    def __init__(self, config: LiamConfig, teammates: int) -> None:
-        self.config, self.teammates = config, teammates
+    def __init__(self, config: LiamConfig, teammates: int, views: int = 0) -> None:
+        self.config, self.teammates, self.views = config, teammates, views
         self.windows = self.actions = self.valid = None
 
     def network(self, network: NetworkConfig, recurrent: int) -> LiamNetwork:
-        return LiamNetwork(network, recurrent, self.teammates, self.config.decoder_hidden)
+        return LiamNetwork(network, recurrent, self.teammates, self.config.decoder_hidden, self.views)
 
     @property
     def metadata(self) -> dict:
@@ -151,7 +158,7 @@ class Reconstruction:
         windows = torch.as_tensor(infos["teammate_observations"])
         if self.windows is None:
             steps = self.config.rollout_steps
-            self.windows = torch.zeros((steps, *windows.shape))
+            self.windows = torch.zeros((steps, *windows.shape), dtype=windows.dtype)
             self.actions = torch.zeros((steps, *windows.shape[:2]), dtype=torch.long)
             self.valid = torch.zeros((steps, windows.shape[0]), dtype=torch.bool)
         self.windows[t] = windows
@@ -173,16 +180,27 @@ class Reconstruction:
 
 
 def teammate_count(domain: str, env_kwargs: dict) -> int:
-    """How many scripted teammates an episode of ``domain`` with ``env_kwargs`` has."""
+    """How many scripted teammates an episode of ``domain`` with ``env_kwargs`` has (one in an index domain)."""
     import gymnasium
 
     import embodied_adhoc.envs  # noqa: F401  (registers the ids)
+    from embodied_adhoc.learning.index_domains import INDEX_DOMAINS
     from embodied_adhoc.learning.vector_grid import GRID_IDS
+
+    if domain in INDEX_DOMAINS:
+        return 1
 
     probe = gymnasium.make(GRID_IDS[domain], **env_kwargs)
     count = probe.unwrapped.core.rules.config.n_agents - 1
     probe.close()
     return count
+
+
+def teammate_views(domain: str) -> int:
+    """How many classes a teammate's view has in an index domain (0 in a grid domain: a window)."""
+    from embodied_adhoc.learning.index_domains import TEAMMATE_CLASSES
+
+    return TEAMMATE_CLASSES.get(domain, (0, 0))[0]
 
 
 def train_liam(
@@ -194,7 +212,7 @@ def train_liam(
     stop_after: int | None = None,
 ):
     """Recurrent PPO with the reconstruction loss; the result's ``model`` is the :class:`LiamNetwork`."""
-    auxiliary = Reconstruction(config, teammate_count(domain, dict(env_kwargs)))
+    auxiliary = Reconstruction(config, teammate_count(domain, dict(env_kwargs)), teammate_views(domain))
     return train_recurrent_ppo(domain, env_kwargs, config, folder, progress, stop_after, auxiliary=auxiliary)
 
 
@@ -215,7 +233,12 @@ def liam_agent(domain: str, path: str | Path | None, grid, name: str = KIND) -> 
 
 
 def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
-    """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.liam:plugin``)."""
+    """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.liam:plugin``), on a grid arena,
+    the lab or pursuit-task."""
+    from embodied_adhoc.learning.index_domains import index_agent, index_domain
+
+    if index_domain(library) is not None:
+        return index_agent(library, KIND)
     grid = library.rules.config
     return liam_agent(grid.domain, None, grid)
 
@@ -239,5 +262,7 @@ def train_liam_run(
     with the reconstruction loss: the checkpoint resumes, the weights file (:func:`weights_name`) holds the
     execution network without the decoder, ``curve.csv`` has the reconstruction columns."""
     config = settings.config()
-    auxiliary = Reconstruction(config, teammate_count(settings.domain, settings.env_kwargs()))
+    auxiliary = Reconstruction(
+        config, teammate_count(settings.domain, settings.env_kwargs()), teammate_views(settings.domain)
+    )
     return train_generalist_run(settings, progress, stop_after, auxiliary=auxiliary, kind=KIND)

@@ -47,10 +47,14 @@ from embodied_adhoc.learning.generalist import (
 from embodied_adhoc.learning.generalist import shipped_weights as generalist_shipped_weights
 from embodied_adhoc.learning.generalist import weights_name as generalist_weights_name
 from embodied_adhoc.learning.liam import teammate_count
-from embodied_adhoc.learning.networks import Encoder, NetworkConfig
+from embodied_adhoc.learning.networks import NetworkConfig
 from embodied_adhoc.learning.recurrent_ppo import (
     RecurrentActorCritic,
     RecurrentPpoConfig,
+    flat_observations,
+    make_encoder,
+    network_config,
+    observation_shape,
     train_recurrent_ppo,
 )
 from embodied_adhoc.learning.weights import WeightsError, load_into, load_weights
@@ -81,9 +85,14 @@ class MelibaConfig(RecurrentPpoConfig):
     horizon: int = 4
     kl_coef: float = 0.1
     elbo_coef: float = 1.0
+    reward_likelihood: str = "bernoulli"  # the grid's 0/1 reward; "gaussian" (squared error) elsewhere
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        if self.reward_likelihood not in ("bernoulli", "gaussian"):
+            raise ConfigError(
+                f"MelibaConfig.reward_likelihood={self.reward_likelihood!r}: use bernoulli or gaussian"
+            )
         for name in ("latent", "decoder_hidden", "horizon"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"MelibaConfig.{name}={getattr(self, name)}: give a positive integer")
@@ -119,9 +128,9 @@ class MelibaNetwork(RecurrentActorCritic):
         super().__init__(network, recurrent)
         self.latent, self.teammates = latent, teammates
         self.belief = nn.Linear(recurrent, 2 * latent)
-        self.policy_encoder = Encoder(network)
+        self.policy_encoder = make_encoder(network)
         self.trunk = nn.Sequential(nn.Linear(network.features + 2 * latent, recurrent), nn.Tanh())
-        self.window = network.channels * network.view * network.view
+        self.window = int(flat_observations(network, torch.zeros((1, *observation_shape(network)))).shape[-1])
         if teammates:
             self.decoder = nn.Sequential(
                 nn.Linear(latent + self.window + network.actions, decoder_hidden),
@@ -136,7 +145,8 @@ class MelibaNetwork(RecurrentActorCritic):
         return mu, logvar.clamp(-10.0, 5.0)
 
     def _heads(self, observations, mu, logvar):
-        features = self.policy_encoder(observations.reshape(-1, *observations.shape[-3:]))
+        shape = observation_shape(self.config)
+        features = self.policy_encoder(observations.reshape(-1, *shape))
         features = features.reshape(*mu.shape[:-1], -1)
         hidden = self.trunk(torch.cat([features, mu.detach(), logvar.detach()], -1))
         return self.actor(hidden), self.critic(hidden).squeeze(-1)
@@ -166,7 +176,7 @@ class MelibaNetwork(RecurrentActorCritic):
         inputs = torch.cat(
             [
                 latent,
-                observations.reshape(*latent.shape[:-1], self.window),
+                flat_observations(self.config, observations).reshape(*latent.shape[:-1], self.window),
                 nn.functional.one_hot(actions, self.config.actions).to(latent.dtype),
             ],
             -1,
@@ -183,11 +193,21 @@ class MelibaNetwork(RecurrentActorCritic):
         return policy.eval()
 
 
-def elbo_loss(model: MelibaNetwork, actions, rewards, teammate_actions, valid, horizon: int, kl_coef: float):
+def elbo_loss(
+    model: MelibaNetwork,
+    actions,
+    rewards,
+    teammate_actions,
+    valid,
+    horizon: int,
+    kl_coef: float,
+    reward_likelihood: str = "bernoulli",
+):
     """The negative ELBO of the segment the model last unrolled (:attr:`MelibaNetwork.trace`, T steps of B
     sequences) with the ego's (T, B) actions, (T, B) rewards, the teammates' (T, B, K) actions and the (T, B)
-    mask of steps that are not reset steps: reconstruction (reward BCE + teammates' cross entropy, over each
-    step's next ``horizon`` steps of the same episode) plus ``kl_coef`` times KL to the previous posterior."""
+    mask of steps that are not reset steps: reconstruction (reward BCE, or squared error with a ``gaussian``
+    likelihood, + teammates' cross entropy, over each step's next ``horizon`` steps of the same episode) plus
+    ``kl_coef`` times KL to the previous posterior."""
     trace = model.trace
     mu, logvar, starts = trace["mu"], trace["logvar"], trace["starts"]
     steps = starts.shape[0]
@@ -206,9 +226,14 @@ def elbo_loss(model: MelibaNetwork, actions, rewards, teammate_actions, valid, h
         reward_logits, teammate_logits = model.decode(
             sample[: steps - k][mask], trace["observations"][k:][mask], actions[k:][mask]
         )
-        reward_terms.append(
-            nn.functional.binary_cross_entropy_with_logits(reward_logits, rewards[k:][mask], reduction="none")
-        )
+        if reward_likelihood == "gaussian":
+            reward_terms.append((reward_logits - rewards[k:][mask]) ** 2)
+        else:
+            reward_terms.append(
+                nn.functional.binary_cross_entropy_with_logits(
+                    reward_logits, rewards[k:][mask], reduction="none"
+                )
+            )
         targets = teammate_actions[k:][mask]
         teammate_terms.append(
             nn.functional.cross_entropy(
@@ -282,6 +307,7 @@ class Belief:
             self.valid[:, cpu].to(device),
             self.config.horizon,
             self.config.kl_coef,
+            self.config.reward_likelihood,
         )
         return self.config.elbo_coef * loss, stats
 
@@ -311,7 +337,7 @@ def load_meliba(path: str | Path, kind: str = KIND) -> tuple[MelibaNetwork, dict
     if metadata.get("kind") != kind:
         raise WeightsError(f"{path}: not a {kind} (kind={metadata.get('kind')!r})")
     model = MelibaNetwork(
-        NetworkConfig(**metadata["network"]), int(metadata["recurrent"]), int(metadata["latent"])
+        network_config(metadata["network"]), int(metadata["recurrent"]), int(metadata["latent"])
     )
     load_into(model, path)
     return model.eval(), metadata
@@ -330,7 +356,12 @@ def meliba_agent(domain: str, path: str | Path | None, grid, name: str = KIND) -
 
 
 def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
-    """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.meliba:plugin``)."""
+    """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.meliba:plugin``), on a grid
+    arena, the lab or pursuit-task."""
+    from embodied_adhoc.learning.index_domains import index_agent, index_domain
+
+    if index_domain(library) is not None:
+        return index_agent(library, KIND)
     grid = library.rules.config
     return meliba_agent(grid.domain, None, grid)
 
@@ -344,7 +375,15 @@ class MelibaTraining(GeneralistTraining):
     kl_coef: float = 0.1
 
     def config(self) -> MelibaConfig:
-        return MelibaConfig(**asdict(super().config()), latent=self.latent, kl_coef=self.kl_coef)
+        from embodied_adhoc.learning.index_domains import INDEX_DOMAINS
+
+        likelihood = "gaussian" if self.domain in INDEX_DOMAINS else "bernoulli"
+        return MelibaConfig(
+            **asdict(super().config()),
+            latent=self.latent,
+            kl_coef=self.kl_coef,
+            reward_likelihood=likelihood,
+        )
 
 
 def train_meliba_run(

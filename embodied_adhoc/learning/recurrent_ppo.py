@@ -43,6 +43,7 @@ from embodied_adhoc.learning.ppo import (
     PpoResult,
     advantages_and_returns,
     clipped_objective,
+    pick_device,
     start_training,
 )
 from embodied_adhoc.learning.vector_grid import GridVectorEnv
@@ -75,13 +76,43 @@ class RecurrentPpoConfig(PpoConfig):
                 raise ConfigError(f"RecurrentPpoConfig.{name}={getattr(self, name)}: give a positive integer")
 
 
+def make_encoder(network) -> nn.Module:
+    """The observation encoder of ``network``: the CNN of a grid's :class:`NetworkConfig`, or the encoder an
+    index domain's config makes (:class:`~embodied_adhoc.learning.index_domains.IndexNetworkConfig`)."""
+    return network.make_encoder() if hasattr(network, "make_encoder") else Encoder(network)
+
+
+def observation_shape(network) -> tuple[int, ...]:
+    """The shape of one observation the network reads (the grid's window; () for an index)."""
+    if hasattr(network, "observation_shape"):
+        return network.observation_shape
+    return (network.channels, network.view, network.view)
+
+
+def flat_observations(network, observations: torch.Tensor) -> torch.Tensor:
+    """Observations (..., *observation_shape) as (..., features) rows for a decoder: the window flattened, or
+    an index one-hot."""
+    if hasattr(network, "flat_observations"):
+        return network.flat_observations(observations)
+    return observations.reshape(*observations.shape[:-3], -1)
+
+
+def network_config(stored: dict):
+    """The network sizes stored beside weights: an index domain's (it has ``observations``) or a grid's."""
+    if "observations" in stored:
+        from embodied_adhoc.learning.index_domains import IndexNetworkConfig
+
+        return IndexNetworkConfig(**stored)
+    return NetworkConfig(**stored)
+
+
 class RecurrentActorCritic(nn.Module):
     """Encoder ``q``, a GRU cell over (encoding, previous action) and linear actor and critic heads."""
 
     def __init__(self, network: NetworkConfig, recurrent: int) -> None:
         super().__init__()
         self.config, self.recurrent = network, recurrent
-        self.encoder = Encoder(network)
+        self.encoder = make_encoder(network)
         self.gru = nn.GRUCell(network.features + network.actions + 1, recurrent)
         self.actor = _layer(nn.Linear(recurrent, network.actions), 0.01)
         self.critic = _layer(nn.Linear(recurrent, 1), 1.0)
@@ -140,7 +171,10 @@ _ENV_ARRAYS = ("task_index", "team_index", "steps", "needs_reset", "uniforms", "
 
 def _env_state(env: GridVectorEnv) -> tuple[dict[str, torch.Tensor], dict]:
     """Everything a :class:`GridVectorEnv` carries from one step to the next: its state arrays (tensors) and its
-    Generators' states (JSON). The episode's offsets and team table follow from the task and team indices."""
+    Generators' states (JSON). The episode's offsets and team table follow from the task and team indices. An
+    index domain's env (its episodes live in registered envs and plug-in humans) is restarted instead."""
+    if not isinstance(env, GridVectorEnv):
+        return {}, {"restart": True}
     tensors = {f"env.batch.{n}": torch.from_numpy(getattr(env.batch, n).copy()) for n in _BATCH_FIELDS}
     tensors.update({f"env.{n}": torch.from_numpy(getattr(env, n).copy()) for n in _ENV_ARRAYS})
     header = {"rngs": [rng.bit_generator.state for rng in env.rngs], "block_states": env.block_states}
@@ -148,6 +182,8 @@ def _env_state(env: GridVectorEnv) -> tuple[dict[str, torch.Tensor], dict]:
 
 
 def _restore_env(env: GridVectorEnv, tensors: dict, header: dict) -> None:
+    if header.get("restart"):
+        return
     for name in _BATCH_FIELDS:
         getattr(env.batch, name)[...] = tensors[f"env.batch.{name}"].numpy()
     for name in _ENV_ARRAYS:
@@ -213,6 +249,33 @@ def _json_ready(state: list[dict]) -> list[dict]:
     return [{k: list(v) if isinstance(v, tuple) else v for k, v in group.items()} for group in state]
 
 
+def _fresh_carried(model: RecurrentActorCritic, observation, envs: int) -> dict:
+    """The rollout's carried state at the start of every sub-env's first episode."""
+    return {
+        "observation": torch.as_tensor(observation),
+        "hidden": model.initial_state(envs),
+        "previous": torch.full((envs,), model.no_action, dtype=torch.long),
+        "fresh": torch.ones(envs, dtype=torch.bool),  # the observation is an episode's first
+        "resetting": torch.zeros(envs, dtype=torch.bool),  # the next step only resets the sub-env
+        "lengths": torch.zeros(envs, dtype=torch.long),
+    }
+
+
+def _start(domain: str, vector_kwargs: dict, config: RecurrentPpoConfig):
+    """:func:`~embodied_adhoc.learning.ppo.start_training` for the grid domains; for an index domain the same
+    steps in the same order over :class:`~embodied_adhoc.learning.index_domains.IndexVectorEnv`."""
+    from embodied_adhoc.learning.index_domains import INDEX_DOMAINS, IndexNetworkConfig, IndexVectorEnv
+
+    if domain not in INDEX_DOMAINS:
+        return start_training(domain, vector_kwargs, config)
+    env = IndexVectorEnv(domain, config.num_envs, **vector_kwargs)  # it draws nothing until its reset
+    torch.manual_seed(config.seed)
+    rng, device = np.random.default_rng(config.seed), pick_device(config.device)
+    observation = env.reset(seed=config.seed)[0]
+    sizes = {"features": config.features, "head_hidden": config.head_hidden}
+    return rng, device, env, observation, IndexNetworkConfig(env.n_observations, env.n_actions, **sizes)
+
+
 def segment_loss(model: RecurrentActorCritic, segment: dict, index: torch.Tensor, config: RecurrentPpoConfig):
     """The clipped PPO objective of the sub-envs ``index`` of a rollout segment: the GRU re-run over their whole
     sequences from the state it had when the segment began, the reset steps left out."""
@@ -255,7 +318,7 @@ def train_recurrent_ppo(
     the curve's rows)."""
     env_kwargs = dict(env_kwargs)
     vector_kwargs = env_kwargs if auxiliary is None else {**env_kwargs, **auxiliary.vector_kwargs}
-    rng, device, env, observation, network = start_training(domain, vector_kwargs, config)
+    rng, device, env, observation, network = _start(domain, vector_kwargs, config)
     if auxiliary is None:
         model = RecurrentActorCritic(network, config.recurrent).to(device)
     else:
@@ -263,14 +326,7 @@ def train_recurrent_ppo(
     optimiser = torch.optim.Adam(model.parameters(), lr=config.learning_rate, eps=1e-5)
     steps, envs = config.rollout_steps, config.num_envs
     result = RecurrentPpoResult(model, total_updates=max(1, config.total_steps // (steps * envs)))
-    carried = {
-        "observation": torch.as_tensor(observation),
-        "hidden": model.initial_state(envs),
-        "previous": torch.full((envs,), model.no_action, dtype=torch.long),
-        "fresh": torch.ones(envs, dtype=torch.bool),  # the observation is an episode's first
-        "resetting": torch.zeros(envs, dtype=torch.bool),  # the next step only resets the sub-env
-        "lengths": torch.zeros(envs, dtype=torch.long),
-    }
+    carried = _fresh_carried(model, observation, envs)
     checkpoint = None if folder is None else Path(folder) / CHECKPOINT
     if checkpoint is not None and checkpoint.exists():
         tensors, header = _load_checkpoint(checkpoint, config, env_kwargs)
@@ -292,9 +348,14 @@ def train_recurrent_ppo(
         _restore_env(env, tensors, header["env"])
         result.history, result.seconds = header["history"], header["seconds"]
         result.env_steps, result.updates = header["env_steps"], header["updates"]
+        if header["env"].get("restart"):  # new episodes, seeded by the run's seed and the updates done
+            observation, _ = env.reset(seed=config.seed + 7919 * result.updates)
+            carried = _fresh_carried(model, observation, envs)
     carried = {k: v.to(device) for k, v in carried.items()}
     last = result.total_updates if stop_after is None else min(result.total_updates, stop_after)
-    obs_buf = torch.zeros((steps, envs, *observation.shape[1:]), device=device)
+    obs_buf = torch.zeros(
+        (steps, envs, *observation.shape[1:]), dtype=torch.as_tensor(observation).dtype, device=device
+    )
     action_buf, previous_buf = (torch.zeros((steps, envs), dtype=torch.long, device=device) for _ in range(2))
     logprob_buf, value_buf, reward_buf = (torch.zeros((steps, envs), device=device) for _ in range(3))
     start_buf, ended_buf, terminal_buf, valid_buf = (
