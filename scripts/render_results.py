@@ -723,6 +723,32 @@ def arena_speed_tables(data: dict) -> list[Table]:
     ]
 
 
+def hotspot_prose(data: dict) -> dict[str, tuple[str | None, str]]:
+    """The steps table's headline cells and the claims' verdicts in a sentence (the hotspot page's summary)."""
+    steps, claims = data["tables"]
+    columns = steps["headers"]
+    cells = {(row[0], row[1]): dict(zip(columns, row, strict=True)) for row in steps["rows"]}
+
+    def ours(setting: str, agent: str, thesis: bool = True) -> str:
+        row = cells[(setting, agent)]
+        return row["steps (ours)"] + (f" (thesis {row['steps (thesis)']})" if thesis else "")
+
+    held = sum(row[claims["headers"].index("holds")] == "yes" for row in claims["rows"])
+    with_comm, without = ("communication", "hotspot"), ("no-communication", "hotspot")
+    return {
+        "measured": (
+            "steps",
+            f"With communication HOTSPOT (TEBOPA) takes {ours(*with_comm)} steps and identifies the task at step "
+            f"{cells[with_comm]['identify'].split(' ')[0]} on average, known-task "
+            f"{ours('communication', 'known-task')}, "
+            f"oracle {ours('communication', 'oracle', thesis=False)}; without communication HOTSPOT takes "
+            f"{ours(*without)} with success {cells[without]['success']} and final task entropy "
+            f"{cells[without]['final H']}, known-task {ours('no-communication', 'known-task')}. {held} of the "
+            f"{len(claims['rows'])} thesis claims tested hold (Welch, alpha 0.05).",
+        )
+    }
+
+
 def welch_p(a: dict, b: dict) -> float:
     """Welch's unequal-variance t-test of two agents' mean steps, from their summaries (mean, sample sd, trials)."""
     from scipy import stats
@@ -935,6 +961,7 @@ FIGURES = {
             compare_markdown_tables,
             ("docs/hotspot.md", "README.md"),
             markdown=True,
+            prose=hotspot_prose,
         ),
         Figure(
             "bopa",

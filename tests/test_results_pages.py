@@ -448,3 +448,34 @@ def test_a_timing_figure_reads_its_scripts_output_back_into_its_result_file(name
     assert figure.compare is None  # seconds are never compared across kernels
     assert all(module.reproducibility(figure, document, t.key)[0] == "timing" for t in figure.tables(data))
     assert all(table.rows for table in figure.tables(data))
+
+
+def test_a_sentence_beside_a_table_is_generated_from_its_result_file_and_checked(tmp_path):
+    from scipy import stats
+
+    module = load_script()
+    data = json.loads((ROOT / "results" / "speech-confusions.json").read_text())["published"]["data"]
+    _, sentence = module.speech_confusions_prose(data)["welch"]
+    a, b = data["runs"]["thesis"]["hotspot"], data["runs"]["measured"]["hotspot"]
+    welch = stats.ttest_ind_from_stats(
+        a["steps_mean"],
+        a["steps_sd"],
+        a["trials"],
+        b["steps_mean"],
+        b["steps_sd"],
+        b["trials"],
+        equal_var=False,
+    ).pvalue
+    assert f"hotspot (TEBOPA) p = {welch:.3g}" in sentence
+    root = copy_tree(tmp_path)
+    page = root / "docs" / "speech.md"
+    text = page.read_text()
+    start = text.index("<!-- results:speech-confusions.welch start -->")
+    digit = next(i for i in range(start + 50, len(text)) if text[i].isdigit())
+    page.write_text(text[:digit] + str((int(text[digit]) + 1) % 10) + text[digit + 1 :])
+    done = run_check(root)
+    assert done.returncode == 1
+    assert (
+        "docs/speech.md: table speech-confusions.welch differs from results/speech-confusions.json"
+        in done.stdout
+    )
