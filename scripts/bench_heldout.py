@@ -160,8 +160,11 @@ def run(args: Args) -> dict:
 def merge(previous: dict, fresh: dict) -> dict:
     """The result file's data with ``fresh``'s suites and domains (or physics part) replacing their old entries,
     the others kept, and the best-response check over all of them."""
+    made = {
+        k: previous[k] for k in ("commit", "kernel") if k in previous
+    }  # entries from before per-entry fields
     suites = {
-        suite: {domain: _slim(scope) for domain, scope in domains.items()}
+        suite: {domain: made | _slim(scope) for domain, scope in domains.items()}
         for suite, domains in previous.get("suites", {}).items()
     }
     for suite, domains in fresh.get("suites", {}).items():
