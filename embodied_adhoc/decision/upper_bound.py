@@ -76,8 +76,20 @@ class SawtoothBound:
         self.pomdp = pomdp
         self.fib = fib  # (S, A)
         self.corners = fib.max(axis=1)  # (S,)
-        self.transitions_t = tuple(m.T.tocsr() for m in pomdp.transitions)
-        self.observations_t = tuple(m.T.tocsr() for m in pomdp.observations)  # (Z, S') per action
+        n_states, n_obs = pomdp.n_states, pomdp.n_observations
+        # The successors of a belief for all actions and observations from two fixed-pattern products: the
+        # predicted beliefs of every action stacked, (A S, S) @ b, then the joint P(z, s' | b, a) as the data of
+        # one (A Z, S') matrix whose entries are O(z | s', a) times a gathered predicted mass. Row (a, z) sums
+        # its entries in increasing s', as a per-action product would, so the bits do not depend on the batching.
+        self._predict = sp.vstack([m.T.tocsr() for m in pomdp.transitions], format="csr")
+        joint = sp.vstack([m.T.tocsr() for m in pomdp.observations], format="csr")  # (A Z, S')
+        joint.sort_indices()
+        self._joint = joint
+        self._joint_rows = np.repeat(np.arange(joint.shape[0]), np.diff(joint.indptr))
+        self._filled = (
+            np.diff(joint.indptr) > 0
+        )  # rows (a, z) with an entry: their starts delimit the row sums
+        self._gather = (self._joint_rows // n_obs) * n_states + joint.indices  # predicted mass of each entry
         # Sawtooth points, flattened: the supports of all b_i one after the other, their masses, each point's
         # first position, and v_i; excess v_i - c.b_i is cached until a point or a corner changes.
         self._support = np.empty(0, dtype=np.int64)
@@ -131,31 +143,42 @@ class SawtoothBound:
         sawtooth = dot(beliefs, self.corners) + terms
         return np.minimum(bound, sawtooth)
 
-    def successors(self, belief: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    def successors(self, belief: np.ndarray) -> Successors:
         """Per action: the observations of nonzero probability, their probabilities and posteriors (Eq. 2.3)."""
-        result = []
-        for action in range(self.pomdp.n_actions):
-            predicted = self.transitions_t[action] @ belief
-            joint = self.observations_t[action].multiply(predicted[None, :]).tocsr()  # (Z, S')
-            probabilities = np.asarray(joint.sum(axis=1)).ravel()
-            possible = np.flatnonzero(probabilities > 0.0)
-            posteriors = joint[possible].toarray() / probabilities[possible][:, None]
-            result.append((possible, probabilities[possible], posteriors))
-        return result
+        predicted = self._predict @ belief  # (A S,)
+        entries = self._joint.data * predicted[self._gather]
+        # Row sums as scipy's CSR sum(axis=1) takes them of a per-action product (np.add.reduceat over each row's
+        # entries, zeros included): the same bits as summing each action's joint alone.
+        totals = np.zeros(self._joint.shape[0])
+        totals[self._filled] = np.add.reduceat(entries, self._joint.indptr[:-1][self._filled])
+        nonzero = entries != 0.0
+        possible = np.flatnonzero(totals > 0.0)
+        rank = np.full(totals.shape[0], -1)
+        rank[possible] = np.arange(possible.size)
+        kept = (rank[self._joint_rows] >= 0) & nonzero
+        posteriors = np.zeros((possible.size, self.pomdp.n_states))
+        rows = self._joint_rows[kept]
+        posteriors[rank[rows], self._joint.indices[kept]] = entries[kept] / totals[rows]
+        return Successors(
+            possible, totals[possible], posteriors, self.pomdp.n_observations, self.pomdp.n_actions
+        )
 
-    def q_values(self, belief: np.ndarray, successors=None) -> np.ndarray:
+    def q_values(self, belief: np.ndarray, successors: Successors | None = None) -> np.ndarray:
         """``R(b, a) + gamma sum_z P(z | b, a) U(b_az)`` for every action (A,)."""
-        successors = successors if successors is not None else self.successors(belief)
-        # One values() call for the posteriors of every action (its cost is mostly per call, not per row).
-        values = self.values(np.vstack([posteriors for _, _, posteriors in successors]))
-        ends = np.cumsum([len(probabilities) for _, probabilities, _ in successors])
-        expected = [
-            float(dot(probabilities, part))
-            for (_, probabilities, _), part in zip(successors, np.split(values, ends[:-1]), strict=True)
-        ]
-        return dot(belief, self.pomdp.rewards) + self.pomdp.discount * np.asarray(expected)
+        return self.q_values_and_successor_values(belief, successors)[0]
 
-    def update(self, belief: np.ndarray, successors=None) -> float:
+    def q_values_and_successor_values(
+        self, belief: np.ndarray, successors: Successors | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`q_values` and ``U`` of every posterior (rows of ``successors.posteriors``), from one
+        :meth:`values` call."""
+        successors = successors if successors is not None else self.successors(belief)
+        values = self.values(successors.posteriors)
+        # Each action's sum over its observations in increasing z (the rows of one CSR product).
+        expected = np.asarray(successors.by_action @ values).ravel()
+        return dot(belief, self.pomdp.rewards) + self.pomdp.discount * expected, values
+
+    def update(self, belief: np.ndarray, successors: Successors | None = None) -> float:
         """Back up ``U`` at ``belief`` and keep the point when it tightens the bound; returns the new ``U(b)``."""
         current = float(self.values(belief)[0])
         backed_up = float(self.q_values(belief, successors).max())
@@ -172,3 +195,28 @@ class SawtoothBound:
             self._indicator = None
         self._excess = None
         return backed_up
+
+
+class Successors:
+    """The possible branches ``(a, z)`` of one belief, in increasing ``a`` then ``z``: ``pairs`` (m,) is
+    ``a Z + z``, ``probabilities`` (m,) ``P(z | b, a)``, ``posteriors`` (m, S) ``b_az``. ``successors[a]`` is
+    action ``a``'s ``(observations, probabilities, posteriors)``."""
+
+    def __init__(
+        self, pairs: np.ndarray, probabilities: np.ndarray, posteriors: np.ndarray, n_obs: int, n_actions: int
+    ) -> None:
+        self.pairs, self.probabilities, self.posteriors = pairs, probabilities, posteriors
+        self.actions = pairs // n_obs
+        self.observations = pairs % n_obs
+        self.bounds = np.searchsorted(self.actions, np.arange(n_actions + 1))
+        # (A, m): P(z | b, a) in row a, the weights of each action's expectation over its branches
+        self.by_action = sp.csr_matrix(
+            (probabilities, np.arange(pairs.size), self.bounds), shape=(n_actions, pairs.size)
+        )
+
+    def __len__(self) -> int:
+        return len(self.bounds) - 1
+
+    def __getitem__(self, action: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        part = slice(self.bounds[action], self.bounds[action + 1])
+        return self.observations[part], self.probabilities[part], self.posteriors[part]
