@@ -329,14 +329,21 @@ def index_domain(library) -> str | None:
     return PURSUIT_TASK if getattr(library, "domain", None) == PURSUIT_TASK else None
 
 
-def first_index(observation) -> int:
+def first_index(observation, nodes: int = 5) -> int:
     """The input index of an episode's first observation as the episode loop hands it to ``start``: the lab's
-    MultiDiscrete vector (encoded as the trials encode it), chapter 5's -1 (none yet)."""
+    MultiDiscrete vector on ``nodes`` areas (encoded as the trials encode it), chapter 5's -1 (none yet)."""
     if np.ndim(observation) == 0:
         return int(observation) + 1
     from embodied_adhoc.domains.lab_observations import LabObservation
 
-    return LabObservation.from_vector(observation, 5).encode() + 1
+    return LabObservation.from_vector(observation, nodes).encode() + 1
+
+
+def input_indices(library) -> int:
+    """How many input indices an agent for ``library``'s domain reads: its observations plus "none yet"."""
+    if index_domain(library) == LAB:
+        return 2 * (library.graph.n_nodes + 1) ** 2 + 1
+    return library.pomdps[0].n_observations + 1
 
 
 class IndexAgent(GeneralistAgent):
@@ -344,9 +351,10 @@ class IndexAgent(GeneralistAgent):
     0 being "none yet") and the first raw observation through ``start``."""
 
     observes_raw = False
+    nodes = 5  # the lab's areas, for its first observation's vector
 
     def start(self, observation) -> None:
-        self._advance(first_index(observation), self.model.no_action, True)
+        self._advance(first_index(observation, self.nodes), self.model.no_action, True)
 
     def observe(self, action: int, observation, state: int | None = None, **outcome) -> None:
         self._advance(int(observation) + 1, int(action), False)
@@ -400,4 +408,12 @@ def index_agent(library, kind: str, path=None, name: str | None = None):
         raise ConfigError(
             f"{path}: a {metadata['domain']} agent; {domain} needs one trained with --domain {domain}"
         )
-    return IndexAgent(model, name=name or kind)
+    if model.config.observations != input_indices(library):
+        raise ConfigError(
+            f"{path}: trained on {model.config.observations - 1} observations; this {domain} has "
+            f"{input_indices(library) - 1} (another lab graph or model?): train one on it"
+        )
+    agent = IndexAgent(model, name=name or kind)
+    if domain == LAB:
+        agent.nodes = library.graph.n_nodes
+    return agent

@@ -4,6 +4,7 @@ tiny training run lowers its loss and writes loadable safetensors, LIAM's and Me
 never reach the acting network, and the agents run in ``trials`` through the plug-in specs."""
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -175,15 +176,13 @@ def test_the_agents_run_in_trials_as_plugins(tmp_path, monkeypatch):
     monkeypatch.setattr(index_domains, "shipped_weights", real)
 
 
-class _Library:
-    """What the trials hand a plug-in on pursuit-task (its domain name is what the agent reads)."""
-
-    domain = "pursuit-task"
+# what the trials hand a plug-in on pursuit-task, as far as the agent reads it (its domain and observation count)
+_LIBRARY = SimpleNamespace(domain="pursuit-task", pomdps=(SimpleNamespace(n_observations=81),))
 
 
 def test_the_agent_reads_indices_and_refuses_another_domains(tmp_path):
     train_generalist_run(GeneralistTraining("pursuit-task", str(tmp_path), **TINY))
-    agent = index_agent(_Library(), "ppo-generalist", tmp_path / "pursuit-task-ppo-generalist.safetensors")
+    agent = index_agent(_LIBRARY, "ppo-generalist", tmp_path / "pursuit-task-ppo-generalist.safetensors")
     assert isinstance(agent, IndexAgent) and not agent.observes_raw and not agent.observes_state
     agent.reset(np.random.default_rng(0))
     agent.start(-1)  # chapter 5's "no observation yet"
