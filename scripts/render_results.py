@@ -749,6 +749,29 @@ def hotspot_prose(data: dict) -> dict[str, tuple[str | None, str]]:
     }
 
 
+def chapter5_prose(data: dict) -> dict[str, tuple[str | None, str]]:
+    """Table 5.5's rows whose Welch p against the thesis is below 0.05, higher and lower than the thesis's."""
+    table = data["tables"][0]
+    column = table["headers"].index
+    higher, lower = [], []
+    for row in table["rows"]:
+        p, ours, theirs = (
+            row[column("Welch p vs thesis")],
+            row[column("reward (ours)")],
+            row[column("reward (thesis)")],
+        )
+        if not re.fullmatch(NUMBER, p) or float(p) >= 0.05:
+            continue
+        (higher if mean_of(ours) > mean_of(theirs) else lower).append(f"{row[0]} {row[1]} (p {p})")
+    return {
+        "differences": (
+            "table5_5",
+            f"Rows of Table 5.5 whose reward differs from the thesis's (Welch, alpha 0.05): higher here, "
+            f"{', '.join(higher) or 'none'}; lower here, {', '.join(lower) or 'none'}.",
+        )
+    }
+
+
 def welch_p(a: dict, b: dict) -> float:
     """Welch's unequal-variance t-test of two agents' mean steps, from their summaries (mean, sample sd, trials)."""
     from scipy import stats
@@ -992,6 +1015,7 @@ FIGURES = {
             compare_markdown_tables,
             ("docs/atpo.md", "README.md"),
             markdown=True,
+            prose=chapter5_prose,
         ),
         Figure(
             "arena-tasks",
