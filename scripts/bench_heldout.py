@@ -138,7 +138,7 @@ def run(args: Args) -> dict:
             summary = evaluate(
                 AGENTS[domain], suite, out, episodes=args.episodes, seed=args.seed, progress=True
             )
-            results.setdefault(suite_name, {})[domain] = _slim(summary["domains"][domain]) | {
+            results.setdefault(suite_name, {})[domain] = summary["domains"][domain] | {
                 "version": summary["version"],
                 "episodes": summary["episodes"],
                 "seed": summary["seed"],
@@ -168,7 +168,7 @@ def merge(previous: dict, fresh: dict) -> dict:
         for suite, domains in previous.get("suites", {}).items()
     }
     for suite, domains in fresh.get("suites", {}).items():
-        suites.setdefault(suite, {}).update(domains)
+        suites.setdefault(suite, {}).update({domain: _slim(scope) for domain, scope in domains.items()})
     merged = previous | fresh | {"suites": suites}
     checks = best_response_check(suites)
     print(

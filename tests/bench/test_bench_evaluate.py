@@ -106,4 +106,7 @@ def test_bad_input_is_one_line_before_any_work(tmp_path, tiny, capsys):
     assert main(["evaluate", "--agents", "random", "--suite", str(suite_file), "--domains", "pursuit-task",
                  "--out", str(out)]) == 2  # fmt: skip
     assert "tiny.json has no member there" in capsys.readouterr().err
+    assert main(["evaluate", "--agents", "random", "--suite", "heldout", "--domains", "overcooked",
+                 "--backend", "mujoco", "--out", str(out)]) == 2  # fmt: skip
+    assert "--backend mujoco: overcooked has abstract" in capsys.readouterr().err
     assert not out.exists()
