@@ -31,7 +31,9 @@ Finite horizon (``horizon=H``, mandatory when the discount is 1.0): ``H`` exact 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import math
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -43,6 +45,7 @@ from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
 from embodied_adhoc.decision.belief_expansion import explore, max_depth, sample_path
 from embodied_adhoc.decision.beliefs import _key as _belief_key
 from embodied_adhoc.decision.beliefs import collect_beliefs
+from embodied_adhoc.decision.memory import MB, default_cap_mb, resident_mb
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus_stages import (
     DenseRows,
@@ -53,7 +56,7 @@ from embodied_adhoc.decision.perseus_stages import (
     perseus_stage,
     record_stage,
 )
-from embodied_adhoc.decision.plan_graph import PlanGraph
+from embodied_adhoc.decision.plan_graph import PlanGraph, Supports, observation_supports
 from embodied_adhoc.decision.policy import AlphaVectorPolicy, SolverStats
 from embodied_adhoc.decision.products import dot, transposed
 from embodied_adhoc.decision.upper_bound import SawtoothBound, fast_informed_bound
@@ -71,6 +74,9 @@ CLOCKS: dict[str, Callable[[], float]] = {
 _TRIAL_BACKUPS = 250  # with a time limit, a trial step per this many stage backups at most
 _ROUND_MIN_UPDATES = 32  # upper-bound updates of one round at least
 _ROUND_SHARE = 1 / 300  # ... and this many per belief backup done so far (the lower bound's work)
+# V_n's values on B are kept between Gauss-Seidel stages up to this many floats (32 MiB); beyond it they are
+# recomputed where a stage keeps a vector as it is, so that a stage does not hold two (vectors x |B|) tables.
+_OLD_ROWS_MAX_ENTRIES = 1 << 22
 
 
 @dataclass(frozen=True)
@@ -110,12 +116,18 @@ class PerseusConfig:
     # (time.process_time), as SARSOP's pomdpsol does (clock()). The clock never decides what is computed, only
     # after how many whole iterations the time limit stops the solve.
     clock: str = "wall"
-    # Pruning of the plan graph (plan_graph.PlanGraph.prune_dominated): the rows outside V_n that a vector of V_n
-    # dominates at every state are dropped, their plans' parents continuing with the dominating vector, whenever
-    # the graph holds twice the rows it kept after the last pruning (after a stage), and once more on return. The
-    # value of the saved policy's vectors is unchanged at every belief, and the graph stays within twice its pruned
-    # size. False: keep every row reachable from V_n.
+    # Pruning of the plan graph (plan_graph.PlanGraph.prune_dominated with the model's observation supports): a
+    # continuation into a row outside V_n that a vector of V_n dominates on the end states that can emit its
+    # observation continues with that vector instead, and rows no plan continues with are dropped, whenever the
+    # graph holds twice the rows it kept after the last pruning (after a stage), and once more on return. V_n, and
+    # with it every bound the solve computes, is unchanged; every kept vector is still the value of a plan, so the
+    # saved policy earns at least its value at every belief. False: keep every row reachable from V_n.
     prune: bool = True
+    # Memory cap in MiB (infinite horizon): before each stage and each expansion the solve estimates what it
+    # allocates (_stage_need, _expansion_need) and, when resident memory plus that would pass the cap, stops (a
+    # stage) or stops expanding B (an expansion), keeping its bounds and saying why on stderr. None: the host's
+    # default (memory.default_cap_mb: what the process holds plus 80 % of the available memory); math.inf: none.
+    max_memory: float | None = None
 
     def __post_init__(self) -> None:
         for invalid, message in self._checks():
@@ -149,6 +161,10 @@ class PerseusConfig:
             (
                 lambda: self.time_limit is not None and self.time_limit <= 0,
                 f"time_limit must be positive seconds, got {self.time_limit}",
+            ),
+            (
+                lambda: self.max_memory is not None and not self.max_memory > 0,
+                f"max_memory must be positive MiB, got {self.max_memory}",
             ),
             (
                 lambda: self.clock not in CLOCKS,
@@ -230,6 +246,8 @@ def _infinite_horizon(
         if state.deadline is not None and state.clock() > state.deadline:
             break
         state.iteration = iteration
+        if not state.fits(_stage_need(state), "stopped"):
+            break
         if _iterate(state):
             break
     return _finish(state)
@@ -258,10 +276,11 @@ class _Anytime:
     start: float
     progress: ProgressCallback | None
     graph: PlanGraph
+    supports: Supports  # the model's observation supports (plan_graph.observation_supports), for pruning
     upper: SawtoothBound
     beliefs: DenseRows  # B, read as dense rows from `rows`
     rows: sp.csr_matrix  # the beliefs for value products (belief_rows)
-    known: set[bytes]  # keys of the beliefs of B, so that expansion adds new ones only
+    known: set[bytes]  # digests of the beliefs of B (_digest), so that expansion adds new ones only
     current: np.ndarray  # rows of V_n in the graph
     alphas: np.ndarray  # their vectors and actions
     actions: np.ndarray
@@ -286,6 +305,8 @@ class _Anytime:
     stage_backups: int = 0
     trial_steps: int = 0
     pruned_size: int = 0  # the graph's rows after the last pruning (PerseusConfig.prune)
+    cap_mb: float | None = None  # the memory cap (PerseusConfig.max_memory; None: none)
+    expansion_capped: bool = False  # an expansion did not fit under the cap: B stays as it is
 
     @classmethod
     def begin(cls, pomdp, config, operator, beliefs, rng, greedy_q, start, progress) -> _Anytime:
@@ -296,7 +317,7 @@ class _Anytime:
         upper = SawtoothBound(pomdp, fast_informed_bound(pomdp))
         rows = belief_rows(beliefs)
         values = (rows @ alphas.T).max(axis=1)
-        known = {_belief_key(b) for b in beliefs}
+        known = {_digest(b) for b in beliefs}
         trace = [(config.timer() - start, float(dot(pomdp.initial_belief, alphas.T).max()))]
         bounds = _Bounds(trace[-1][1], float(upper.values(pomdp.initial_belief)[0]))
         gamma = pomdp.discount
@@ -313,6 +334,7 @@ class _Anytime:
             start=start,
             progress=progress,
             graph=graph,
+            supports=observation_supports(pomdp.observations),
             upper=upper,
             beliefs=DenseRows(rows),
             rows=rows,
@@ -329,6 +351,7 @@ class _Anytime:
             witness=np.full(len(current), -1),
             round_start=bounds,
             pruned_size=len(graph),
+            cap_mb=_memory_cap(config),
         )
 
     @property
@@ -350,7 +373,7 @@ class _Anytime:
         """Prune the plan graph of dominated rows once it doubled since the last pruning (or when ``force``d)."""
         if not self.config.prune or (not force and len(self.graph) < 2 * self.pruned_size):
             return
-        self.use(self.graph.prune_dominated(self.current))
+        self.use(self.graph.prune_dominated(self.current, self.supports))
         self.pruned_size = len(self.graph)
 
     def lower_b0(self) -> float:
@@ -373,6 +396,21 @@ class _Anytime:
                 )
             )
 
+    def fits(self, need: float, what: str) -> bool:
+        """Whether ``need`` more bytes keep resident memory within the cap; if not, say so on stderr (once)."""
+        if self.cap_mb is None:
+            return True
+        resident = resident_mb()
+        if resident + need / MB <= self.cap_mb:
+            return True
+        print(
+            f"embodied-adhoc: note: perseus {what} at iteration {self.iteration}: it needs about {need / MB:.0f} MB "
+            f"beyond the {resident:.0f} MB in use, over the memory cap of {self.cap_mb:.0f} MB (--max-memory); "
+            "the bounds so far are kept",
+            file=sys.stderr,
+        )
+        return False
+
     def trial_due(self) -> bool:
         """A trial runs when the stages to wait are done and, with a time limit, while trial steps stay within
         their share of the stages' backups (``_TRIAL_BACKUPS``)."""
@@ -380,11 +418,10 @@ class _Anytime:
             return False
         return self.deadline is None or self.trial_steps * _TRIAL_BACKUPS <= self.stage_backups
 
-    def add_beliefs(self, new: list[np.ndarray]) -> None:
-        added = np.asarray(new)
-        self.rows = sp.vstack([self.rows, belief_rows(added)], format="csr")
+    def add_beliefs(self, new: sp.csr_matrix) -> None:
+        self.rows = sp.vstack([self.rows, new], format="csr")
         self.beliefs = DenseRows(self.rows)
-        self.values = np.concatenate([self.values, dot(added, self.alphas.T).max(axis=1)])
+        self.values = np.concatenate([self.values, dot(new, transposed(self.alphas)).max(axis=1)])
         self.on_beliefs, self.owner, self.old_rows = False, None, None
 
 
@@ -447,8 +484,10 @@ def _stage(state: _Anytime) -> None:
     )
     state.improvement = float(np.max(stage.values - state.values))
     current = record_stage(state.graph, state.current, stage, state.rows, state.witness)
-    # (vectors x |B|) floats: a Gauss-Seidel stage reuses them for the vectors it keeps as they are.
-    state.old_rows, stage.score_rows = stage.score_rows if gauss_seidel else None, None
+    # (vectors x |B|) floats: a Gauss-Seidel stage reuses them for the vectors it keeps as they are (a cache: the
+    # same CSR row products give the same bits), while they stay small beside the stage's own rows.
+    reuse = gauss_seidel and len(stage.vectors) * len(state.beliefs) <= _OLD_ROWS_MAX_ENTRIES
+    state.old_rows, stage.score_rows = stage.score_rows if reuse else None, None
     state.witness = stage.witness if stage.witness is not None else np.full(len(current), -1)
     state.owner = stage.owner
     state.use(current)
@@ -510,25 +549,34 @@ def _round(state: _Anytime) -> bool:
     explore(
         state.upper, _lower_values(state.alphas), state.b0, config.precision, _round_updates(state.backups)
     )
-    new: list[np.ndarray] = []
-    if config.expand:
-        count = len(state.beliefs) // 2 + 1
+    new = belief_rows(np.zeros((0, state.pomdp.n_states)))
+    count = len(state.beliefs) // 2 + 1
+    if config.expand and not state.expansion_capped:
+        # At max_beliefs the collection still runs (and is cut to nothing below): its draws on the generator are
+        # part of the seed's schedule.
+        if len(state.beliefs) < state.max_beliefs and not state.fits(
+            _expansion_need(state, count), "stopped expanding its belief set"
+        ):
+            state.expansion_capped, state.max_beliefs = True, len(state.beliefs)
+    if config.expand and not state.expansion_capped:
         collected = collect_beliefs(
             state.pomdp, count, state.rng, greedy_q=state.greedy_q, epsilon=config.epsilon
         )
-        new = _unknown(collected, state.known)
+        # Sparse at once: the collected rows are dense, and B keeps only their nonzeros.
+        new = belief_rows(collected[_unknown(collected, state.known)])
+        del collected
     state.last_round = state.iteration
     state.bounds = _Bounds(state.bounds.lower, state.upper_b0())
     new = new[: max(0, state.max_beliefs - len(state.beliefs))]
-    state.report(state.improvement, len(state.beliefs) + len(new))
+    state.report(state.improvement, len(state.beliefs) + new.shape[0])
     if state.bounds.gap <= config.precision:
         return True
-    if state.on_beliefs and config.expand and not new:
+    if state.on_beliefs and config.expand and not new.shape[0]:
         _tighten_upper(state)
         return True
     if state.on_beliefs and _last_round(state):
         return True
-    if new:
+    if new.shape[0]:
         state.add_beliefs(new)
     return False
 
@@ -586,6 +634,35 @@ def _finish(state: _Anytime) -> AlphaVectorPolicy:
     return AlphaVectorPolicy(state.graph.vectors, state.graph.actions, stats=stats)
 
 
+def _memory_cap(config: PerseusConfig) -> float | None:
+    if config.max_memory is None:
+        return default_cap_mb()
+    return None if math.isinf(config.max_memory) else float(config.max_memory)
+
+
+def _stage_need(state: _Anytime) -> float:
+    """Bytes the next iteration allocates at most, about (the rule of PerseusConfig.max_memory): a stage keeps
+    about as many vectors as V_n holds (``k``), each with its values on B (``k x |B|`` floats beside V_n's, kept
+    from the last stage), V_n's float32 copy and fallback scores, and two copies of the vectors a batch is backed
+    up against; each belief of a batch predicts a belief per action and builds its vector; and when the graph's
+    rows outgrow its buffer, the grown buffer is allocated while the old one is still held."""
+    pomdp, graph = state.pomdp, state.graph
+    k, n_beliefs, n_states = len(state.current), state.rows.shape[0], pomdp.n_states
+    values = k * n_beliefs * 8
+    vectors = k * (2 * n_states * 8 + n_states * 4 + pomdp.n_actions * pomdp.n_observations * 8)
+    batch = 2 * state.config.batch_size * pomdp.n_actions * n_states * 8
+    return values + vectors + batch + graph.growth_bytes(k)
+
+
+def _expansion_need(state: _Anytime, count: int) -> float:
+    """Bytes an expansion by ``count`` beliefs allocates, about: collect_beliefs holds them dense (the rows, their
+    keys and the array it returns), B stores them sparse (as dense as B so far), and the next stage values V_n
+    and its new vectors on them."""
+    rows, n_states = state.rows, state.pomdp.n_states
+    sparse = count * (rows.nnz / max(rows.shape[0], 1)) * 12
+    return 3 * count * n_states * 8 + sparse + 2 * len(state.current) * count * 8
+
+
 def _lower_values(alphas: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     alphas_t = transposed(alphas)
     return lambda beliefs: dot(np.atleast_2d(beliefs), alphas_t).max(axis=1)
@@ -628,15 +705,22 @@ def _lower_trial(
     return current, len(path)
 
 
-def _unknown(beliefs, known: set[bytes]) -> list[np.ndarray]:
-    """The beliefs not in ``known`` (to 1e-9, as collect_beliefs dedupes), which are added to it."""
+def _unknown(beliefs: np.ndarray, known: set[bytes]) -> np.ndarray:
+    """The rows of ``beliefs`` not in ``known`` (to 1e-9, as collect_beliefs dedupes), whose digests are added
+    to it."""
     fresh = []
-    for belief in beliefs:
-        key = _belief_key(belief)
+    for index, belief in enumerate(beliefs):
+        key = _digest(belief)
         if key not in known:
             known.add(key)
-            fresh.append(belief)
-    return fresh
+            fresh.append(index)
+    return np.asarray(fresh, dtype=np.int64)
+
+
+def _digest(belief: np.ndarray) -> bytes:
+    """A 16-byte digest of collect_beliefs' key of ``belief`` (its values rounded to 1e-9): the same equality,
+    at 16 bytes a belief instead of 8 per state (the keys of a large B outweighed B itself)."""
+    return hashlib.blake2b(_belief_key(belief), digest_size=16).digest()
 
 
 def _blas_threads(count: int | None) -> contextlib.AbstractContextManager:

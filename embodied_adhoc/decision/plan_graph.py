@@ -58,11 +58,23 @@ class PlanGraph:
     def __len__(self) -> int:
         return self._size
 
+    def growth_bytes(self, count: int) -> int:
+        """Bytes that adding ``count`` rows allocates: the grown buffers when they no longer fit, else none."""
+        if self._size + count <= self._vectors.shape[0]:
+            return 0
+        row = self._vectors.itemsize * self._vectors.shape[1] + 8 * (1 + self._children.shape[1])
+        return self._capacity_for(count) * row
+
+    def _capacity_for(self, count: int) -> int:
+        # By half: growing copies the buffer (old and new held at once), and doubling left up to half of a graph
+        # that is most of a solve's memory unused.
+        return max(self._vectors.shape[0] + self._vectors.shape[0] // 2, self._size + count)
+
     def add(self, vectors: np.ndarray, actions: np.ndarray, children: np.ndarray) -> np.ndarray:
         """Append plans whose ``children`` are rows of this graph; returns their rows."""
         first, count = self._size, len(vectors)
         if first + count > self._vectors.shape[0]:
-            capacity = max(2 * self._vectors.shape[0], first + count)
+            capacity = self._capacity_for(count)
             self._vectors = _grown(self._vectors, capacity)
             self._actions = _grown(self._actions, capacity)
             self._children = _grown(self._children, capacity)
@@ -76,16 +88,25 @@ class PlanGraph:
         """Continue with ``replacement[row]`` wherever a plan continued with ``row`` (a dominating vector)."""
         self._children[: self._size] = replacement[self.children]
 
-    def prune_dominated(self, roots: np.ndarray) -> np.ndarray:
-        """Drop the rows outside ``roots`` that a root dominates at every state, continuing with that root wherever
-        a plan continued with them, then the rows no longer reachable; returns the rows of ``roots`` afterwards.
+    def prune_dominated(self, roots: np.ndarray, supports: Supports | None = None) -> np.ndarray:
+        """Drop the rows outside ``roots`` that a root dominates, continuing with that root wherever a plan
+        continued with them, then the rows no longer reachable; returns the rows of ``roots`` afterwards.
 
-        ``max_k alpha_k . b`` over the kept rows is unchanged at every belief (a dropped row is below a kept one
-        everywhere), and every kept plan still earns at least its vector: its continuations only got larger
-        pointwise, and the Bellman operator of a plan is monotone (cycles through a root included). Comparisons
-        are exact, so the result is the same on any host.
+        Without ``supports`` a root must dominate at every state; ``max_k alpha_k . b`` over the kept rows is then
+        unchanged at every belief (a dropped row is below a kept one everywhere). With ``supports``
+        (:func:`observation_supports`) each continuation ``(row, z)`` is tested on its own: a root that dominates
+        the continuation at the end states that can emit ``z`` after the row's action replaces it there, since
+        ``O(z | s', a) = 0`` elsewhere and the plan's value reads the continuation only through ``O_{a,z}``. The
+        kept set's value is then unchanged at the roots' beliefs (``max`` over the roots), and may be lower only at
+        beliefs where a dropped non-root row was best. Either way every kept plan still earns at least its vector:
+        its continuations only got larger where they count, and the Bellman operator of a plan is monotone (cycles
+        through a root included). Comparisons are exact, so the result is the same on any host.
         """
         roots = np.asarray(roots, dtype=np.int64)
+        if supports is not None:
+            if roots.size and self._redirect_by_support(roots, supports):
+                return self.keep_closure(roots, force=True)
+            return roots
         others = np.setdiff1d(np.arange(len(self)), roots)
         if others.size == 0 or roots.size == 0:
             return roots
@@ -96,6 +117,37 @@ class PlanGraph:
         replacement[others[found]] = roots[dominator[found]]
         self.redirect(replacement)
         return self.keep_closure(roots, force=True)
+
+    def _redirect_by_support(self, roots: np.ndarray, supports: Supports) -> bool:
+        """Per support of :func:`observation_supports`: the continuations into non-root rows that it governs,
+        each replaced by a root that dominates it on those states (``_dominated``); True if any was."""
+        is_root = np.zeros(len(self), dtype=bool)
+        is_root[roots] = True
+        children, actions = self._children[: self._size], self.actions
+        root_vectors = self.vectors[roots]
+        changed = False
+        for states, pairs in supports:
+            edge = pairs[actions] & ~is_root[children]  # (rows, Z): continuations this support governs
+            parents, observations = np.nonzero(edge)
+            if parents.size == 0:
+                continue
+            candidates, inverse = np.unique(children[parents, observations], return_inverse=True)
+            if states.size == 0:  # an impossible observation: its continuation is never read
+                found, dominator = np.ones(candidates.size, dtype=bool), np.zeros(candidates.size, np.int64)
+            else:
+                found = np.zeros(candidates.size, dtype=bool)
+                dominator = np.zeros(candidates.size, dtype=np.int64)
+                dominators = np.ascontiguousarray(root_vectors[:, states])
+                for first in range(0, candidates.size, _PRUNE_BLOCK):
+                    part = candidates[first : first + _PRUNE_BLOCK]
+                    found[first : first + part.size], dominator[first : first + part.size] = _dominated(
+                        self._vectors[np.ix_(part, states)], dominators
+                    )
+            hit = found[inverse.ravel()]
+            if hit.any():
+                children[parents[hit], observations[hit]] = roots[dominator[inverse.ravel()[hit]]]
+                changed = True
+        return changed
 
     def closure(self, roots: np.ndarray) -> np.ndarray:
         """Sorted rows reachable from ``roots`` through continuations (the roots included)."""
@@ -120,11 +172,36 @@ class PlanGraph:
             return np.asarray(roots)
         renumber = np.full(len(self), -1, dtype=np.int64)
         renumber[keep] = np.arange(keep.size)
-        self._vectors = self.vectors[keep]
-        self._actions = self.actions[keep]
-        self._children = renumber[self.children[keep]]
+        # In place, by blocks (a copy of the kept rows beside the buffer would double the graph's memory for the
+        # moment): keep is sorted, so keep[i] >= i and a block reads only rows that no earlier block overwrote.
+        for first in range(0, keep.size, _PRUNE_BLOCK):
+            part = keep[first : first + _PRUNE_BLOCK]
+            last = first + part.size
+            self._vectors[first:last] = self._vectors[part]
+            self._actions[first:last] = self._actions[part]
+            self._children[first:last] = renumber[self._children[part]]
         self._size = keep.size
         return renumber[roots]
+
+
+Supports = tuple[tuple[np.ndarray, np.ndarray], ...]
+
+
+def observation_supports(observations: tuple) -> Supports:
+    """The distinct sets of end states that can emit an observation after an action, each with the (A, Z)
+    boolean table of the pairs ``(a, z)`` whose states they are, from the (S, Z) observation matrices
+    ``O(z | s', a)`` per action: what :meth:`PlanGraph.prune_dominated` tests continuations on."""
+    n_actions, n_obs = len(observations), observations[0].shape[1]
+    groups: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+    for action, matrix in enumerate(observations):
+        by_observation = matrix.T.tocsr()  # (Z, S)
+        by_observation.sort_indices()
+        for z in range(n_obs):
+            states = by_observation.indices[by_observation.indptr[z] : by_observation.indptr[z + 1]]
+            states = states.astype(np.int64)
+            pairs = groups.setdefault(states.tobytes(), (states, np.zeros((n_actions, n_obs), dtype=bool)))[1]
+            pairs[action, z] = True
+    return tuple(groups.values())
 
 
 def _dominated(rows: np.ndarray, dominators: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

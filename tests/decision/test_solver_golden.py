@@ -53,7 +53,7 @@ GOLDEN = {
     "chapter5-gridworld": (
         _chapter5_gridworld,
         (
-            "562619c592513502c68623e3f15a5cb54ea7d135bb5407682d258cf3858b61c8",
+            "252d1974983781360a5bf0cf5fe159269db04bf6b9868b20184014f781c15ffd",
             8,
             50.54058624211393,
             72.78581064328074,
@@ -72,7 +72,7 @@ GOLDEN = {
             clock="cpu",
         ),
         (
-            "64134dd07898bdaa01862b23f7d3d4febd6358b19413e39fdda2c855775060bc",
+            "c837386c9d61de6df8ec880498e259936999500188e0e2d51e11ec798a6d30ba",
             14,
             0.5549911435884515,
             1.2409469640829056,
@@ -83,7 +83,7 @@ GOLDEN = {
     "tag-gauss-seidel": (
         lambda: _corpus("sarsop-TagAvoid.pomdp", n_beliefs=300, max_iterations=10, seed=1),
         (
-            "7110756e5123b898955fe64609aaee39c859912eabb6bbc66672d1dd6d5d6f58",
+            "a55549cf2320919c6a127d1f636a71859aabe49a8b5c47458bb0eec2186eebe4",
             10,
             -13.928805883553947,
             0.3294914578199974,

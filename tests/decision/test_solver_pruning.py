@@ -96,3 +96,68 @@ def test_pruned_solve_keeps_the_bound_at_every_sampled_belief(name, settings):
     # the same seed gives the same bytes
     again = perseus(pomdp, PerseusConfig(**settings))
     assert np.array_equal(again.alphas, pruned.alphas) and np.array_equal(again.actions, pruned.actions)
+
+
+def _plan_backups(pomdp, vectors: np.ndarray, actions: np.ndarray, children: np.ndarray) -> np.ndarray:
+    """Per row, ``R_a + gamma T_a sum_z O_{a,z} alpha_{c(z)}``: the value of doing its action, then its
+    continuations (each row is a plan's value when it is at most this, with its continuations plans too)."""
+    backups = np.empty_like(vectors)
+    for row, (action, kids) in enumerate(zip(actions, children, strict=True)):
+        observation = pomdp.observations[action].toarray()  # (S, Z)
+        future = (observation * vectors[kids].T).sum(axis=1)
+        backups[row] = pomdp.rewards[:, action] + pomdp.discount * (pomdp.transitions[action] @ future)
+    return backups
+
+
+def _solved_graph(pomdp, stages: int, seed: int) -> tuple[PlanGraph, np.ndarray]:
+    """A plan graph built as Perseus builds one: blind rows, then backups of sampled beliefs, V_n the last ones."""
+    from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
+
+    operator = BackupOperator(pomdp)
+    graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
+    beliefs = collect_beliefs(pomdp, 40, np.random.default_rng(seed))
+    roots = np.arange(len(graph))
+    for _ in range(stages):
+        vectors, actions, _, children = operator.backup(beliefs, graph.vectors[roots], with_children=True)
+        _, first = np.unique(vectors, axis=0, return_index=True)
+        roots = graph.add(vectors[first], actions[first], roots[children[first]])
+    return graph, roots
+
+
+@pytest.mark.parametrize("name", ["hallway.POMDP", "4x3.95.POMDP"])
+def test_support_pruning_keeps_every_plan_exact(name):
+    from embodied_adhoc.decision.plan_graph import observation_supports
+
+    pomdp = _model(name)
+    graph, roots = _solved_graph(pomdp, stages=6, seed=4)
+    root_vectors = graph.vectors[roots].copy()
+    before = len(graph.closure(roots))
+    new_roots = graph.prune_dominated(roots, observation_supports(pomdp.observations))
+    assert np.array_equal(graph.vectors[new_roots], root_vectors)
+    assert np.array_equal(graph.closure(new_roots), np.arange(len(graph)))
+    assert len(graph) < before  # the model's observations let some continuation go
+    # every kept row is still at most its plan's backup through the kept graph: the value of an executable plan
+    backups = _plan_backups(pomdp, graph.vectors, graph.actions, graph.children)
+    scale = float(np.abs(graph.vectors).max())
+    assert np.all(graph.vectors <= backups + 1e-9 * scale)
+
+
+def test_a_continuation_is_replaced_where_its_observation_can_happen_only():
+    # two states; after action 0, observation 0 comes from state 0 only, observation 1 from state 1 only
+    from embodied_adhoc.decision.plan_graph import observation_supports
+
+    supports = observation_supports((sp_identity(2),))
+    assert sorted(states.tolist() for states, _ in supports) == [[0], [1]]
+    graph = PlanGraph.of_blind_policies(np.array([[-5.0, -5.0]]), n_observations=2)
+    graph.add(np.array([[0.0, 3.0], [2.0, 0.0]]), [0, 0], np.array([[0, 0], [0, 0]]))  # rows 1, 2 (2 a root)
+    graph.add(np.array([[1.0, 1.0]]), [0], np.array([[1, 1]]))  # row 3 (root) continues with row 1 twice
+    roots = graph.prune_dominated(np.array([2, 3]), supports)
+    # after z = 0 (state 0) root [2, 0] beats row 1's [0, 3]; after z = 1 (state 1) nothing beats its 3
+    kids = graph.children[roots[1]]
+    assert graph.vectors[kids[0]].tolist() == [2.0, 0.0] and graph.vectors[kids[1]].tolist() == [0.0, 3.0]
+
+
+def sp_identity(n: int):
+    import scipy.sparse as sp
+
+    return sp.identity(n, format="csr")
