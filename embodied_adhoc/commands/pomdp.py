@@ -12,7 +12,24 @@ from pathlib import Path
 
 from embodied_adhoc.commands.arguments import bounded, output_file, seed
 
-SOLVERS = ("perseus", "hsvi", "qmdp", "vi")
+SOLVERS = ("auto", "perseus", "hsvi", "qmdp", "vi")
+AUTO_MAX_OBSERVATIONS = 4
+AUTO_MIN_STATES = 200
+"""``--solver auto`` picks HSVI for infinite-horizon models with at least this many states and at most that many
+observations (the RockSample class: long information-gathering horizons, where trials down the optimally
+reachable beliefs beat a sampled belief set), else Perseus (docs/pomdp.md, "Choosing a solver")."""
+
+
+def auto_solver(n_states: int, n_observations: int, discount: float, horizon: int | None) -> str:
+    """The solver ``--solver auto`` runs on a model of these sizes (rule: :data:`AUTO_MIN_STATES`)."""
+    if (
+        horizon is None
+        and discount < 1.0
+        and n_states >= AUTO_MIN_STATES
+        and n_observations <= AUTO_MAX_OBSERVATIONS
+    ):
+        return "hsvi"
+    return "perseus"
 
 
 _POSITIVE_INT = bounded(int, 1, "an integer >= 1")
@@ -38,9 +55,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     solve.add_argument(
         "--solver",
         choices=SOLVERS,
-        default="perseus",
-        help="default: perseus; hsvi = heuristic search value iteration (trials from b0 guided by the bounds' "
-        "gap; uses --precision, --trials, --max-depth, --time-limit, --clock, --threads)",
+        default="auto",
+        help=f"default: auto = hsvi for infinite-horizon models with >= {AUTO_MIN_STATES} states and <= "
+        f"{AUTO_MAX_OBSERVATIONS} observations, else perseus; hsvi = heuristic search value iteration (trials "
+        "from b0 guided by the bounds' gap; uses --precision, --trials, --max-depth, --time-limit, --clock, "
+        "--threads)",
     )
     solve.add_argument(
         "--trials",
@@ -153,6 +172,46 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
     register_export(commands)
 
+    generate = commands.add_parser(
+        "generate",
+        help="write a generated benchmark model as a .pomdp file (rocksample: Smith & Simmons 2004)",
+    )
+    models = generate.add_subparsers(dest="model", metavar="MODEL", required=True)
+    rock = models.add_parser(
+        "rocksample",
+        help="RockSample[n, k]: n x n grid, k rocks at seeded cells, 2 observations, 5 + k actions, gamma 0.95",
+        description="RockSample[n, k] (Smith & Simmons 2004): rewards +10 exit east, +10 / -10 sample good / bad "
+        "rock, check_i right with probability (1 + 2^(-d/20)) / 2; n^2 2^k + 1 states "
+        "(embodied_adhoc.decision.rocksample).",
+    )
+    rock.add_argument("--n", type=_POSITIVE_INT, required=True, help="grid side")
+    rock.add_argument("--k", type=_POSITIVE_INT, required=True, help="number of rocks (<= n^2)")
+    rock.add_argument("--seed", type=seed, default=0, help="seed of the rock cells (>= 0)")
+    rock.add_argument(
+        "--out", type=output_file, required=True, metavar="FILE", help="the .pomdp file to write"
+    )
+    rock.add_argument("--json", action="store_true", help="print one JSON object")
+    rock.set_defaults(func=_generate_rocksample)
+
+
+def _generate_rocksample(args: argparse.Namespace) -> int:
+    from embodied_adhoc.decision.pomdp_io import write_pomdp
+    from embodied_adhoc.decision.rocksample import rock_positions, rocksample
+
+    pomdp = rocksample(args.n, args.k, args.seed)
+    path = write_pomdp(pomdp, args.out)
+    report = {
+        "file": str(path),
+        "model": f"RockSample[{args.n},{args.k}]",
+        "seed": args.seed,
+        "rocks": rock_positions(args.n, args.k, args.seed).tolist(),
+        "states": pomdp.n_states,
+        "actions": pomdp.n_actions,
+        "observations": pomdp.n_observations,
+    }
+    print(json.dumps(report) if args.json else " ".join(f"{key}={value}" for key, value in report.items()))
+    return 0
+
 
 def _add_file(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("file", help="a .pomdp path, or the name of a shipped file (e.g. tiger.95.POMDP)")
@@ -221,12 +280,12 @@ def _solve(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--solver hsvi solves the infinite-horizon problem: drop --horizon or use --solver perseus"
         )
-    for flag, value in (("--trials", args.trials), ("--max-depth", args.max_depth)):
-        if value is not None and args.solver != "hsvi":
-            raise ConfigError(
-                f"{flag} is an HSVI setting: add --solver hsvi, or drop {flag} for {args.solver}"
-            )
+    if args.solver != "auto":
+        _check_hsvi_flags(args)
     pomdp = _load(args)
+    if args.solver == "auto":
+        args.solver = auto_solver(pomdp.n_states, pomdp.n_observations, pomdp.discount, args.horizon)
+        _check_hsvi_flags(args, chosen=True)
     if args.solver == "perseus" and args.beliefs * pomdp.n_states > MAX_BELIEF_ENTRIES:
         raise ConfigError(
             f"--beliefs {args.beliefs}: {args.beliefs:,} dense beliefs over {pomdp.n_states:,} states exceed the "
@@ -295,6 +354,17 @@ def _solve(args: argparse.Namespace) -> int:
     else:
         _print_report(report)
     return 0
+
+
+def _check_hsvi_flags(args: argparse.Namespace, chosen: bool = False) -> None:
+    from embodied_adhoc.errors import ConfigError
+
+    for flag, value in (("--trials", args.trials), ("--max-depth", args.max_depth)):
+        if value is not None and args.solver != "hsvi":
+            reason = f" (--solver auto chose {args.solver} for this model)" if chosen else ""
+            raise ConfigError(
+                f"{flag} is an HSVI setting{reason}: add --solver hsvi, or drop {flag} for {args.solver}"
+            )
 
 
 def _hsvi(pomdp, args: argparse.Namespace):
