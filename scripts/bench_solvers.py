@@ -21,6 +21,7 @@ Prints three tables:
 
 from __future__ import annotations
 
+import json
 import math
 import multiprocessing
 import os
@@ -37,8 +38,10 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from embodied_adhoc.commands.pomdp import auto_solver
 from embodied_adhoc.decision.backup import BackupOperator
 from embodied_adhoc.decision.beliefs import collect_beliefs
+from embodied_adhoc.decision.hsvi import HsviConfig, hsvi
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 from embodied_adhoc.decision.pomdp_io import read_pomdp
@@ -88,10 +91,23 @@ class Args:
     """print only the time-to-value table"""
     clock: str = "cpu"
     """time-to-value clock: cpu (process seconds, as pomdpsol's own timer counts) or wall"""
+    side_by_side: tuple[Path, ...] = ()
+    """.pomdp files for the side-by-side table only (this project's --solver auto choice vs pomdpsol)"""
+    solver: str = "auto"
+    """side-by-side: auto (the CLI's rule), hsvi or perseus"""
+    json_out: str = ""
+    """side-by-side: also write the rows to this JSON file (e.g. results/solvers/side_by_side.json)"""
 
 
 def parse_args() -> Args:
     args = parse_dataclass_args(Args, __doc__)
+    if args.solver not in ("auto", "hsvi", "perseus"):
+        print(f"--solver: expected auto, hsvi or perseus, got {args.solver!r}", file=sys.stderr)
+        raise SystemExit(2)
+    for path in args.side_by_side:
+        if not Path(path).is_file():
+            print(f"--side-by-side: no file {path}; give .pomdp paths", file=sys.stderr)
+            raise SystemExit(2)
     if args.clock not in ("cpu", "wall"):
         print(f"--clock: expected cpu or wall, got {args.clock!r}", file=sys.stderr)
         raise SystemExit(2)
@@ -275,18 +291,18 @@ def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, f
     return trace, usage.ru_maxrss / 1024  # Linux: kilobytes
 
 
-def _measured_solve(path: Path, config: PerseusConfig, results) -> None:
-    """In a fresh process: the solve's progress points, its saved vectors and the process' peak memory (MB)."""
+def _measured_solve(path: Path, config, results) -> None:
+    """In a fresh process: the solve's progress points, its saved vectors and the process' peak memory (MB);
+    ``config`` is a PerseusConfig or an HsviConfig, which picks the solver."""
     points: list[tuple[float, float, float]] = []
-    policy = perseus(
+    solve = hsvi if isinstance(config, HsviConfig) else perseus
+    policy = solve(
         read_pomdp(path), config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0))
     )
     results.put((points, len(policy.alphas), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
 
 
-def perseus_measured(
-    path: Path, config: PerseusConfig
-) -> tuple[list[tuple[float, float, float]], int, float]:
+def perseus_measured(path: Path, config) -> tuple[list[tuple[float, float, float]], int, float]:
     """Progress points, saved vectors and peak resident memory (MB) of one solve, run in a spawned process so
     that the peak is that solve's alone (reading the file included, as the CLI does)."""
     context = multiprocessing.get_context("spawn")
@@ -296,6 +312,101 @@ def perseus_measured(
     points, vectors, peak = results.get()
     child.join()
     return points, vectors, peak
+
+
+def _reached(trace: list[tuple[float, float, float]], value: float) -> float | None:
+    """The first time a trace's lower bound is at or above ``value`` (None: never)."""
+    return next((point[0] for point in trace if point[1] >= value), None)
+
+
+def side_by_side_row(path: Path, args: Args) -> dict:
+    """One model: pomdpsol for the longest checkpoint, then this project's solve for the same CPU seconds (the
+    CLI's --solver choice and defaults), their bounds at each checkpoint, the time each needs to SARSOP's final
+    lower bound, and both peaks."""
+    pomdp = read_pomdp(path)
+    horizon = max(args.checkpoints)
+    solver = args.solver
+    if solver == "auto":
+        solver = auto_solver(pomdp.n_states, pomdp.n_observations, pomdp.discount, None)
+    if solver == "hsvi":
+        config = HsviConfig(time_limit=horizon, clock=args.clock)
+    else:
+        config = PerseusConfig(
+            n_beliefs=1000, time_limit=horizon, seed=args.seed, expand=True, clock=args.clock
+        )
+    sarsop = sarsop_trace(path, horizon)
+    points, vectors, peak = perseus_measured(path, config)
+    row = {
+        "file": path.name,
+        "states": pomdp.n_states,
+        "actions": pomdp.n_actions,
+        "observations": pomdp.n_observations,
+        "solver": solver,
+        "clock": args.clock,
+        "seconds": horizon,
+        "ours": {f"{t:g}": _at(points, t) for t in args.checkpoints},
+        "ours_peak_mb": peak,
+        "ours_vectors": vectors,
+    }
+    if sarsop is not None:
+        trace, sarsop_peak = sarsop
+        target = trace[-1][1] if trace else math.nan
+        ours_time = _reached(points, target)
+        row.update(
+            sarsop={f"{t:g}": _at(trace, t) for t in args.checkpoints},
+            sarsop_peak_mb=sarsop_peak,
+            sarsop_final_lower=target,
+            sarsop_seconds_to_final_lower=_reached(trace, target),
+            ours_seconds_to_sarsop_lower=ours_time,
+            time_ratio=None if ours_time is None else ours_time / horizon,
+            memory_ratio=peak / sarsop_peak if sarsop_peak else None,
+        )
+    return row
+
+
+def side_by_side_table(args: Args) -> None:
+    source = "pomdpsol measured in this run" if shutil.which("pomdpsol") else "pomdpsol not on the PATH"
+    print(f"\n## Side by side: --solver {args.solver} vs SARSOP ({source}, {args.clock} seconds)\n")
+    header = " | ".join(f"ours {t:g} s | SARSOP {t:g} s" for t in args.checkpoints)
+    print(
+        f"| file | S | Z | solver | {header} | our time to SARSOP's final lb (ratio to its budget) | "
+        "peak memory ours / SARSOP (ratio) |"
+    )
+    print("|---|---|---|---|" + "---|" * (2 * len(args.checkpoints) + 2))
+    rows = []
+    for path in args.side_by_side:
+        row = side_by_side_row(Path(path), args)
+        rows.append(row)
+
+        def cell(bounds) -> str:
+            return "-" if bounds is None else f"{bounds[0]:.4f} / {bounds[1]:.4f}"
+
+        cells = []
+        for t in args.checkpoints:
+            cells.append(cell(row["ours"][f"{t:g}"]))
+            cells.append(cell(row["sarsop"][f"{t:g}"]) if "sarsop" in row else "-")
+        if "sarsop" in row:
+            reached = row["ours_seconds_to_sarsop_lower"]
+            cells.append(
+                f"never (target {row['sarsop_final_lower']:.4f})"
+                if reached is None
+                else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
+            )
+            cells.append(
+                f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
+            )
+        else:
+            cells += ["-", f"{row['ours_peak_mb']:.0f} MB / -"]
+        print(
+            f"| {row['file']} | {row['states']} | {row['observations']} | {row['solver']} | "
+            + " | ".join(cells)
+            + " |",
+            flush=True,
+        )
+    if args.json_out:
+        out = Path(args.json_out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(json.dumps({"command": " ".join(sys.argv), "rows": rows}, indent=1) + "\n")
 
 
 def anytime_row(name: str, args: Args) -> None:
@@ -345,6 +456,9 @@ def anytime_table(args: Args) -> None:
 
 def main() -> None:
     args = parse_args()
+    if args.side_by_side:
+        side_by_side_table(args)
+        return
     if args.only_anytime:
         anytime_table(args)
         return

@@ -13,7 +13,43 @@ from collections.abc import Callable
 
 import numpy as np
 
-from embodied_adhoc.decision.upper_bound import SawtoothBound
+from embodied_adhoc.decision.upper_bound import SawtoothBound, Successors
+
+
+def excess_gap_path(
+    upper: SawtoothBound,
+    lower: Callable[[np.ndarray], np.ndarray],
+    start: np.ndarray,
+    precision: float,
+    max_depth: int,
+) -> list[tuple[np.ndarray, Successors]]:
+    """The beliefs of one excess-gap path from ``start`` with their successors, at most ``max_depth`` of them;
+    neither bound is changed. ``lower`` maps beliefs (n, S) to the lower bound's values.
+
+    A path stops where the stored gap ``U(b) - L(b)`` is within ``precision / gamma^t``, not where
+    ``min(U(b), max_a Q_U(b, a)) - L(b)`` is: a belief whose backup alone would close its gap must still be
+    updated, or its parents keep reading its stale ``U(b)`` and the paths stall short of b0's target."""
+    gamma = upper.pomdp.discount
+    belief, path = start, []
+    # The bounds at the current belief: computed at the start, then read off the previous step's successors (a
+    # row's value does not depend on the rows beside it, and neither bound changes along the path).
+    here = float(upper.values(belief)[0]), float(lower(belief[None, :])[0])
+    for depth in range(max_depth):
+        if here[0] - here[1] <= precision / gamma**depth:
+            break
+        successors = upper.successors(belief)
+        q_upper, upper_values = upper.q_values_and_successor_values(belief, successors)
+        path.append((belief, successors))
+        action = int(np.argmax(q_upper))
+        _, probabilities, posteriors = successors[action]
+        if not len(probabilities):
+            break
+        target = precision / gamma ** (depth + 1)
+        upper_next = upper_values[successors.bounds[action] : successors.bounds[action + 1]]
+        lower_next = lower(posteriors)
+        choice = int(np.argmax(probabilities * (upper_next - lower_next - target)))
+        belief, here = posteriors[choice], (float(upper_next[choice]), float(lower_next[choice]))
+    return path
 
 
 def sample_path(
@@ -23,24 +59,9 @@ def sample_path(
     precision: float,
     max_depth: int,
 ) -> list[np.ndarray]:
-    """Beliefs of one excess-gap path from ``start``, at most ``max_depth`` of them (the upper bound is updated
-    along it); ``lower`` maps beliefs (n, S) to the lower bound's values."""
-    gamma = upper.pomdp.discount
-    belief, path = start, []
-    for depth in range(max_depth):
-        successors = upper.successors(belief)
-        q_upper = upper.q_values(belief, successors)
-        gap = min(float(upper.values(belief)[0]), float(q_upper.max())) - float(lower(belief[None, :])[0])
-        if gap <= precision / gamma**depth:
-            break
-        path.append((belief, successors))
-        _, probabilities, posteriors = successors[int(np.argmax(q_upper))]
-        if not len(probabilities):
-            break
-        excess = probabilities * (
-            upper.values(posteriors) - lower(posteriors) - precision / gamma ** (depth + 1)
-        )
-        belief = posteriors[int(np.argmax(excess))]
+    """Beliefs of one :func:`excess_gap_path` from ``start``; the upper bound is backed up along it, deepest
+    first, so each belief's update reads its child's new value."""
+    path = excess_gap_path(upper, lower, start, precision, max_depth)
     for belief, successors in reversed(path):
         upper.update(belief, successors)
     return [belief for belief, _ in path]

@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from embodied_adhoc.decision.backup import BackupOperator, PreparedAlphas, blind_policy_vectors
-from embodied_adhoc.decision.belief_expansion import max_depth
+from embodied_adhoc.decision.belief_expansion import excess_gap_path, max_depth
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import CLOCKS, ProgressCallback, SolverProgress
 from embodied_adhoc.decision.plan_graph import PlanGraph
@@ -187,29 +187,7 @@ def hsvi(
 
 def _trial(lower: _LowerBound, upper: SawtoothBound, b0: np.ndarray, epsilon: float, depth: int) -> int:
     """One HSVI2 trial from ``b0`` (module docstring); returns the number of beliefs it updated."""
-    gamma = upper.pomdp.discount
-    belief, path = b0, []
-    # The bounds at the current belief: computed at b0, then read off the previous step's successors (a row's
-    # value does not depend on the rows beside it, and neither bound changes before the way back).
-    here = float(upper.values(belief)[0]), float(lower.values(belief)[0])
-    for step in range(depth):
-        # The stored bound's gap, not min(U(b), max_a Q_U(b, a)): a belief whose backup alone would close its gap
-        # must still be updated, or its parents keep reading the stale U(b) and the trials stall short of b0's
-        # target.
-        if here[0] - here[1] <= epsilon / gamma**step:
-            break
-        successors = upper.successors(belief)
-        q_upper, upper_values = upper.q_values_and_successor_values(belief, successors)
-        path.append((belief, successors))
-        action = int(np.argmax(q_upper))
-        _, probabilities, posteriors = successors[action]
-        if not len(probabilities):
-            break
-        target = epsilon / gamma ** (step + 1)
-        upper_next = upper_values[successors.bounds[action] : successors.bounds[action + 1]]
-        lower_next = lower.values(posteriors)
-        choice = int(np.argmax(probabilities * (upper_next - lower_next - target)))
-        belief, here = posteriors[choice], (float(upper_next[choice]), float(lower_next[choice]))
+    path = excess_gap_path(upper, lower.values, b0, epsilon, depth)
     for belief, successors in reversed(path):
         lower.back_up(belief)
         upper.update(belief, successors)
