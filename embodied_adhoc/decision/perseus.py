@@ -245,9 +245,9 @@ def _infinite_horizon(
     for iteration in range(1, config.max_iterations + 1):
         if state.deadline is not None and state.clock() > state.deadline:
             break
-        state.iteration = iteration
-        if not state.fits(_stage_need(state), "stopped"):
+        if not state.fits(_stage_need(state), f"stopped before iteration {iteration}"):
             break
+        state.iteration = iteration
         if _iterate(state):
             break
     return _finish(state)
@@ -404,7 +404,7 @@ class _Anytime:
         if resident + need / MB <= self.cap_mb:
             return True
         print(
-            f"embodied-adhoc: note: perseus {what} at iteration {self.iteration}: it needs about {need / MB:.0f} MB "
+            f"embodied-adhoc: note: perseus {what}: it needs about {need / MB:.0f} MB "
             f"beyond the {resident:.0f} MB in use, over the memory cap of {self.cap_mb:.0f} MB (--max-memory); "
             "the bounds so far are kept",
             file=sys.stderr,
@@ -555,7 +555,7 @@ def _round(state: _Anytime) -> bool:
         # At max_beliefs the collection still runs (and is cut to nothing below): its draws on the generator are
         # part of the seed's schedule.
         if len(state.beliefs) < state.max_beliefs and not state.fits(
-            _expansion_need(state, count), "stopped expanding its belief set"
+            _expansion_need(state, count), f"stopped expanding its belief set at iteration {state.iteration}"
         ):
             state.expansion_capped, state.max_beliefs = True, len(state.beliefs)
     if config.expand and not state.expansion_capped:

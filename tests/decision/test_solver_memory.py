@@ -44,11 +44,12 @@ def test_a_cap_below_the_first_stage_stops_with_the_blind_bound(tiger, capsys):
     settings = dict(n_beliefs=100, expand=True, max_iterations=20)
     policy = perseus(tiger, PerseusConfig(max_memory=1.0, **settings))  # below what the process already holds
     note = capsys.readouterr().err
-    assert "perseus stopped at iteration 1" in note and "memory cap of 1 MB" in note
+    assert "perseus stopped before iteration 1" in note and "memory cap of 1 MB" in note
     assert note.count("\n") == 1  # one line
     full = perseus(tiger, PerseusConfig(max_memory=math.inf, **settings))
     assert capsys.readouterr().err == ""
     # anytime: the bounds of the first instant, kept and achievable (the blind policies)
+    assert policy.stats.iterations == 0
     assert policy.stats.lower == full.stats.trace[0][1] and policy.stats.lower < full.stats.lower
     assert policy.stats.upper >= full.stats.upper
     assert policy.value(tiger.initial_belief) == pytest.approx(policy.stats.lower)
