@@ -2043,7 +2043,8 @@ def index_page(documents: dict[str, dict]) -> str:
             f"`{data['command']}` |"
         )
     for entry in UNRUN.values():
-        lines.append(f"| {entry.title} | not re-run (cost: {entry.cost}) | `{entry.command}` |")
+        if entry.name not in documents:
+            lines.append(f"| {entry.title} | not re-run (cost: {entry.cost}) | `{entry.command}` |")
     return "\n".join(lines) + "\n"
 
 
@@ -2191,7 +2192,7 @@ def render_markers(page: Path, text: str, documents: dict[str, dict]) -> tuple[s
             sys.exit(f"{page.relative_to(ROOT)}:{index}: results:{match['name']} has no `{end}` line")
         if name == HEADLINE:
             block = headline(documents, page)
-        elif name in UNRUN:
+        elif name in UNRUN and name not in documents:  # a figure defined before its first run
             block = unrun_block(UNRUN[name], page)
         elif name in RECORDED:
             block = recorded_block(RECORDED[name], key or None, page)
@@ -2269,7 +2270,8 @@ def check() -> int:
                     f"re-render with `.venv/bin/python {SCRIPT} render` (or `{entry.script} --render-only`)"
                 )
                 continue
-            if name.partition(".")[0] in (*UNRUN, *RECORDED):
+            base = name.partition(".")[0]
+            if base in (*UNRUN, *RECORDED) and not (RESULTS / f"{base}.json").exists():
                 print(
                     f"{relative}: block {name} differs from its entry in {SCRIPT}; re-render with `{SCRIPT} render`"
                 )

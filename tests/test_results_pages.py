@@ -479,3 +479,27 @@ def test_a_sentence_beside_a_table_is_generated_from_its_result_file_and_checked
         "docs/speech.md: table speech-confusions.welch differs from results/speech-confusions.json"
         in done.stdout
     )
+
+
+def test_a_figure_defined_before_its_first_run_shows_its_unrun_block_until_it_has_a_result_file():
+    module = load_script()
+    assert "fig7-12" in module.FIGURES and "fig7-12" in module.UNRUN
+    page = module.ROOT / "docs" / "arenas.md"
+    text = "<!-- results:fig7-12 start -->\n<!-- results:fig7-12 end -->"
+    rendered, _ = module.render_markers(page, text, {})
+    assert "*Not re-run (cost: " in rendered
+    steps = (
+        "| agent | abstract steps | abstract 95% CI (bootstrap) |\n|---|---|---|\n"
+        "| oracle | 6.00 ± 1.00 | [5.50, 6.50] |"
+    )
+    claims = "| thesis claim (Welch, alpha 0.05) | holds |\n|---|---|\n| optimal < random | yes |"
+    data = module.FIGURES["fig7-12"].extract({"reproduce": f"Fig. 7.12\n\n{steps}\n\n{claims}\n"})
+    run = {"kernel": "Haswell", "commit": "0" * 40, "code_sha256": "c0de", "commands": {"reproduce": "x"}}
+    run |= {"extra": "", "started": "2026-12-02T06:00:00+00:00", "data": data}
+    documents = {"fig7-12": {"figure": "fig7-12", "published": run, "checks": []}}
+    rendered, _ = module.render_markers(page, text, documents)
+    assert "| oracle | 6.00 ± 1.00 | [5.50, 6.50] |" in rendered and "Not re-run" not in rendered
+    assert "Class: **not re-checked**" in rendered
+    index = module.index_page(documents)
+    assert "](fig7-12.md) | steps: not re-checked; claims: not re-checked |" in index
+    assert module.UNRUN["fig7-12"].command not in index
