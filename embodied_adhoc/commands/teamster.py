@@ -8,6 +8,8 @@ steps each, learning, evaluated (``--eval-steps`` steps, learning paused) before
 interaction and, after each team, on all three. ``--changed fail:P`` adds the changed-environment phase
 (predator moves fail with probability P; a bare P means the same), ``--changed mirror`` one where the ad hoc
 agent's moves are mirrored (up <-> down, left <-> right), for ``--changed-steps`` steps (default ``--steps``).
+``--mixed-steps N`` (pursuit) adds section 4.1.5's Performance Convergence Experiment instead: N steps with the
+Mixed team (one teammate-aware, one greedy, one probabilistic-destinations teammate), its curve beside the teams'.
 With ``--out`` every (agent, trial) is stored as it finishes and a rerun resumes
 from them; the folder gets ``summary.json``, ``table.md`` and ``curves.png``. ``--json`` prints the summary
 (accumulated reward = prey captures, mean and 95 % CI, at each evaluation point, and per 500 steps).
@@ -63,6 +65,16 @@ def handle(args: argparse.Namespace) -> int:
     changed = parse_change(args.changed)
     if args.changed_steps is not None and not changed:
         raise ConfigError(f"--changed-steps {args.changed_steps}: only with a changed phase (--changed)")
+    if args.mixed_steps is not None:
+        if args.domain != "pursuit":
+            raise ConfigError(f"--mixed-steps: the Mixed team is pursuit's; drop it for {args.domain}")
+        if changed:
+            raise ConfigError("--mixed-steps with --changed: each is its own last phase; give one per --out")
+        if args.mixed_steps % (args.steps // args.points):
+            raise ConfigError(
+                f"--mixed-steps {args.mixed_steps}: must be a multiple of --steps / --points = "
+                f"{args.steps // args.points} (the phase is evaluated as often as each team's interaction)"
+            )
 
     if args.size != 5 and args.domain != "pursuit":
         raise ConfigError(f"--size {args.size}: only pursuit has a size (a map's is its file's)")
@@ -75,6 +87,7 @@ def handle(args: argparse.Namespace) -> int:
         points=args.points,
         changed=changed,
         changed_steps=args.changed_steps,
+        mixed_steps=args.mixed_steps,
         seed=args.seed,
         iterations=args.iterations or iterations,
         depth=args.depth or depth,
@@ -88,7 +101,7 @@ def handle(args: argparse.Namespace) -> int:
     jobs = [(agent, trial) for agent in agents for trial in range(args.trials)]
     from tqdm import tqdm
 
-    phases = 3 + bool(config.changed)
+    phases = 3 + bool(config.changed) + bool(config.mixed_steps)
     bar = tqdm(
         total=len(jobs) * phases,
         desc="teamster",
@@ -182,6 +195,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=positive_int,
         default=None,
         help="interaction steps of the changed phase, a multiple of --points (default --steps)",
+    )
+    parser.add_argument(
+        "--mixed-steps",
+        type=positive_int,
+        default=None,
+        help="add section 4.1.5's Mixed-team phase (seats teammate-aware, greedy, probabilistic destinations) "
+        "of this many steps after the three teams, evaluated every --steps / --points steps (the thesis: "
+        "15000); pursuit only, not with --changed",
     )
     parser.add_argument(
         "--iterations",

@@ -28,7 +28,6 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.domains.pursuit4 import N_ACTIONS, N_AGENTS, N_PREDATORS, PREY, Pursuit4
 from embodied_adhoc.learning.blocks import NumpyMlp, ReplayBuffer, adam_step, mlp, seeded_module, softmax
 from embodied_adhoc.learning.weights import load_into, save_weights
@@ -231,13 +230,10 @@ class LearnedEnvironment:
             return 1.0 / (1.0 + np.exp(-logit))
 
     def step(self, states: np.ndarray, joint_actions: np.ndarray, rng: np.random.Generator):
-        """Sample each agent's move from its factor, then the predicted reward ``P(capture | x')`` (terminal
-        above 1/2)."""
-        probs = self.transition_probs(states, joint_actions)
-        cdf = np.cumsum(probs, -1)
-        moves = np.minimum(
-            (rng.random(probs.shape[:-1])[..., None] * cdf[..., -1:] >= cdf).sum(-1), N_ACTIONS - 1
-        )
+        """Sample each agent's move from its factor (:func:`sample_logits`), then the predicted reward
+        ``P(capture | x')`` (terminal above 1/2)."""
+        logits = self.transition_forward(self.features.transition(states, joint_actions))
+        moves = sample_logits(logits.reshape(states.shape[0], self.features.n_agents, N_ACTIONS), rng)
         nxt = self.world.neighbours[states, moves]
         goal = self.capture_probability(nxt).astype(np.float64)
         return nxt, self.features.step_reward + self.features.goal_reward * goal, goal > 0.5
@@ -285,10 +281,10 @@ class LearnedEnvironment:
 class PursuitSimulator:
     """``simulate(states, actions, rng)`` for the planner on pursuit: the team model's draw of the teammates'
     actions, then the environment model's step, as ``team.probs`` + ``sample_rows`` + :meth:`LearnedEnvironment.step`
-    compute them (the same inputs, products, draws and order of draws, so the same results bit for bit; the
-    environment's step draws as ``sample_rows`` does) with
-    fewer numpy calls: the state's offsets are gathered once for both networks and written into input arrays
-    whose constant one-hot columns (seat, agent index) are kept from call to call."""
+    compute them (the same inputs, products, uniforms and order of draws; the draws come from the logits by
+    :func:`sample_logits`, so they are ``sample_rows``'s on the softmax but for float rounding at a category
+    boundary) with fewer numpy calls: the state's offsets are gathered once for both networks and written into
+    input arrays whose constant columns (seat, agent index, the prey's zero own action) are kept from call to call."""
 
     def __init__(self, environment: LearnedEnvironment, team: LearnedTeam) -> None:
         self.environment, self.team, self.features = environment, team, environment.features
@@ -311,21 +307,36 @@ class PursuitSimulator:
         team_in, transition_in = self._inputs(count)
         offsets = f.offset_code[states[:, :, None], states[:, _OTHERS]].reshape(count, N_AGENTS, -1)
         team_in[:, :, 3:] = offsets[:, 1:N_PREDATORS]
-        probs = softmax(self.team.forward(team_in.reshape(count * 3, -1))).reshape(count, 3, N_ACTIONS)
-        mates = sample_rows(probs, rng)
+        mates = sample_logits(
+            self.team.forward(team_in.reshape(count * 3, -1)).reshape(count, 3, N_ACTIONS), rng
+        )
         joint = np.empty((count, N_PREDATORS), dtype=np.int64)
         joint[:, 0], joint[:, 1:] = actions, mates
         action_code = _EYE5[joint]  # (B, 4, 5)
         own = N_AGENTS + f.offset_width
         transition_in[:, :, N_AGENTS:own] = offsets
         transition_in[:, :N_PREDATORS, own : own + N_ACTIONS] = action_code
-        transition_in[:, PREY, own : own + N_ACTIONS] = 0.0
         transition_in[:, :, own + N_ACTIONS :] = action_code.reshape(count, 1, -1)
         logits = env.transition_forward(transition_in.reshape(count * N_AGENTS, -1))
-        moves = sample_rows(softmax(logits).reshape(count, N_AGENTS, N_ACTIONS), rng)
+        moves = sample_logits(logits.reshape(count, N_AGENTS, N_ACTIONS), rng)
         nxt = f.world.neighbours[states, moves]
         goal = env.capture_probability(nxt)
         return nxt, f.step_reward + f.goal_reward * goal, goal > 0.5
 
 
 _EYE5 = np.eye(N_ACTIONS, dtype=np.float32)
+
+
+def sample_logits(logits: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """One draw per row of the categorical ``softmax(logits)`` (..., A), by inverse CDF with one uniform per row,
+    as :func:`~embodied_adhoc.decision.agents.teamwork.sample_rows` draws from the probabilities: the uniform is
+    scaled by the total of the unnormalised weights instead of the weights divided by it, which saves the
+    normalisation (two numpy calls per draw, a tenth of a planner step's simulator) and changes a draw only where
+    a uniform falls within float rounding of a category boundary."""
+    weights = logits.astype(np.float64)
+    weights -= weights.max(-1, keepdims=True)
+    np.exp(weights, out=weights)
+    np.cumsum(weights, -1, out=weights)
+    uniform = rng.random(weights.shape[:-1])
+    uniform *= weights[..., -1]
+    return np.minimum((uniform[..., None] >= weights).sum(-1), weights.shape[-1] - 1)

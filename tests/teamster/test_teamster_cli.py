@@ -24,6 +24,8 @@ SMALL = ["--steps", "20", "--points", "2", "--eval-steps", "10", "--trials", "2"
         (["--trials", "0"], "--trials"),
         (["--size", "2"], "--size 2: pursuit's torus needs a side >= 3"),
         (["--wave", "0"], "--wave"),
+        (["--mixed-steps", "750"], "--mixed-steps 750: must be a multiple of --steps / --points = 500"),
+        (["--mixed-steps", "1000", "--changed", "mirror"], "--mixed-steps with --changed"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(argv, fragment):

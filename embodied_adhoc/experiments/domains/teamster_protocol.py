@@ -15,6 +15,13 @@ For each team tau_i in order (teammate-aware, greedy, probabilistic destinations
 5. it is evaluated on every team;
 6. the next team.
 
+Optionally (``mixed_steps``, pursuit only) a last phase is section 4.1.5's Performance Convergence Experiment: the
+agent, its library built by steps 1-6, interacts with the *Mixed* team (seat 1 teammate-aware, seat 2 greedy,
+seat 3 probabilistic destinations: :class:`MixedPursuit`) for ``mixed_steps`` steps (the thesis: 3 T = 15,000),
+evaluated every ``steps / points`` steps as in step 3 (every 500 steps at T = 5000, as in the thesis); its curve is
+``curves["mixed"]``. No library holds the Mixed team, so PLASTIC-Model plans with its online learned team
+model there (the thesis's "reducing it to a Learns Team agent").
+
 Optionally (``changed``) a last phase repeats steps 1-3 with the first team in a changed environment, for
 ``changed_steps`` steps (default ``steps``): ``changed`` = P, a probability, makes the moves (the predators', or
 every agent's on a map) fail with probability P; ``changed = "mirror"`` mirrors the ad hoc agent's moves (up <->
@@ -44,7 +51,7 @@ import numpy as np
 from embodied_adhoc.decision.agents.teamwork import EpisodeSeat
 from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.navigation4 import MAPS, Navigation4
-from embodied_adhoc.domains.pursuit4 import N_ACTIONS, ExactTeam, Pursuit4
+from embodied_adhoc.domains.pursuit4 import N_ACTIONS, TEAMS, ExactTeam, Pursuit4
 from embodied_adhoc.envs.teamwork import TeamworkEnv
 from embodied_adhoc.episodes.loop import run_episode_loop
 from embodied_adhoc.errors import ConfigError
@@ -70,6 +77,7 @@ class ProtocolConfig:
     wave: int = (
         UctConfig.wave
     )  # UCT simulations that descend together (decision.uct.BatchedUct; 1: the sequential UCT)
+    mixed_steps: int | None = None  # the Mixed team's phase (section 4.1.5; None: none)
 
     def __post_init__(self) -> None:
         if self.domain not in DOMAINS:
@@ -92,6 +100,19 @@ class ProtocolConfig:
                 f"teamster changed_steps={self.changed_steps!r}: give a positive multiple of "
                 f"points={self.points}"
             )
+        if self.mixed_steps is not None:
+            chunk = self.steps // self.points
+            if not isinstance(self.mixed_steps, int) or self.mixed_steps < 1 or self.mixed_steps % chunk:
+                raise ConfigError(
+                    f"teamster mixed_steps={self.mixed_steps!r}: give a positive multiple of steps / points "
+                    f"= {chunk} (the phase is evaluated every {chunk} steps, as each team's interaction)"
+                )
+            if self.domain != "pursuit":
+                raise ConfigError(f"teamster mixed_steps: the Mixed team is pursuit's, not {self.domain}'s")
+            if self.changed:
+                raise ConfigError(
+                    "teamster mixed_steps with changed: each is its own last phase; run them in two folders"
+                )
 
     @property
     def phase_steps(self) -> int:
@@ -102,8 +123,12 @@ class ProtocolConfig:
         """The settings a record is stored with; pursuit's omit the navigation fields (so folders written
         before the navigation maps existed still resume)."""
         settings = asdict(self)
-        if self.changed_steps is None:  # folders written before the option existed still resume
-            del settings["changed_steps"]
+        for name in (
+            "changed_steps",
+            "mixed_steps",
+        ):  # folders written before the options existed still resume
+            if settings[name] is None:
+                del settings[name]
         if (
             self.wave == UctConfig.wave
         ):  # the same: records carry the wave only where it is not the planner's default
@@ -143,6 +168,28 @@ def make_world(domain: str, size: int = 5, slip: float = 0.0, mirror: bool = Fal
     if domain == "pursuit":
         return Pursuit4(size, slip=slip, mirror=mirror)
     return Navigation4(domain, slip=slip, mirror=mirror)
+
+
+MIXED = "mixed"
+MIXED_SEATS = ("teammate-aware", "teammate-aware", "greedy", "probabilistic-destinations")
+"""The Mixed team of section 4.1.5, per predator seat: "each with a different policy (one with a teammate aware
+policy, another with a greedy policy and a third with a probabilistic destinations policy)"; seat 0, the ad hoc
+agent's, is teammate-aware for the ``original`` baseline (the thesis names no fourth member)."""
+
+
+@dataclass(frozen=True)
+class MixedPursuit(Pursuit4):
+    """Pursuit whose teams include the Mixed team (:data:`MIXED_SEATS`): the same rules, and each seat's
+    ``pi^n(a | x)`` (Eq. 4.2's factors) taken from its own team's exact policy."""
+
+    teams = TEAMS + (MIXED,)
+
+    def team_policy(self, team: str, states: np.ndarray, agents=(1, 2, 3)) -> np.ndarray:
+        if team != MIXED:
+            return super().team_policy(team, states, agents)
+        return np.concatenate(
+            [super(MixedPursuit, self).team_policy(MIXED_SEATS[a], states, (a,)) for a in agents], axis=1
+        )
 
 
 def changed_world(config: ProtocolConfig):
@@ -244,15 +291,23 @@ def model_fit(agent, world, rng: np.random.Generator, count: int = 256) -> list[
 
 
 def _interact(
-    agent, world, team, config, trial, phase: str, steps: int, fit: list | None = None
+    agent,
+    world,
+    team,
+    config,
+    trial,
+    phase: str,
+    steps: int,
+    fit: list | None = None,
+    chunk: int | None = None,
 ) -> list[list[int]]:
-    """Steps 1-3 over ``steps`` steps: the learning curve [[step, captures in the evaluation], ...] (points + 1
-    entries)."""
+    """Steps 1-3 over ``steps`` steps, evaluated every ``chunk`` steps (default ``steps / points``): the learning
+    curve [[step, captures in the evaluation], ...]."""
     rng = _stream(config, trial, agent.name, phase)
     agent.start_team(rng)
     curve = [[0, _evaluate(agent, world, team, config, trial, phase, 0)]]
-    chunk = steps // config.points
-    for point in range(config.points + 1):
+    chunk = chunk or steps // config.points
+    for point in range(steps // chunk + 1):
         if point:
             play(agent, world, team, chunk, rng)
             curve.append([point * chunk, _evaluate(agent, world, team, config, trial, phase, point)])
@@ -278,18 +333,32 @@ def run_trial(
 
 def _run_trial(agent_name: str, trial: int, config: ProtocolConfig, tick: Callable[[], None] | None) -> dict:
     start = time.perf_counter()
-    world = make_world(config.domain, config.size)
-    teams = {name: ExactTeam(world, name) for name in world.teams}
+    # with the Mixed phase the agents know the Mixed team's name (the original baseline plays its seat 0);
+    # the same rules, and the Mixed team is met only in its own phase
+    world = MixedPursuit(config.size) if config.mixed_steps else make_world(config.domain, config.size)
+    teams = {name: ExactTeam(world, name) for name in world.teams if name != MIXED}
     uct = UctConfig(iterations=config.iterations, depth=config.depth, wave=config.wave)
     agent = build_agent(agent_name, world, _stream(config, trial, agent_name, "agent"), config.steps, uct)
     record = {"agent": agent_name, "trial": trial, "config": config.as_dict(), "curves": {}, "after": {}}
-    for i, name in enumerate(world.teams):
+    for i, name in enumerate(teams):
         record["curves"][name] = _interact(agent, world, teams[name], config, trial, name, config.steps)
         agent.finish_team(name)
         record["after"][name] = {
-            other: _evaluate(agent, world, teams[other], config, trial, "after", i, other)
-            for other in world.teams
+            other: _evaluate(agent, world, teams[other], config, trial, "after", i, other) for other in teams
         }
+        if tick is not None:
+            tick()
+    if config.mixed_steps is not None:  # section 4.1.5's Performance Convergence Experiment
+        record["curves"][MIXED] = _interact(
+            agent,
+            world,
+            ExactTeam(world, MIXED),
+            config,
+            trial,
+            MIXED,
+            config.mixed_steps,
+            chunk=config.steps // config.points,
+        )
         if tick is not None:
             tick()
     if config.changed:
