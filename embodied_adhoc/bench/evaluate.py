@@ -238,12 +238,12 @@ def evaluate(
 def backend_difference(first: dict, second: dict, members: list[str]) -> dict:
     """Per agent of both ``{agent: normalised scores (episodes x members)}`` (the same members, e.g. the abstract
     and the physics lab): each side's mean, their difference (second - first) and Welch's unequal-variances t-test
-    (two-sided, ``experiments.stats.welch_test``) on the per-episode scores, pooled over the members and per
-    member."""
+    (two-sided, ``experiments.stats.welch_test``, ``t`` of second - first) on the per-episode scores, pooled over
+    the members and per member."""
     from embodied_adhoc.experiments.stats import welch_test
 
     def compare(a: np.ndarray, b: np.ndarray) -> dict:
-        t, p = welch_test(a, b)
+        t, p = welch_test(b, a)  # t has the sign of the difference
         return {
             "first_mean": float(a.mean()),
             "second_mean": float(b.mean()),

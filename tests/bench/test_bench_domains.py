@@ -86,11 +86,12 @@ def test_backend_difference_is_welchs_test_per_agent_and_member():
     result = backend_difference(first, second, ["m0", "m1"])
     assert set(result["agents"]) == {"a"}  # only agents both sides ran
     pooled = result["agents"]["a"]
-    t, p = welch_test(first["a"].ravel(), second["a"].ravel())
+    t, p = welch_test(second["a"].ravel(), first["a"].ravel())  # t of second - first
     assert (pooled["t"], pooled["p"]) == (t, p)
     assert pooled["difference"] == pytest.approx(second["a"].mean() - first["a"].mean())
+    assert pooled["t"] < 0 < -pooled["difference"]  # the second side scores lower here
     assert pooled["n"] == [16, 12]
-    t1, p1 = welch_test(first["a"][:, 1], second["a"][:, 1])
+    t1, p1 = welch_test(second["a"][:, 1], first["a"][:, 1])
     assert (
         result["agents"]["a"]["per_member"]["m1"]["t"],
         result["agents"]["a"]["per_member"]["m1"]["p"],
