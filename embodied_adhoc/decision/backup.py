@@ -207,7 +207,10 @@ class BackupOperator:
             # product's right operand is C-contiguous.
             dense = self.observation_rows[action].toarray()  # (S, Z)
             projection = (dense[:, :, None] * alphas.T[:, None, :]).reshape(n_states, n_obs * n_vectors)
-        prepared.projections[action] = projection
+        # Only "none" is remembered: a projection is rebuilt at each use (1 / batch of the scores' product), as
+        # keeping one per action held |A| times the largest array of the backup between batches.
+        if projection is None:
+            prepared.projections[action] = None
         return projection
 
     def _support_choices(
