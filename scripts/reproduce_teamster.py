@@ -121,7 +121,8 @@ def part_a_result(counts: dict[str, list[int]], trials: int, seed: int, started:
         "commit": _git("rev-parse", "HEAD"),
         # the package's and scripts' files that differ from the commit (a shared tree may hold others' edits)
         "uncommitted": sorted(
-            line[3:] for line in _git("status", "--porcelain", "--", "embodied_adhoc", "scripts").splitlines()
+            line.split(None, 1)[1]  # "XY path": the status letters, then the path
+            for line in _git("status", "--porcelain", "--", "embodied_adhoc", "scripts").splitlines()
         ),
         "kernel": blas_kernel(),
         "python": platform.python_version(),
