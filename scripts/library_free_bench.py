@@ -1,0 +1,264 @@
+"""The library-free agents (ppo-generalist, liam, meliba) against the benchmark's held-out teammates, beside the
+library-based agents, and the score-vs-number-of-training-teammates curve; writes results/library-free.json and
+renders its tables into docs/library_free.md (between the ``<!-- library-free start/end -->`` markers) and the
+curve to docs/library_free_curve.png.
+
+    .venv/bin/python scripts/library_free_bench.py [--episodes 32] [--seed 0] [--out runs/library-free]
+    .venv/bin/python scripts/library_free_bench.py --render-only
+
+Every agent runs through ``embodied_adhoc.bench.evaluate`` (the ``evaluate`` command's function) on the same
+suite, episodes and seed as ``scripts/bench_heldout.py``, whose result file (results/benchmark-heldout.json) gives
+the library-based agents' scores: the same episodes and the same member bounds, so the normalised scores sit side
+by side. The shipped agents are the plug-ins ``embodied_adhoc.learning.<kind>:plugin``; the curve's agents are
+ppo-generalist on the lab trained with the first 1, 2 and 4 train members (``train ppo-generalist --teammates N``,
+the folders of ``--curve-runs``) and the shipped one with all 6, each at the shipped agents' env steps.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULT = ROOT / "results" / "library-free.json"
+PAGE = ROOT / "docs" / "library_free.md"
+PLOT = ROOT / "docs" / "library_free_curve.png"
+SPEED = ROOT / "results" / "library-free-speed.json"
+START, END = "<!-- library-free start -->", "<!-- library-free end -->"
+DOMAINS = ("toxic-waste", "pursuit-task")
+KINDS = {"ppo-generalist": "generalist", "liam": "liam", "meliba": "meliba"}
+PLUGINS = {kind: f"embodied_adhoc.learning.{module}:plugin" for kind, module in (
+    ("ppo-generalist", "generalist"), ("liam", "liam"), ("meliba", "meliba"))}  # fmt: skip
+CURVE_DOMAIN = "toxic-waste"
+CURVE_COUNTS = (1, 2, 4)  # and the shipped agent's, all of the train split
+PLUGIN_FILE = """from embodied_adhoc.learning.index_domains import index_agent
+
+
+def make(library, rng_seed=0):
+    return index_agent(library, "ppo-generalist", {weights!r}, name="ppo-generalist-{count}")
+"""
+
+
+def parse() -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--episodes", type=int, default=32)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--out", default="runs/library-free", help="evaluate's trial folders (resumable)")
+    parser.add_argument(
+        "--curve-runs", default="results/library_free/curve", help="folders teammates-N of the curve's runs"
+    )
+    parser.add_argument("--render-only", action="store_true")
+    parser.add_argument(
+        "--only",
+        choices=(*DOMAINS, "curve"),
+        help="run one part's trials and write nothing (parts run side by side; a full run then resumes them)",
+    )
+    args = parser.parse_args()
+    if args.episodes < 2:
+        parser.error(f"--episodes {args.episodes}: at least 2 (the intervals resample episodes)")
+    return args
+
+
+def _provenance() -> dict:
+    import numpy
+    import torch
+
+    from embodied_adhoc.experiments.identity import blas_kernel
+
+    commit = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True).stdout
+    return {
+        "command": " ".join([".venv/bin/python", "scripts/library_free_bench.py", *sys.argv[1:]]),
+        "commit": commit.strip(),
+        "kernel": blas_kernel(),
+        "python": platform.python_version(),
+        "versions": {"numpy": numpy.__version__, "torch": torch.__version__},
+    }
+
+
+def _aggregate(summary: dict, domain: str) -> dict:
+    part = summary["domains"][domain]
+    return {agent: part["aggregate"][agent] for agent in part["agents"]}
+
+
+def _training(folder: Path) -> dict:
+    report = json.loads((folder / "training.json").read_text())
+    return {"env_steps": report["env_steps"], "train_seconds": report["train_seconds"]}
+
+
+def run(args: argparse.Namespace) -> dict:
+    from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
+    from embodied_adhoc.learning.index_domains import member_names
+
+    started = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
+    provenance = _provenance()
+    out = Path(args.out)
+    side: dict = {}
+    for domain in DOMAINS if args.only is None else [d for d in DOMAINS if d == args.only]:
+        clock = time.perf_counter()
+        summary = evaluate(
+            tuple(PLUGINS.values()), resolve_suite("heldout", (domain,)), out / domain,
+            episodes=args.episodes, seed=args.seed, progress=True, plots=False,
+        )  # fmt: skip
+        scores = _aggregate(summary, domain)
+        side[domain] = {
+            "agents": {kind: scores[PLUGINS[kind]] for kind in KINDS},
+            "training": {
+                kind: _training(ROOT / "assets" / folder / domain) for kind, folder in KINDS.items()
+            },
+            "wall_s": round(time.perf_counter() - clock, 1),
+        }
+    curve = []
+    for count in CURVE_COUNTS if args.only in (None, "curve") else ():
+        folder = Path(args.curve_runs) / f"teammates-{count}"
+        plugin = out / f"curve_agent_{count}.py"
+        weights = str((folder / f"{CURVE_DOMAIN}-ppo-generalist.safetensors").resolve())
+        plugin.parent.mkdir(parents=True, exist_ok=True)
+        plugin.write_text(PLUGIN_FILE.format(weights=weights, count=count))
+        spec = f"{plugin}:make"
+        summary = evaluate(
+            (spec,), resolve_suite("heldout", (CURVE_DOMAIN,)), out / f"curve-{count}",
+            episodes=args.episodes, seed=args.seed, progress=True, plots=False,
+        )  # fmt: skip
+        curve.append({"teammates": count, **_aggregate(summary, CURVE_DOMAIN)[spec], **_training(folder)})
+    if CURVE_DOMAIN in side:  # the shipped agent, trained with every train member, is the curve's last point
+        folder = ROOT / "assets" / "generalist" / CURVE_DOMAIN
+        used = json.loads((folder / "training.json").read_text())["settings"]["teammates"]
+        whole = side[CURVE_DOMAIN]["agents"]["ppo-generalist"]
+        curve.append({"teammates": len(member_names(CURVE_DOMAIN, used)), **whole, **_training(folder)})
+    return {
+        "figure": "library-free",
+        **provenance,
+        "started": started,
+        "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        "suite": "heldout",
+        "episodes": args.episodes,
+        "seed": args.seed,
+        "domains": side,
+        "curve": {"domain": CURVE_DOMAIN, "agent": "ppo-generalist", "points": curve},
+    }
+
+
+def _interval(entry: dict) -> str:
+    low, high = entry["iqm_ci"]
+    return f"{entry['iqm']:.2f} [{low:.2f}, {high:.2f}]"
+
+
+def table(result: dict) -> str:
+    """The markdown between the page's markers: held-out IQM per agent and domain, then the curve."""
+    from embodied_adhoc.experiments.registry import get_trial_domain
+
+    library = json.loads((ROOT / "results" / "benchmark-heldout.json").read_text())["suites"]["heldout"]
+    lines = [
+        f"Held-out suite, {result['episodes']} episodes per teammate, seed {result['seed']}; normalised IQM with "
+        "95 % stratified-bootstrap interval (0: the random ego, 1: the exact best response). Library-free rows: "
+        f"this file's run (`{result['command']}`, commit {result['commit'][:7]}, {result['kernel']}); "
+        "library-based rows: results/benchmark-heldout.json (same suite, episodes and seed). Statistical "
+        "(one training seed per agent, one evaluation run).",
+        "",
+        "| domain | agent | family | held-out IQM [95 % CI] | training env steps | training loop s (wall) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for domain, part in result["domains"].items():
+        for kind, entry in part["agents"].items():
+            cost = part["training"][kind]
+            lines.append(
+                f"| {domain} | {kind} | library-free | {_interval(entry)} | {cost['env_steps']:,} | "
+                f"{cost['train_seconds']:.0f} |"
+            )
+        others = library.get(domain, {}).get("aggregate", {})
+        privileged = set(getattr(get_trial_domain(domain), "privileged_agents", ()))
+        for agent, entry in others.items():
+            family = "library-based, sees the state" if agent in privileged else "library-based"
+            lines.append(f"| {domain} | {agent} | {family} | {_interval(entry)} | - | - |")
+    curve = result["curve"]
+    lines += [
+        "",
+        f"Score against the number of distinct training teammates ({curve['agent']}, {curve['domain']}, the "
+        "first N members of the train split, equal env steps):",
+        "",
+        "| training teammates | held-out IQM [95 % CI] | env steps |",
+        "|---|---|---|",
+    ]
+    for point in curve["points"]:
+        lines.append(f"| {point['teammates']} | {_interval(point)} | {point['env_steps']:,} |")
+    if SPEED.is_file():
+        lines += ["", *speed_table(json.loads(SPEED.read_text()))]
+    return "\n".join(lines)
+
+
+def speed_table(speed: dict) -> list[str]:
+    """The throughput table of ``scripts/library_free_speed.py --json`` (results/library-free-speed.json)."""
+    reference = speed["reference"]
+    lines = [
+        f"Training throughput (`{speed['command']}`, {speed['kernel']}; machine- and load-dependent, one run): "
+        f"env steps per second, and the ratio to {speed['reference_agent']} on {speed['reference_domain']} in "
+        "the same run.",
+        "",
+        "| agent | domain | end to end (steps/s) | x reference | collection alone (steps/s) | x reference |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in speed["rows"]:
+        lines.append(
+            f"| {row['agent']} | {row['domain']} | {row['train_steps_per_s']:.0f} | "
+            f"{row['train_steps_per_s'] / reference['train_steps_per_s']:.2f} | "
+            f"{row['collect_steps_per_s']:.0f} | "
+            f"{row['collect_steps_per_s'] / reference['collect_steps_per_s']:.2f} |"
+        )
+    return lines
+
+
+def plot(result: dict) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg", force=True)
+    import matplotlib.pyplot as plt
+
+    points = result["curve"]["points"]
+    counts = [p["teammates"] for p in points]
+    iqm = [p["iqm"] for p in points]
+    low = [p["iqm"] - p["iqm_ci"][0] for p in points]
+    high = [p["iqm_ci"][1] - p["iqm"] for p in points]
+    figure, axis = plt.subplots(figsize=(5, 3.2))
+    axis.errorbar(counts, iqm, yerr=[low, high], marker="o", capsize=4)
+    axis.set_xscale("log", base=2)
+    axis.set_xticks(counts, [str(c) for c in counts])
+    axis.set_xlabel("distinct training teammates (train split)")
+    axis.set_ylabel("held-out normalised IQM")
+    axis.set_title(f"{result['curve']['agent']} on {result['curve']['domain']}")
+    axis.grid(alpha=0.3)
+    figure.savefig(PLOT, dpi=110, bbox_inches="tight")
+    plt.close(figure)
+
+
+def render(result: dict) -> None:
+    text = PAGE.read_text()
+    if START not in text or END not in text:
+        raise SystemExit(f"{PAGE}: the markers {START} and {END} are missing")
+    head, rest = text.split(START, 1)
+    PAGE.write_text(f"{head}{START}\n{table(result)}\n{END}{rest.split(END, 1)[1]}")
+
+
+def main() -> int:
+    args = parse()
+    if args.only:
+        run(args)
+        return 0
+    if not args.render_only:
+        from embodied_adhoc.atomic import atomic_write_text
+
+        atomic_write_text(RESULT, json.dumps(run(args), indent=1) + "\n")
+    result = json.loads(RESULT.read_text())
+    render(result)
+    plot(result)
+    print(table(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
