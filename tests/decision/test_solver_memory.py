@@ -103,3 +103,20 @@ def test_the_values_on_b_kept_between_stages_are_a_cache(monkeypatch):
     recomputed = perseus(pomdp, PerseusConfig(**settings))
     assert np.array_equal(kept.alphas, recomputed.alphas)
     assert [value for _, value in kept.stats.trace] == [value for _, value in recomputed.stats.trace]
+
+
+def test_the_cli_flag_caps_the_solve_and_refuses_a_cap_that_is_not_positive():
+    import json
+    import subprocess
+    import sys
+
+    def solve(*flags: str) -> subprocess.CompletedProcess:
+        command = [sys.executable, "-m", "embodied_adhoc.cli", "pomdp", "solve", "tiger.95.POMDP", *flags]
+        return subprocess.run(command, capture_output=True, text=True, timeout=120)
+
+    capped = solve("--max-memory", "1", "--json", "--quiet", "--time-limit", "5")
+    assert capped.returncode == 0, capped.stderr
+    assert capped.stderr.startswith("embodied-adhoc: note: perseus stopped before iteration 1: ")
+    assert json.loads(capped.stdout)["iterations"] == 0
+    refused = solve("--max-memory", "0")
+    assert refused.returncode == 2 and "argument --max-memory: 0 is not a finite number > 0" in refused.stderr
