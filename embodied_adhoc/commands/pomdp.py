@@ -73,8 +73,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         type=_POSITIVE_INT,
         default=None,
         metavar="D",
-        help="hsvi: deepest belief of a trial (default: where the initial gap meets its discounted target, "
-        "20 to 1000 steps)",
+        help="hsvi: deepest belief of a trial (default: trials start cut at the effective horizon 1 / (1 - gamma), "
+        "and the cut grows by that much after 5 trials in a row stall at it, up to where the initial gap meets its "
+        "discounted target, 20 to 1000 steps)",
     )
     solve.add_argument(
         "--beliefs", type=_POSITIVE_INT, default=1000, help="Perseus belief-set size (default 1000)"

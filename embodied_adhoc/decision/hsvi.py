@@ -20,6 +20,7 @@ a trial computes.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +37,7 @@ from embodied_adhoc.decision.upper_bound import SawtoothBound, fast_informed_bou
 from embodied_adhoc.errors import SolverError
 
 _IMPROVES = 1e-12  # a backed-up vector is kept where it raises L(b) by more than this
+_STALLS = 5  # trials in a row at the depth cut that leave the gap at b0 unchanged before the cut grows
 
 
 @dataclass(frozen=True)
@@ -48,7 +50,7 @@ class HsviConfig:
     time_limit: float | None = None
     clock: str = "cpu"
     # Deepest belief of a trial (None: HSVI's bound, the depth at which the initial gap is within its target,
-    # at least 20 and at most 1000 steps).
+    # at least 20 and at most 1000 steps, reached in steps of 1 / (1 - gamma) as trials stall: hsvi()).
     max_depth: int | None = None
     threads: int = (
         1  # threads of the backups' large products (backup.RowProducts: the same result for any count)
@@ -154,14 +156,25 @@ def hsvi(
         b0 = pomdp.initial_belief
         bounds = [float(lower.values(b0)[0]), float(upper.values(b0)[0])]
         depth = config.max_depth or max_depth(upper, lower.values, b0, max(config.epsilon, 1e-9))
+        # Without --max-depth, trials start cut at the effective horizon 1 / (1 - gamma): while the upper bound is
+        # loose HSVI's own bound lets the first trials run hundreds of single-belief steps, most beyond where
+        # their value reaches b0. The cut grows by one horizon after _STALLS trials in a row reach it and leave
+        # the gap at b0 as it was, so it reaches HSVI's bound where the gap needs it and convergence holds.
+        horizon = math.ceil(1.0 / (1.0 - pomdp.discount))
+        limit = depth if config.max_depth else min(depth, horizon)
         trace = [(timer() - start, bounds[0])]
-        visited, trials = 0, 0
+        visited, trials, stalled = 0, 0, 0
         while bounds[1] - bounds[0] > config.epsilon and trials < config.max_trials:
             if config.time_limit is not None and timer() - start > config.time_limit:
                 break
             trials += 1
-            visited += _trial(lower, upper, b0, config.epsilon, depth)
+            steps = _trial(lower, upper, b0, config.epsilon, limit)
+            visited += steps
+            gap = bounds[1] - bounds[0]
             bounds = [max(bounds[0], float(lower.values(b0)[0])), min(bounds[1], float(upper.values(b0)[0]))]
+            stalled = stalled + 1 if steps == limit and bounds[1] - bounds[0] >= gap else 0
+            if stalled == _STALLS:
+                limit, stalled = min(depth, limit + horizon), 0
             trace.append((timer() - start, bounds[0]))
             if progress is not None:
                 progress(

@@ -91,3 +91,11 @@ def test_cli_solves_with_hsvi(capsys):
     report = json.loads(capsys.readouterr().out)
     assert report["solver"] == "hsvi" and report["iterations"] == 2
     assert report["lower"] <= report["upper"] and report["value_b0"] == report["lower"]
+
+
+def test_trials_start_cut_at_the_effective_horizon_and_max_depth_overrides_it():
+    pomdp = read_pomdp(TIGER)  # gamma 0.95: the cut starts at 20 steps; HSVI's own bound is about 200 there
+    first = hsvi(pomdp, HsviConfig(max_trials=1, epsilon=1e-6)).stats
+    assert 1 <= first.n_beliefs <= 20
+    deeper = hsvi(pomdp, HsviConfig(max_trials=1, epsilon=1e-6, max_depth=40)).stats
+    assert 20 < deeper.n_beliefs <= 40
