@@ -5,7 +5,7 @@ grid with the same settings.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/library_free_speed.py [--updates 4] [--envs 16] [--json F]
 
-Timings depend on the machine and its load; the ratios to the reference, measured side by side, much less so.
+Timings depend on the machine and its load; on a busy host so do the ratios, as each row is timed once, in turn.
 """
 
 from __future__ import annotations
@@ -92,6 +92,8 @@ def main() -> int:
     args = parse()
     torch.set_num_threads(1)
     agents, domains = args.agents.split(","), args.domains.split(",")
+    # a first run pays torch's one-off set-up (lazy imports, first backward); timed after it, the reference is not
+    training_rate(*REFERENCE, argparse.Namespace(**{**vars(args), "updates": 1}))
     reference = training_rate(*REFERENCE, args)
     collect_reference = collection_rate(REFERENCE[1], args)
     rows = []
@@ -120,11 +122,17 @@ def main() -> int:
             f"{row['collect_steps_per_s'] / collect_reference:.2f} |"
         )
     if args.json:
+        import platform
+        import subprocess
         from pathlib import Path
 
+        commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
         document = {
             "command": " ".join([".venv/bin/python", "scripts/library_free_speed.py", *sys.argv[1:]]),
+            "commit": commit,
             "kernel": blas_kernel(),
+            "python": platform.python_version(),
+            "versions": {"numpy": np.__version__, "torch": torch.__version__},
             "reference_agent": REFERENCE[0],
             "reference_domain": REFERENCE[1],
             "reference": {"train_steps_per_s": reference, "collect_steps_per_s": collect_reference},

@@ -369,7 +369,6 @@ class IndexAgent(GeneralistAgent):
         return np.asarray(int(observation), dtype=np.int64)
 
 
-SHIPPED_STEPS = 98_304
 SHIPPED_COMMAND = (
     "embodied-adhoc train {kind} --domain {domain} --steps 98304 --envs 16 --seed 0 --threads 1 "
     "--out assets/{folder}/{domain}"
