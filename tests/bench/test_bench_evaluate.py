@@ -110,3 +110,32 @@ def test_bad_input_is_one_line_before_any_work(tmp_path, tiny, capsys):
                  "--backend", "mujoco", "--out", str(out)]) == 2  # fmt: skip
     assert "--backend mujoco: overcooked has abstract" in capsys.readouterr().err
     assert not out.exists()
+
+
+def test_the_physics_lab_is_scored_between_the_abstract_labs_bounds(tmp_path):
+    """``--backend mujoco``: the same member and episode specs on physics, normalised by the abstract lab's bounds,
+    and compared with the abstract run per agent (two oracle episodes: the oracle needs no solve)."""
+    from embodied_adhoc.bench.evaluate import backend_difference
+
+    path = tmp_path / "lab.json"
+    member = {"name": "wanderer", "domain": "toxic-waste", "type": "wanders", "params": {"wander": 0.3}}
+    path.write_text(json.dumps({"name": "lab", "members": [member]}))
+    suite, scores = resolve_suite(str(path)), {}
+    runs = {}
+    for backend in ("abstract", "mujoco"):
+        scores[backend] = {}
+        runs[backend] = evaluate(
+            ("oracle",), suite, tmp_path / backend, episodes=2, backend=backend, reps=50, plots=False,
+            scores=scores[backend],
+        )  # fmt: skip
+    abstract, physics = (runs[b]["domains"]["toxic-waste"]["teammates"][0] for b in ("abstract", "mujoco"))
+    assert runs["mujoco"]["backend"] == "mujoco"
+    assert (
+        physics["bounds"] == abstract["bounds"]
+        and physics["best_on_episodes"] == abstract["best_on_episodes"]
+    )
+    assert physics["agents"]["oracle"]["success"] == 1.0
+    difference = backend_difference(
+        scores["abstract"]["toxic-waste"], scores["mujoco"]["toxic-waste"], ["wanderer"]
+    )
+    assert difference["agents"]["oracle"]["n"] == [2, 2]
