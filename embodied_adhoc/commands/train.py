@@ -63,6 +63,7 @@ def _train_recurrent(args, agent: str, settings, run, postfix, last) -> int:
     pick_device(args.device)  # no CUDA for --device cuda: refused here, before training starts
     settings = settings()
     config = settings.config()  # settings that do not fit together are refused before training starts
+    settings.env_kwargs()  # and so is a teammate count the train split does not have
     batch = config.num_envs * config.rollout_steps
     total = max(1, config.total_steps // batch) * batch  # whole updates
     with tqdm(total=total, unit="step", desc=f"{agent} {args.domain}", disable=args.quiet) as bar:

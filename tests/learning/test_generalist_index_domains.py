@@ -200,3 +200,29 @@ def test_the_cli_offers_the_domains_the_agents_train_on():
     from embodied_adhoc.learning.generalist import DOMAINS
 
     assert RECURRENT_DOMAINS == DOMAINS
+
+
+def test_a_teammate_count_the_split_lacks_is_refused_before_training(tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "embodied_adhoc.cli",
+            "train",
+            "liam",
+            "--domain",
+            "toxic-waste",
+            "--teammates",
+            "9",
+        ]
+        + ["--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert done.returncode == 2 and "--teammates 9" in done.stderr
+    assert "step/s" not in done.stderr and not out.exists()  # no progress bar, nothing written
