@@ -4,3 +4,7 @@ Agents built on it implement the same ``Agent`` protocol as the tabular ones, so
 the difference.
 
 Where this layer sits and what it may import: docs/layout.md."""
+
+LEARNED_AGENTS = ("ppo-generalist", "liam", "meliba")
+"""The library-free agents that trials name directly where their weights ship (the grid arenas, the lab,
+pursuit-task); kept here, free of torch, so that listing a domain's agents imports no network code."""

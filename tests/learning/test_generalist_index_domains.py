@@ -3,6 +3,7 @@ train-split teammates and hides the ground truth unless asked, the forward pass 
 tiny training run lowers its loss and writes loadable safetensors, LIAM's and MeLIBA's training-only targets
 never reach the acting network, and the agents run in ``trials`` through the plug-in specs."""
 
+import csv
 import json
 from types import SimpleNamespace
 
@@ -226,3 +227,29 @@ def test_a_teammate_count_the_split_lacks_is_refused_before_training(tmp_path):
     )
     assert done.returncode == 2 and "--teammates 9" in done.stderr
     assert "step/s" not in done.stderr and not out.exists()  # no progress bar, nothing written
+
+
+@pytest.mark.parametrize(
+    ("domain", "agents"), [("toxic-waste", "ppo-generalist,liam,meliba"), ("pursuit-task", "liam,random")]
+)
+def test_trials_name_the_shipped_agents_where_their_weights_ship(tmp_path, domain, agents):
+    from embodied_adhoc.cli import main
+    from embodied_adhoc.experiments.registry import get_trial_domain
+
+    assert set(agents.split(",")) <= set(get_trial_domain(domain).agent_names)
+    out = tmp_path / "trials"
+    code = main(
+        ["trials", domain, "--agents", agents, "--episodes", "2", "--workers", "1", "--out", str(out)]
+    )
+    assert code == 0
+    rows = list(csv.DictReader((out / "trials.csv").open()))
+    assert sorted({row["agent"] for row in rows}) == sorted(agents.split(","))
+    assert len(rows) == 2 * len(agents.split(","))
+
+
+def test_the_learned_agents_are_not_among_chapter5_defaults():
+    from embodied_adhoc.experiments.registry import get_trial_domain
+
+    domain = get_trial_domain("pursuit-task")
+    assert "liam" in domain.agent_names and "liam" not in domain.default_agents
+    assert "liam" not in get_trial_domain("gridworld").agent_names

@@ -44,6 +44,7 @@ from embodied_adhoc.domains.chapter5.teammates import (
     world_with_teammate,
 )
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning import LEARNED_AGENTS
 
 __all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "return_table", "timing_line"]
 
@@ -170,6 +171,10 @@ class Chapter5Session:
             agent = BopaAgent(self.library.mdps, self.q_values(), name=name)
         elif name == "random":
             agent = RandomAgent(self.library.n_actions, name=name)
+        elif name in LEARNED_AGENTS and self.library.domain == "pursuit-task":
+            from embodied_adhoc.learning.index_domains import index_agent
+
+            return index_agent(self.library, name, name=name)
         else:
             raise ConfigError(f"unknown agent '{name}'; choose from {', '.join(CHAPTER5_AGENTS)}")
         agent.rng = np.random.default_rng(seed)
@@ -195,6 +200,8 @@ class Chapter5Domain:
             self.default_agents = ("value-iteration", "bopa", "random")
         else:
             self.default_agents = self.agent_names
+        if name == "pursuit-task":  # where the library-free agents' weights ship; not among the defaults
+            self.agent_names = (*self.agent_names, *LEARNED_AGENTS)
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         from embodied_adhoc.checks import bounded, positive_int

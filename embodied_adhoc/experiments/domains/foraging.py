@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning import LEARNED_AGENTS
 
 ENV_IDS = {
     "foraging": {"abstract": "EmbodiedAdhoc/ForagingGrid-v0", "mujoco": "EmbodiedAdhoc/Foraging-v0"},
@@ -151,7 +152,7 @@ def env_kwargs(options: dict) -> dict:
 
 class GridTrialDomain:
     backends = ("abstract", "mujoco")
-    agent_names = ("original", "random", "atlpo-mf", "ppo-generalist", "liam", "meliba")
+    agent_names = ("original", "random", "atlpo-mf", *LEARNED_AGENTS)
     default_agents = ("original", "random")
     privileged_agents = ("original",)  # observes_state: marked in the tables
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from embodied_adhoc.domains.confusion import DEFAULT_CONFUSION
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning import LEARNED_AGENTS
 
 ENV_IDS = {"abstract": "EmbodiedAdhoc/ToxicWasteAbstract-v0", "mujoco": "EmbodiedAdhoc/ToxicWaste-v0"}
 FAULTS = {
@@ -173,6 +174,7 @@ def fault_line(faults: dict) -> str:
 
 
 AGENTS_GIVEN_THE_TASK = ("known-task", "oracle")
+
 DEFAULT_TASKS = ((0, 1, 2), (1, 2, 3))  # the thesis's two ball placements (as the lab's DEFAULT_TASKS)
 N_NODES = 5  # the lab graph's areas (the CLI does not change the graph)
 
@@ -258,6 +260,10 @@ class ToxicWasteSession:
         return {"task": spec["task"], "robot_node": spec["robot_node"], "human_node": spec["human_node"]}
 
     def make_agent(self, name: str, spec: dict, seed: int):
+        if name in LEARNED_AGENTS:  # torch is imported only when a learned agent is asked for
+            from embodied_adhoc.learning.index_domains import index_agent
+
+            return index_agent(self.library, name, name=name)
         true_task = int(spec["task"]) if name in AGENTS_GIVEN_THE_TASK else None
         return self._make_agent(name, self.library, true_task=true_task, rng_seed=seed)
 
@@ -288,7 +294,7 @@ class ToxicWasteDomain:
         "HOTSPOT lab: a robot helps a human put three toxic-waste balls in its container (thesis ch. 7)"
     )
     backends = ("abstract", "mujoco")
-    agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa")
+    agent_names = ("hotspot", "known-task", "oracle", "random", "atpo", "bopa", *LEARNED_AGENTS)
     default_agents = ("hotspot", "known-task", "oracle", "random")
     privileged_agents = ("oracle", "bopa")  # observes_state: marked in the tables
     blas_dependent = True  # ATPO's Perseus policies and BOPA's value iteration come from BLAS sums
