@@ -339,6 +339,8 @@ def _solve(args: argparse.Namespace) -> int:
         )
         if policy.stats.n_beliefs:
             report["beliefs"] = policy.stats.n_beliefs
+        if policy.stats.stopped:  # why the solve ended (SolverStats.stopped)
+            report["stopped"] = policy.stats.stopped
         if not math.isnan(policy.stats.upper):
             report.update(lower=policy.stats.lower, upper=policy.stats.upper, gap=policy.stats.gap)
     report["seconds"], report["cpu_seconds"] = time.perf_counter() - start, time.process_time() - start_cpu

@@ -31,7 +31,6 @@ Finite horizon (``horizon=H``, mandatory when the discount is 1.0): ``H`` exact 
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import math
 import sys
 import time
@@ -43,8 +42,7 @@ import scipy.sparse as sp
 
 from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
 from embodied_adhoc.decision.belief_expansion import explore, max_depth, sample_path
-from embodied_adhoc.decision.beliefs import _key as _belief_key
-from embodied_adhoc.decision.beliefs import collect_beliefs
+from embodied_adhoc.decision.beliefs import collect_belief_rows, collect_beliefs, digest
 from embodied_adhoc.decision.memory import MB, default_cap_mb, resident_mb
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus_stages import (
@@ -244,8 +242,10 @@ def _infinite_horizon(
     state.report(np.inf)  # the bounds from the first instant: blind policies and the fast informed bound
     for iteration in range(1, config.max_iterations + 1):
         if state.deadline is not None and state.clock() > state.deadline:
+            state.stopped = "time-limit"
             break
         if not state.fits(_stage_need(state), f"stopped before iteration {iteration}"):
+            state.stopped = "memory-cap"
             break
         state.iteration = iteration
         if _iterate(state):
@@ -280,7 +280,7 @@ class _Anytime:
     upper: SawtoothBound
     beliefs: DenseRows  # B, read as dense rows from `rows`
     rows: sp.csr_matrix  # the beliefs for value products (belief_rows)
-    known: set[bytes]  # digests of the beliefs of B (_digest), so that expansion adds new ones only
+    known: set[bytes]  # digests of the beliefs of B (beliefs.digest), so that expansion adds new ones only
     current: np.ndarray  # rows of V_n in the graph
     alphas: np.ndarray  # their vectors and actions
     actions: np.ndarray
@@ -307,6 +307,7 @@ class _Anytime:
     pruned_size: int = 0  # the graph's rows after the last pruning (PerseusConfig.prune)
     cap_mb: float | None = None  # the memory cap (PerseusConfig.max_memory; None: none)
     expansion_capped: bool = False  # an expansion did not fit under the cap: B stays as it is
+    stopped: str = "iteration-limit"  # why the solve ended (SolverStats.stopped), set where it ends
 
     @classmethod
     def begin(cls, pomdp, config, operator, beliefs, rng, greedy_q, start, progress) -> _Anytime:
@@ -317,7 +318,7 @@ class _Anytime:
         upper = SawtoothBound(pomdp, fast_informed_bound(pomdp))
         rows = belief_rows(beliefs)
         values = (rows @ alphas.T).max(axis=1)
-        known = {_digest(b) for b in beliefs}
+        known = {digest(b) for b in beliefs}
         trace = [(config.timer() - start, float(dot(pomdp.initial_belief, alphas.T).max()))]
         bounds = _Bounds(trace[-1][1], float(upper.values(pomdp.initial_belief)[0]))
         gamma = pomdp.discount
@@ -434,7 +435,7 @@ def _iterate(state: _Anytime) -> bool:
     else:
         state.trial_wait -= 1
     _stage(state)
-    if state.bounds.gap <= state.config.precision:
+    if _gap_closed(state):
         return True
     # Expansion also runs periodically, every max(10, iteration / 4) iterations (counted, so that the seed alone
     # fixes B).
@@ -471,7 +472,7 @@ def _trial(state: _Anytime) -> bool:
     state.trial_wait = state.trial_skip
     state.bounds = _Bounds(lower_b0, state.upper_b0())
     state.record()
-    return state.bounds.gap <= config.precision
+    return _gap_closed(state)
 
 
 def _stage(state: _Anytime) -> None:
@@ -559,26 +560,36 @@ def _round(state: _Anytime) -> bool:
         ):
             state.expansion_capped, state.max_beliefs = True, len(state.beliefs)
     if config.expand and not state.expansion_capped:
-        collected = collect_beliefs(
+        collected, digests = collect_belief_rows(
             state.pomdp, count, state.rng, greedy_q=state.greedy_q, epsilon=config.epsilon
         )
-        # Sparse at once: the collected rows are dense, and B keeps only their nonzeros.
-        new = belief_rows(collected[_unknown(collected, state.known)])
+        new = collected[_unknown(digests, state.known)]
         del collected
     state.last_round = state.iteration
     state.bounds = _Bounds(state.bounds.lower, state.upper_b0())
     new = new[: max(0, state.max_beliefs - len(state.beliefs))]
     state.report(state.improvement, len(state.beliefs) + new.shape[0])
-    if state.bounds.gap <= config.precision:
+    if _gap_closed(state):
         return True
     if state.on_beliefs and config.expand and not new.shape[0]:
         _tighten_upper(state)
+        if not _gap_closed(state):
+            state.stopped = "beliefs-exhausted"
         return True
     if state.on_beliefs and _last_round(state):
+        state.stopped = "stalled" if config.expand else "beliefs-converged"
         return True
     if new.shape[0]:
         state.add_beliefs(new)
     return False
+
+
+def _gap_closed(state: _Anytime) -> bool:
+    """Whether the gap at b0 is within the precision (the solve ends converged)."""
+    if state.bounds.gap > state.config.precision:
+        return False
+    state.stopped = "converged"
+    return True
 
 
 def _last_round(state: _Anytime) -> bool:
@@ -627,7 +638,8 @@ def _finish(state: _Anytime) -> AlphaVectorPolicy:
         upper=bounds.upper,
         converged_on_beliefs=state.on_beliefs,
         n_stage_vectors=len(state.current),
-        discount=state.pomdp.discount,  # closed plan values: save() may store them rounded down (policy.py)
+        discount=state.pomdp.discount,
+        stopped=state.stopped,  # closed plan values: save() may store them rounded down (policy.py)
     )
     state.prune(force=True)
     state.graph.keep_closure(state.current, force=True)
@@ -658,12 +670,13 @@ def _stage_need(state: _Anytime) -> float:
 
 
 def _expansion_need(state: _Anytime, count: int) -> float:
-    """Bytes an expansion by ``count`` beliefs allocates, about: collect_beliefs holds them dense (the rows, their
-    keys and the array it returns), B stores them sparse (as dense as B so far), and the next stage values V_n
-    and its new vectors on them."""
-    rows, n_states = state.rows, state.pomdp.n_states
-    sparse = count * (rows.nnz / max(rows.shape[0], 1)) * 12
-    return 3 * count * n_states * 8 + sparse + 2 * len(state.current) * count * 8
+    """Bytes an expansion by ``count`` beliefs allocates, about: collect_belief_rows builds them sparse (as dense
+    as B so far: its buffers of 16 bytes a nonzero, then the CSR rows of 12 bytes) with a digest each (about 128
+    bytes with the set and list that hold it), B takes the new ones (12 bytes a nonzero again), and the next
+    stage values V_n and its new vectors on them."""
+    rows = state.rows
+    nonzeros = count * (rows.nnz / max(rows.shape[0], 1))
+    return nonzeros * (16 + 12 + 12) + count * 128 + 2 * len(state.current) * count * 8
 
 
 def _lower_values(alphas: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
@@ -708,22 +721,14 @@ def _lower_trial(
     return current, len(path)
 
 
-def _unknown(beliefs: np.ndarray, known: set[bytes]) -> np.ndarray:
-    """The rows of ``beliefs`` not in ``known`` (to 1e-9, as collect_beliefs dedupes), whose digests are added
-    to it."""
+def _unknown(digests: list[bytes], known: set[bytes]) -> np.ndarray:
+    """The indices of ``digests`` not in ``known`` (beliefs new to B, to 1e-9), which are added to it."""
     fresh = []
-    for index, belief in enumerate(beliefs):
-        key = _digest(belief)
+    for index, key in enumerate(digests):
         if key not in known:
             known.add(key)
             fresh.append(index)
     return np.asarray(fresh, dtype=np.int64)
-
-
-def _digest(belief: np.ndarray) -> bytes:
-    """A 16-byte digest of collect_beliefs' key of ``belief`` (its values rounded to 1e-9): the same equality,
-    at 16 bytes a belief instead of 8 per state (the keys of a large B outweighed B itself)."""
-    return hashlib.blake2b(_belief_key(belief), digest_size=16).digest()
 
 
 def _blas_threads(count: int | None) -> contextlib.AbstractContextManager:
@@ -779,7 +784,14 @@ def _finite_horizon(
                 "or lower --beliefs"
             )
     stats = SolverStats(
-        "perseus", horizon, clock() - start, True, float("nan"), beliefs.shape[0], tuple(trace)
+        "perseus",
+        horizon,
+        clock() - start,
+        True,
+        float("nan"),
+        beliefs.shape[0],
+        tuple(trace),
+        stopped="horizon",
     )
     return AlphaVectorPolicy(
         np.vstack(stage_alphas), np.concatenate(stage_actions), np.concatenate(stage_numbers), stats=stats
