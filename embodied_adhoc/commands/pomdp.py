@@ -84,7 +84,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--time-limit",
         type=_POSITIVE_SECONDS,
         default=None,
-        help="Perseus time limit in seconds (> 0) of --clock",
+        help="the solver's time limit in seconds (> 0) of --clock (Perseus and HSVI)",
     )
     solve.add_argument(
         "--clock",

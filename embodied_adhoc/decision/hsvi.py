@@ -180,11 +180,15 @@ def hsvi(
                 progress(
                     SolverProgress(trials, trace[-1][0], bounds[0], len(lower), np.nan, bounds[1], visited)
                 )
+        converged = bounds[1] - bounds[0] <= config.epsilon
+        stopped = (
+            "converged" if converged else ("trial-limit" if trials >= config.max_trials else "time-limit")
+        )
         stats = SolverStats(
             "hsvi",
             trials,
             timer() - start,
-            bounds[1] - bounds[0] <= config.epsilon,
+            converged,
             bounds[1] - bounds[0],
             visited,
             tuple(trace),
@@ -192,6 +196,7 @@ def hsvi(
             upper=bounds[1],
             n_stage_vectors=len(lower),
             discount=pomdp.discount,  # closed plan values: save() may store them rounded down (policy.py)
+            stopped=stopped,
         )
         return AlphaVectorPolicy(lower.graph.vectors, lower.graph.actions, stats=stats)
     finally:

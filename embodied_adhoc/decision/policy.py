@@ -49,10 +49,10 @@ class SolverStats:
     # that greedy execution earns max_k alpha_k . b; nan otherwise. save() uses it to round down safely.
     discount: float = float("nan")
     # Why the solve ended: "converged" (the gap at b0 within the precision), "time-limit", "iteration-limit",
-    # "memory-cap" (the next iteration would pass --max-memory), "beliefs-exhausted" (converged on a belief set
-    # that expansion no longer grows), "stalled" (a round on a converged set moved neither bound),
-    # "beliefs-converged" (converged on a fixed set), "horizon" (every stage of a finite horizon); "" when the
-    # solver does not say.
+    # "trial-limit" (HSVI's --trials), "memory-cap" (the next iteration would pass --max-memory),
+    # "beliefs-exhausted" (converged on a belief set that expansion no longer grows), "stalled" (a round on a
+    # converged set moved neither bound), "beliefs-converged" (converged on a fixed set), "horizon" (every stage
+    # of a finite horizon); "" when the solver does not say.
     stopped: str = ""
 
     @property

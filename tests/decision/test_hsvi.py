@@ -32,6 +32,7 @@ def test_converges_on_tiger_with_bounds_around_the_optimum(tiger_run):
     _, policy, reports = tiger_run
     stats = policy.stats
     assert stats.solver == "hsvi" and stats.converged and stats.upper - stats.lower <= 1.0
+    assert stats.stopped == "converged"
     assert stats.lower <= TIGER_OPTIMUM + 1e-3 and stats.upper >= TIGER_OPTIMUM - 1e-3
     lower = np.array([report.value_b0 for report in reports])
     upper = np.array([report.upper_b0 for report in reports])
@@ -59,6 +60,7 @@ def test_trial_counts_reproduce_and_a_longer_run_passes_through_the_shorter_one(
     reports = []
     longer = hsvi(pomdp, HsviConfig(max_trials=2), progress=reports.append)
     assert longer.stats.iterations == 2 and short[0].stats.iterations == 1
+    assert short[0].stats.stopped == longer.stats.stopped == "trial-limit"
     assert (reports[0].value_b0, reports[0].upper_b0) == (short[0].stats.lower, short[0].stats.upper)
     assert longer.alphas[: short[0].n_vectors].tobytes() == short[0].alphas.tobytes()
     assert short[0].stats.lower <= longer.stats.lower <= longer.stats.upper <= short[0].stats.upper
