@@ -129,10 +129,16 @@ def _cli(*args: str) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-def test_trials_pairs_with_decision_agents_and_refusals():
+def test_trials_pairs_with_decision_agents_and_refusals(tmp_path):
     done = _cli("trials", "pursuit", "--pairs", "--agents", "hotspot,oracle", "--episodes", "2", "--json")
     assert done.returncode == 0, done.stderr
     assert '"hotspot"' in done.stdout and '"rules": "pomdp"' in done.stdout
+    # a run folder is identified by its inputs: the POMDP variant reads no file
+    stored = _cli(
+        "trials", "pursuit", "--pairs", "--agents", "hotspot", "--episodes", "1", "--out", str(tmp_path)
+    )
+    assert stored.returncode == 0, stored.stderr
+    assert (tmp_path / "trials.csv").is_file()
     mixed = _cli("trials", "pursuit", "--pairs", "--agents", "original,hotspot", "--episodes", "1")
     assert mixed.returncode == 2 and "original" in mixed.stderr
     unpaired = _cli("trials", "pursuit", "--agents", "hotspot", "--episodes", "1")

@@ -170,6 +170,11 @@ class PursuitTrialDomain(GridTrialDomain):
         """``--pairs`` solves the pair models with Perseus, whose policies come from BLAS sums."""
         return bool(options.get("pairs"))
 
+    def input_files(self, options: dict) -> dict:
+        """The POMDP variant reads no file (its task library and teammate are built in); the grid rules read the
+        arena's."""
+        return {} if uses_pomdp_rules(options) else super().input_files(options)
+
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         super().add_arguments(parser)
         group = parser.add_argument_group("Fig. 7.12 (--pairs) with the decision layer")
