@@ -1534,6 +1534,16 @@ SELF_RENDERED = {
             ("<!-- bench:heldout start -->", "<!-- bench:heldout end -->"),
             STATISTICAL,
         ),
+        SelfRendered(
+            "library-free",
+            "The library-free agents (ppo-generalist, liam, meliba) on the held-out suite beside the library-based "
+            "agents, and the score against the number of training teammates",
+            "results/library-free.json",
+            "scripts/library_free_bench.py",
+            "docs/library_free.md",
+            ("<!-- library-free start -->", "<!-- library-free end -->"),
+            STATISTICAL,
+        ),
     )
 }
 
@@ -2125,6 +2135,8 @@ def headline(documents: dict[str, dict], page: Path) -> str:
         )
     if "benchmark-heldout" in SELF_RENDERED:
         rows.append(heldout_headline(SELF_RENDERED["benchmark-heldout"], page))
+    if "library-free" in SELF_RENDERED:
+        rows.append(library_free_headline(SELF_RENDERED["library-free"], page))
     for result, guide in NOT_GENERATED:
         rows.append(
             [result, "not generated", "-", f"[not re-run]({os.path.relpath(ROOT / guide, page.parent)})"]
@@ -2154,6 +2166,26 @@ def heldout_headline(entry: SelfRendered, page: Path) -> list[str]:
     return [
         "Held-out benchmark: the best agent that does not see the state, per domain, held-out IQM of the "
         "normalised score (0 random ego, 1 best response; no thesis counterpart)",
+        "; ".join(cells),
+        "-",
+        f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})",
+    ]
+
+
+def library_free_headline(entry: SelfRendered, page: Path) -> list[str]:
+    """Per domain, the best library-free agent's held-out IQM with its interval and training env steps."""
+    data = json.loads((ROOT / entry.source).read_text())
+    cells = []
+    for domain, part in data["domains"].items():
+        kind = max(part["agents"], key=lambda name: part["agents"][name]["iqm"])
+        best = part["agents"][kind]
+        low, high = best["iqm_ci"]
+        steps = part["training"][kind]["env_steps"]
+        cells.append(f"{domain} {kind} {best['iqm']:.2f} [{low:.2f}, {high:.2f}] after {steps:,} env steps")
+    klass = self_rendered_class(entry, data).split(" (")[0]
+    return [
+        "Library-free agents (no library; the thesis's future work, section 8.1.2): the best of ppo-generalist, "
+        "liam and meliba per domain, held-out IQM of the normalised score",
         "; ".join(cells),
         "-",
         f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})",
