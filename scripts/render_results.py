@@ -2152,44 +2152,53 @@ def headline(documents: dict[str, dict], page: Path) -> str:
     )
 
 
+def self_rendered_row(entry: SelfRendered, page: Path, title: str, best) -> list[str]:
+    """A headline row of a self-rendered file: ``best(data)`` gives, per domain, the agent, its IQM entry and a
+    note; each cell reads "domain agent IQM [interval] note"."""
+    data = json.loads((ROOT / entry.source).read_text())
+    cells = []
+    for domain, agent, value, note in best(data):
+        low, high = value["iqm_ci"]
+        cells.append(f"{domain} {agent} {value['iqm']:.2f} [{low:.2f}, {high:.2f}]{note}")
+    klass = self_rendered_class(entry, data).split(" (")[0]
+    return [title, "; ".join(cells), "-", f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})"]
+
+
 def heldout_headline(entry: SelfRendered, page: Path) -> list[str]:
     """Per domain of the held-out suite, the agent with the highest IQM among those that do not see the state."""
-    data = json.loads((ROOT / entry.source).read_text())
     privileged = self_rendered_script(entry).PRIVILEGED
-    cells = []
-    for domain, scope in data["suites"]["heldout"].items():
-        fair = {agent: v for agent, v in scope["aggregate"].items() if agent not in privileged}
-        agent = max(fair, key=lambda name: fair[name]["iqm"])
-        low, high = fair[agent]["iqm_ci"]
-        cells.append(f"{domain} {agent} {fair[agent]['iqm']:.2f} [{low:.2f}, {high:.2f}]")
-    klass = self_rendered_class(entry, data).split(" (")[0]
-    return [
+
+    def best(data: dict):
+        for domain, scope in data["suites"]["heldout"].items():
+            fair = {agent: v for agent, v in scope["aggregate"].items() if agent not in privileged}
+            agent = max(fair, key=lambda name: fair[name]["iqm"])
+            yield domain, agent, fair[agent], ""
+
+    title = (
         "Held-out benchmark: the best agent that does not see the state, per domain, held-out IQM of the "
-        "normalised score (0 random ego, 1 best response; no thesis counterpart)",
-        "; ".join(cells),
-        "-",
-        f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})",
-    ]
+        "normalised score (0 random ego, 1 best response; no thesis counterpart)"
+    )
+    return self_rendered_row(entry, page, title, best)
 
 
 def library_free_headline(entry: SelfRendered, page: Path) -> list[str]:
     """Per domain, the best library-free agent's held-out IQM with its interval and training env steps."""
-    data = json.loads((ROOT / entry.source).read_text())
-    cells = []
-    for domain, part in data["domains"].items():
-        kind = max(part["agents"], key=lambda name: part["agents"][name]["iqm"])
-        best = part["agents"][kind]
-        low, high = best["iqm_ci"]
-        steps = part["training"][kind]["env_steps"]
-        cells.append(f"{domain} {kind} {best['iqm']:.2f} [{low:.2f}, {high:.2f}] after {steps:,} env steps")
-    klass = self_rendered_class(entry, data).split(" (")[0]
-    return [
+
+    def best(data: dict):
+        for domain, part in data["domains"].items():
+            kind = max(part["agents"], key=lambda name: part["agents"][name]["iqm"])
+            yield (
+                domain,
+                kind,
+                part["agents"][kind],
+                f" after {part['training'][kind]['env_steps']:,} env steps",
+            )
+
+    title = (
         "Library-free agents (no library; the thesis's future work, section 8.1.2): the best of ppo-generalist, "
-        "liam and meliba per domain, held-out IQM of the normalised score",
-        "; ".join(cells),
-        "-",
-        f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})",
-    ]
+        "liam and meliba per domain, held-out IQM of the normalised score"
+    )
+    return self_rendered_row(entry, page, title, best)
 
 
 def marked_pages() -> list[Path]:
