@@ -11,10 +11,8 @@ runs/teamster-mirror-t500`` (each (agent, trial) record depends only on the seed
 Part A, the PLASTIC reference (results-to-reproduce.md): prey captures per 500 steps with the teammate-aware
 team for the ad hoc seat filled by a teammate-aware, greedy or probabilistic-destinations agent, by a random
 agent and by PLASTIC-Model that already knows the three teams (exact models, as in Barrett et al.); ``--trials``
-runs of 500 steps each, printed beside the reference (64, 32, 35, 11; PLASTIC-Policy 43), and written to
-``--result`` (default ``results/teamster-reference.json``; ``--result ''`` writes none): the command, commit
-(and the package's and scripts' files that differed from it), BLAS kernel, Python and package versions, the
-settings, and per agent the captures of every run with their mean and 95 % percentile-bootstrap CI.
+runs of 500 steps each, printed beside the reference (64, 32, 35, 11; PLASTIC-Policy 43); with ``--markdown``
+as the pipe table that ``scripts/render_results.py run teamster-reference`` publishes, with its provenance.
 
 Part B, section 4.1.4: ``embodied-adhoc teamster pursuit`` with the given options (resumable in ``--out``); the
 table of captures per 500 steps after learning each team (Table 4.4's layout) and PLASTIC-Policy / TEAMSTER
@@ -34,23 +32,14 @@ thesis's rows. Unless ``--skip-protocol``, ``embodied-adhoc teamster MAP`` with 
 from __future__ import annotations
 
 import argparse
-import datetime as dt
-import importlib.metadata
 import json
-import platform
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.cli import main as cli_main
-from embodied_adhoc.decision.uct import UctConfig
 from embodied_adhoc.domains.pursuit4 import TEAMS, ExactTeam, Pursuit4
 from embodied_adhoc.experiments.domains.teamster_protocol import make_world, play, play_episodes
-from embodied_adhoc.experiments.identity import blas_kernel
 from embodied_adhoc.experiments.stats import summarise_sample
 from embodied_adhoc.experiments.tables import format_table
 from embodied_adhoc.learning.teamster_agents import build_agent
@@ -85,62 +74,6 @@ def part_a(trials: int, seed: int) -> dict[str, list[int]]:
             counts.append(play(agent, world, team, 500, rng))
         out[name] = counts
     return out
-
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _git(*argv: str) -> str:
-    return subprocess.run(["git", *argv], cwd=ROOT, capture_output=True, text=True).stdout.strip()
-
-
-def part_a_result(counts: dict[str, list[int]], trials: int, seed: int, started: str, seconds: float) -> dict:
-    """Part A's result file: provenance, settings and per agent the runs' captures with mean and CI."""
-    versions = {}
-    for name in ("numpy", "torch"):
-        try:
-            versions[name] = importlib.metadata.version(name)
-        except importlib.metadata.PackageNotFoundError:
-            pass
-    uct = UctConfig()
-    rows = []
-    for agent, values in counts.items():
-        s = summarise_sample(values)
-        rows.append(
-            {
-                "agent": agent,
-                "captures": values,
-                "mean": round(s.mean, 4),
-                "ci": [round(s.ci_low, 4), round(s.ci_high, 4)],
-                "reference": REFERENCE.get(agent),
-            }
-        )
-    return {
-        "figure": "teamster-reference",
-        "command": " ".join([".venv/bin/python", "scripts/reproduce_teamster.py", *sys.argv[1:]]),
-        "commit": _git("rev-parse", "HEAD"),
-        # the package's and scripts' files that differ from the commit (a shared tree may hold others' edits)
-        "uncommitted": sorted(
-            line.split(None, 1)[1]  # "XY path": the status letters, then the path
-            for line in _git("status", "--porcelain", "--", "embodied_adhoc", "scripts").splitlines()
-        ),
-        "kernel": blas_kernel(),
-        "python": platform.python_version(),
-        "versions": versions,
-        "started": started,
-        "seconds": round(seconds, 1),
-        "settings": {
-            "trials": trials,
-            "seed": seed,
-            "steps": 500,
-            "team": "teammate-aware",
-            "world": "pursuit 5x5",
-            "uct": {"iterations": uct.iterations, "depth": uct.depth, "wave": uct.wave},
-            "metric": "prey captures in 500 steps, learning paused (PLASTIC-Model knows the three teams)",
-            "ci": "95 % percentile bootstrap over the runs (experiments.stats.summarise_sample)",
-        },
-        "rows": rows,
-    }
 
 
 # Tables 4.5-4.7 (mean over 8 trials; eval on tau1, tau2, tau3): Original Teammate, Random Policy, and
@@ -240,9 +173,9 @@ def main() -> None:
         "--wave", type=int, default=None, help="UCT simulations per wave (default the planner's)"
     )
     parser.add_argument(
-        "--result",
-        default="results/teamster-reference.json",
-        help="part A's result file ('' for none; default results/teamster-reference.json)",
+        "--markdown",
+        action="store_true",
+        help="part A as a pipe table with the mean and its interval in columns of their own (render_results.py)",
     )
     args = parser.parse_args()
 
@@ -282,17 +215,25 @@ def main() -> None:
     if args.skip_pursuit:
         return
 
-    started, start = dt.datetime.now(dt.UTC).isoformat(timespec="seconds"), time.perf_counter()
     counts = part_a(args.trials, args.seed)
-    if args.result:
-        result = part_a_result(counts, args.trials, args.seed, started, time.perf_counter() - start)
-        atomic_write_text(Path(args.result), json.dumps(result, indent=1) + "\n")
-        print(f"Part A's result file: {args.result}")
-    rows = [[name, _cell(values), str(REFERENCE.get(name, "-"))] for name, values in counts.items()]
-    print(
-        f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs, mean [95% CI])"
-    )
-    print(format_table(["ad hoc agent", "ours", "PLASTIC reference"], rows))
+    if args.markdown:
+        rows = []
+        for name, values in counts.items():
+            s = summarise_sample(values)
+            rows.append(
+                [name, f"{s.mean:.2f}", f"[{s.ci_low:.2f}, {s.ci_high:.2f}]", str(REFERENCE.get(name, "-"))]
+            )
+        print(
+            f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs of seed "
+            f"{args.seed} on, mean and 95 % percentile-bootstrap interval over the runs)"
+        )
+        print(format_table(["ad hoc agent", "captures", "95 % CI", "PLASTIC reference"], rows, markdown=True))
+    else:
+        rows = [[name, _cell(values), str(REFERENCE.get(name, "-"))] for name, values in counts.items()]
+        print(
+            f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs, mean [95% CI])"
+        )
+        print(format_table(["ad hoc agent", "ours", "PLASTIC reference"], rows))
 
     if args.skip_protocol:
         return
