@@ -26,7 +26,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from embodied_adhoc.bench.populations import CHAPTER5
+from embodied_adhoc.teammates.populations import CHAPTER5
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / "results" / "benchmark-heldout.json"
@@ -181,7 +181,7 @@ def merge(previous: dict, fresh: dict) -> dict:
 def run_physics(args: Args) -> dict:
     """:data:`PHYSICS_AGENTS` on :data:`PHYSICS_MEMBERS` on both lab backends (same episodes), compared per agent."""
     from embodied_adhoc.bench.evaluate import Suite, backend_difference, evaluate
-    from embodied_adhoc.bench.populations import LAB, find_member
+    from embodied_adhoc.teammates.populations import LAB, find_member
 
     specs = tuple(find_member(LAB, name) for name in PHYSICS_MEMBERS)
     suite = Suite("heldout", specs[0].version, {LAB: specs})

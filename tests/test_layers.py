@@ -24,7 +24,9 @@ ALLOWED: dict[str, frozenset[str]] = {
     "decision": frozenset(),
     "control": frozenset(),
     "domains": frozenset({"decision"}),
-    "teammates": frozenset({"domains"}),
+    # the teammates the agents meet, the benchmark's versioned populations among them (learners train on their
+    # train split; the exact best responses behind their bounds live in bench/)
+    "teammates": frozenset({"decision", "domains"}),
     "comms": frozenset({"domains"}),
     "sim": frozenset({"control", "domains"}),
     "envs": frozenset({"decision", "control", "domains", "teammates", "comms", "sim"}),
@@ -66,7 +68,7 @@ ALLOWED: dict[str, frozenset[str]] = {
     ),
     # the benchmark: teammate populations (lab humans, chapter-5 teammates), their bounds, and evaluate through
     # the trial runner
-    "bench": frozenset({"decision", "domains", "envs", "experiments"}),
+    "bench": frozenset({"decision", "domains", "teammates", "envs", "experiments"}),
     "commands": frozenset(
         {
             "bench",

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from embodied_adhoc.bench.populations import BENCH_DOMAINS, SUITE_VERSION, load_population, members
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.teammates.populations import BENCH_DOMAINS, SUITE_VERSION, load_population, members
 
 __all__ = ["SUITES", "Suite", "backend_difference", "evaluate", "resolve_suite"]
 

@@ -12,7 +12,7 @@ def _split_list(text: str) -> tuple[str, ...]:
 
 
 def handle_teammates(args: argparse.Namespace) -> int:
-    from embodied_adhoc.bench.populations import SUITE_VERSION, population
+    from embodied_adhoc.teammates.populations import SUITE_VERSION, population
 
     specs = population(args.domain)
     if args.json:
@@ -68,8 +68,8 @@ def handle_evaluate(args: argparse.Namespace) -> int:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from embodied_adhoc.bench.populations import BENCH_DOMAINS
     from embodied_adhoc.checks import positive_int
+    from embodied_adhoc.teammates.populations import BENCH_DOMAINS
 
     bench = subparsers.add_parser(
         "bench",

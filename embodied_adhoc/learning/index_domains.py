@@ -9,7 +9,7 @@ means "no observation yet" and ``z + 1`` the domain's index ``z``.
 
 :class:`IndexVectorEnv` steps ``num_envs`` episodes at once with gymnasium's NEXT_STEP autoreset (as
 :class:`~embodied_adhoc.learning.vector_grid.GridVectorEnv`). Each episode draws its teammate from the
-benchmark's *train* split (:func:`embodied_adhoc.bench.populations.members`), the first ``teammates`` members of
+benchmark's *train* split (:func:`embodied_adhoc.teammates.populations.members`), the first ``teammates`` members of
 it in the population's order (all of them by default); validation and held-out members are refused. The lab's
 episodes are the registered env's own, one env per (sub-env, member) with the member as its ``human``; the
 chapter-5 episodes sample the joint model: the teammate's action ``b ~ pi(b | x)``, then
@@ -89,7 +89,7 @@ class IndexEncoder(nn.Module):
 
 def train_members(domain: str, teammates: int = 0) -> tuple:
     """The first ``teammates`` members (0: all) of ``domain``'s benchmark train split."""
-    from embodied_adhoc.bench.populations import members
+    from embodied_adhoc.teammates.populations import members
 
     train = members(domain, "train")
     if not isinstance(teammates, int) or not 0 <= teammates <= len(train):
@@ -116,7 +116,7 @@ class IndexVectorEnv:
         teammate_info: bool = False,
         max_episode_steps: int | None = None,
     ) -> None:
-        from embodied_adhoc.bench.populations import members as split_members
+        from embodied_adhoc.teammates.populations import members as split_members
 
         if domain not in INDEX_DOMAINS:
             raise ConfigError(f"domain={domain!r}: use one of {', '.join(INDEX_DOMAINS)}")

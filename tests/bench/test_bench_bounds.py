@@ -8,11 +8,11 @@ import pytest
 import embodied_adhoc.decision.value_iteration as value_iteration_module
 import embodied_adhoc.envs  # noqa: F401  (registers the env ids)
 from embodied_adhoc.bench.bounds import Bounds, bounds_cache_dir, member_bounds, normalise, world_mdps
-from embodied_adhoc.bench.populations import TeammateSpec, find_member
 from embodied_adhoc.domains.chapter5 import build_library
 from embodied_adhoc.domains.lab import build_lab_library
 from embodied_adhoc.envs.library_env import LibraryEnv
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.teammates.populations import TeammateSpec, find_member
 
 
 @pytest.fixture(autouse=True)

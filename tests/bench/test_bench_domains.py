@@ -5,12 +5,12 @@ teams), and the per-agent comparison of two backends (the bounds on these domain
 import numpy as np
 import pytest
 
-from embodied_adhoc.bench.chapter5_members import Chapter5MemberFactory, other_task
 from embodied_adhoc.bench.evaluate import backend_difference
-from embodied_adhoc.bench.populations import CHAPTER5, find_member, members, population
 from embodied_adhoc.domains.chapter5 import build_library
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.stats import welch_test
+from embodied_adhoc.teammates.chapter5_members import Chapter5MemberFactory, other_task
+from embodied_adhoc.teammates.populations import CHAPTER5, find_member, members, population
 
 NEW_DOMAINS = tuple(d for d in CHAPTER5 if d not in ("pursuit-task", "gridworld"))
 

@@ -8,8 +8,13 @@ import numpy as np
 import pytest
 
 import embodied_adhoc.envs  # noqa: F401  (registers the env ids)
-from embodied_adhoc.bench.lab_members import PopulationHuman
-from embodied_adhoc.bench.populations import (
+from embodied_adhoc.cli import main
+from embodied_adhoc.domains.chapter5 import build_library
+from embodied_adhoc.domains.lab import build_lab_library
+from embodied_adhoc.domains.lab_graph import GROUND, HELD
+from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.teammates.lab_members import PopulationHuman
+from embodied_adhoc.teammates.populations import (
     BENCH_DOMAINS,
     SPLITS,
     SUITE_VERSION,
@@ -18,11 +23,6 @@ from embodied_adhoc.bench.populations import (
     members,
     population,
 )
-from embodied_adhoc.cli import main
-from embodied_adhoc.domains.chapter5 import build_library
-from embodied_adhoc.domains.lab import build_lab_library
-from embodied_adhoc.domains.lab_graph import GROUND, HELD
-from embodied_adhoc.errors import ConfigError
 
 LAB_ID = "EmbodiedAdhoc/ToxicWasteAbstract-v0"
 

@@ -11,7 +11,6 @@ import numpy as np
 import pytest
 import torch
 
-from embodied_adhoc.bench.populations import members
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.generalist import GeneralistTraining, load_generalist, train_generalist_run
 from embodied_adhoc.learning.index_domains import (
@@ -27,6 +26,7 @@ from embodied_adhoc.learning.liam import LiamTraining, train_liam_run
 from embodied_adhoc.learning.meliba import MelibaTraining, load_meliba, train_meliba_run
 from embodied_adhoc.learning.recurrent_ppo import CHECKPOINT, RecurrentActorCritic
 from embodied_adhoc.learning.weights import load_weights
+from embodied_adhoc.teammates.populations import members
 
 torch.set_num_threads(1)
 

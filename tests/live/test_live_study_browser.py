@@ -146,7 +146,7 @@ class ScriptedParticipant:
         self.answers += 1
         time.sleep(0.2)
 
-    def walk_to(self, point, area: int, close: float, give_up: float = 60.0) -> None:
+    def walk_to(self, point, area: int, close: float, give_up: float = 120.0) -> None:
         """Follow the human route to ``area``, then walk straight towards ``point`` until within ``close`` m."""
         deadline = time.monotonic() + give_up
         lead = 1.2 * SPEED * 0.15 + 0.1  # m the walker still moves after a key is released (page latency)

@@ -1,7 +1,7 @@
 """The chapter-5 domains' benchmark teammates: ``--teammate`` plug-ins (``domains.chapter5.teammates``).
 
 A member is ``factory(library, m)`` returning the teammate's policy ``pi(b | x)`` (S x B) in model ``m``'s task,
-built from its :class:`~embodied_adhoc.bench.populations.TeammateSpec` parameters (``family``):
+built from its :class:`~embodied_adhoc.teammates.populations.TeammateSpec` parameters (``family``):
 
 * ``named``: a teammate of the thesis: the library's own (``greedy``; pursuit's ``aware``; overcooked's cooks) or
   ``optimal`` (the MMDP's optimal marginal, ``domains.chapter5.library.optimal_teammate_policy``: the maps' and the
@@ -21,7 +21,7 @@ built from its :class:`~embodied_adhoc.bench.populations.TeammateSpec` parameter
 
 Every policy is a function of the state, so the world's model (Fig. 5.2's reduction) is exact and its best
 response is value iteration (:mod:`embodied_adhoc.bench.bounds`). A plug-in spec
-``embodied_adhoc.bench.chapter5_members:<domain>/<member name>`` names a member.
+``embodied_adhoc.teammates.chapter5_members:<domain>/<member name>`` names a member.
 """
 
 from __future__ import annotations
@@ -148,8 +148,8 @@ class Chapter5MemberFactory:
 
 
 def __getattr__(name: str) -> Chapter5MemberFactory:
-    """``embodied_adhoc.bench.chapter5_members:<domain>/<member>``: the factory of that member (any split)."""
-    from embodied_adhoc.bench.populations import find_member
+    """``embodied_adhoc.teammates.chapter5_members:<domain>/<member>``: the factory of that member (any split)."""
+    from embodied_adhoc.teammates.populations import find_member
 
     domain, _, member = name.partition("/")  # the member, or SUITE/NAME of a population file
     spec = find_member(domain, member) if member else None

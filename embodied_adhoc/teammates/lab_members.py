@@ -1,6 +1,6 @@
 """The toxic-waste lab's benchmark humans: lab-human plug-ins (``envs.lab_humans``) that differ from the thesis's.
 
-Every member is a :class:`PopulationHuman` built from its :class:`~embodied_adhoc.bench.populations.TeammateSpec`
+Every member is a :class:`PopulationHuman` built from its :class:`~embodied_adhoc.teammates.populations.TeammateSpec`
 parameters. Its policy depends on the state alone (the human's node and the balls' status), so that the joint MDP
 with the human folded in is exact and its best response is computed by value iteration
 (:mod:`embodied_adhoc.bench.bounds`). The parameters:
@@ -15,7 +15,7 @@ with the human folded in is exact and its best response is computed by value ite
 * ``quiet``: probability that the human does not answer "where are you?"; ``mislead``: probability that it names
   a uniformly drawn other node.
 
-A plug-in spec ``embodied_adhoc.bench.lab_members:<member name>`` names a member (``--human`` and the lab envs'
+A plug-in spec ``embodied_adhoc.teammates.lab_members:<member name>`` names a member (``--human`` and the lab envs'
 ``human=``), so the benchmark's runs go through the trial runner as any user's human does.
 """
 
@@ -156,8 +156,8 @@ class LabMemberFactory:
 
 
 def __getattr__(name: str) -> LabMemberFactory:
-    """``embodied_adhoc.bench.lab_members:<member>``: the factory of that toxic-waste member (any split)."""
-    from embodied_adhoc.bench.populations import find_member
+    """``embodied_adhoc.teammates.lab_members:<member>``: the factory of that toxic-waste member (any split)."""
+    from embodied_adhoc.teammates.populations import find_member
 
     spec = find_member("toxic-waste", name)
     if spec is None:

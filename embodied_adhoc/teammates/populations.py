@@ -84,8 +84,8 @@ class TeammateSpec:
             return self.plugin_spec
         where = self.name if self.split in SPLITS else f"{self.split}/{self.name}"  # a user's suite: its name
         if self.domain == LAB:
-            return f"embodied_adhoc.bench.lab_members:{where}"
-        return f"embodied_adhoc.bench.chapter5_members:{self.domain}/{where}"
+            return f"embodied_adhoc.teammates.lab_members:{where}"
+        return f"embodied_adhoc.teammates.chapter5_members:{self.domain}/{where}"
 
     def factory(self):
         """The member's factory (the domain's teammate interface)."""
@@ -95,10 +95,10 @@ class TeammateSpec:
             kind = "human" if self.domain == LAB else "teammate"
             return resolve(kind, self.plugin_spec, flag=f"member {self.name}").factory
         if self.domain == LAB:
-            from embodied_adhoc.bench.lab_members import LabMemberFactory
+            from embodied_adhoc.teammates.lab_members import LabMemberFactory
 
             return LabMemberFactory(self.name, self.params)
-        from embodied_adhoc.bench.chapter5_members import Chapter5MemberFactory
+        from embodied_adhoc.teammates.chapter5_members import Chapter5MemberFactory
 
         return Chapter5MemberFactory(self.name, self.params)
 
@@ -263,8 +263,8 @@ def load_population(path: str | Path) -> tuple[str, str, tuple[TeammateSpec, ...
     JSON: ``{"name": "my-suite", "version": "1", "members": [{"name": "cautious", "domain": "gridworld",
     "type": "my type", "plugin": "my_teammates:cautious"}, ...]}``. A member names its code by ``plugin`` (a
     ``module:callable`` or ``path/file.py:callable`` of the domain's teammate interface) or gives ``params`` of
-    the domain's built-in families (:mod:`~embodied_adhoc.bench.lab_members`,
-    :mod:`~embodied_adhoc.bench.chapter5_members`). Every member is scored (its split is the file's name).
+    the domain's built-in families (:mod:`~embodied_adhoc.teammates.lab_members`,
+    :mod:`~embodied_adhoc.teammates.chapter5_members`). Every member is scored (its split is the file's name).
     """
     from embodied_adhoc.checks import read_text, refuse_unknown
 
