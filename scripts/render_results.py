@@ -773,20 +773,12 @@ def chapter5_prose(data: dict) -> dict[str, tuple[str | None, str]]:
 
 
 def welch_p(a: dict, b: dict) -> float:
-    """Welch's unequal-variance t-test of two agents' mean steps, from their summaries (mean, sample sd, trials)."""
-    from scipy import stats
+    """Welch's test of two agents' mean steps from their summaries (mean, sample sd, trials): the project's one
+    Welch test, ``experiments.stats.welch_test_from_stats``."""
+    from embodied_adhoc.experiments.stats import welch_test_from_stats
 
-    return float(
-        stats.ttest_ind_from_stats(
-            a["steps_mean"],
-            a["steps_sd"],
-            a["trials"],
-            b["steps_mean"],
-            b["steps_sd"],
-            b["trials"],
-            equal_var=False,
-        ).pvalue
-    )
+    stats = ("steps_mean", "steps_sd", "trials")
+    return welch_test_from_stats(*(a[k] for k in stats), *(b[k] for k in stats))[1]
 
 
 def significance(p: float) -> str:
