@@ -225,6 +225,7 @@ def test_a_check_of_fewer_rows_is_held_to_the_rows_it_printed():
 def test_a_table_without_a_result_file_prints_its_command_and_cost_and_no_figure(tmp_path):
     module = load_script()
     entry = next(iter(module.UNRUN.values()))
+    assert not (ROOT / "results" / f"{entry.name}.json").exists()
     block = module.unrun_block(entry, module.ROOT / "docs" / "arenas.md")
     assert block.startswith("*Not re-run (cost: ")
     assert entry.command in block and entry.cost in block and entry.klass in block
@@ -484,9 +485,16 @@ def test_a_sentence_beside_a_table_is_generated_from_its_result_file_and_checked
     )
 
 
-def test_a_figure_defined_before_its_first_run_shows_its_unrun_block_until_it_has_a_result_file():
+def test_no_table_is_both_unrun_and_generated_from_a_result_file():
     module = load_script()
-    assert "fig7-12" in module.FIGURES and "fig7-12" in module.UNRUN
+    generated = {path.stem for path in (ROOT / "results").glob("*.json")}
+    assert not generated & set(module.UNRUN), "a figure with a result file keeps its Unrun entry"
+
+
+def test_a_figure_defined_before_its_first_run_shows_its_unrun_block_until_it_has_a_result_file(monkeypatch):
+    module = load_script()
+    unrun = module.Unrun("fig7-12", "Fig. 7.12", "reproduce it --out DIR", "minutes", module.STATISTICAL)
+    monkeypatch.setitem(module.UNRUN, "fig7-12", unrun)
     page = module.ROOT / "docs" / "arenas.md"
     text = "<!-- results:fig7-12 start -->\n<!-- results:fig7-12 end -->"
     rendered, _ = module.render_markers(page, text, {})
@@ -506,3 +514,41 @@ def test_a_figure_defined_before_its_first_run_shows_its_unrun_block_until_it_ha
     index = module.index_page(documents)
     assert "](fig7-12.md) | steps: not re-checked; claims: not re-checked |" in index
     assert module.UNRUN["fig7-12"].command not in index
+
+
+def fault_summary(module, **per_episode) -> str:
+    """A ``trials --json`` document of one HOTSPOT sweep with the fault columns ``per_episode`` gives (0 else)."""
+    columns = {column: 0.0 for _, group in module.FAULT_COLUMNS for column in group} | per_episode
+    hotspot = {"trials": 8, "steps_mean": 45.25, "steps_sd": 40.1, "steps_ci95": [22.5, 77.88]}
+    hotspot |= {"success_rate": 0.625, "identify_steps_mean": None, "per_episode_mean": columns}
+    hotspot["counts"] = {"cap_reason": {"rfid_missed": 3}, "cap_detail": {"cap reached: ...": 3}}
+    return json.dumps({"agents": {"hotspot": hotspot}})
+
+
+def test_the_fault_table_prints_each_settings_counts_per_episode_and_refuses_a_run_without_them():
+    module = load_script()
+    figure = module.FIGURES["fault-table"]
+    assert len(figure.commands) == 10 and all("--json" in argv for argv in figure.commands.values())
+    assert figure.commands["rfid-miss-model-not-told"][-4:] == [
+        "--rfid-miss",
+        "0.5",
+        "--model-rfid-miss",
+        "0",
+    ]
+    outputs = {key: fault_summary(module) for key in figure.commands}
+    outputs["rfid-miss"] = fault_summary(module, fault_rfid_misses=1.25, event_rfid_reads=3.0)
+    data = figure.extract(outputs)
+    outcomes, counts = figure.tables(data)
+    (row,) = [r for r in outcomes.rows if r[0] == "`--rfid-miss 0.5`"]
+    assert row == ["`--rfid-miss 0.5`", "5/8", "45.25 ± 40.10", "[22.50, 77.88]", "`rfid_missed` x3"]
+    (row,) = [r for r in counts.rows if r[0] == "`--rfid-miss 0.5`"]
+    assert row[counts.headers.index("RFID missed / reads")] == "1.25 / 3"
+    # A second kernel's mean outside a setting's published interval fails the check.
+    check = copy.deepcopy(data)
+    check["runs"]["all"]["hotspot"]["steps_mean"] = 80.0
+    assert figure.compare(data, check) == ["all hotspot: mean 80.00 outside the published [22.50, 77.88]"]
+    # A sweep whose --json holds no fault counts (e.g. the abstract backend) is refused, naming the column.
+    broken = json.loads(outputs["none"])
+    del broken["agents"]["hotspot"]["per_episode_mean"]["fault_blocked_moves"]
+    with pytest.raises(SystemExit, match="fault-table none: .* no fault_blocked_moves per episode"):
+        figure.extract({**outputs, "none": json.dumps(broken)})
