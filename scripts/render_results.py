@@ -470,21 +470,28 @@ ARENA_TASK_DOMAINS = {"foraging": "LBF", "pursuit": "pursuit"}
 ARENA_TEAMS = ("tau0", "tau1", "tau2")
 
 
-def arena_task_command(domain: str, team: str, task: int) -> list[str]:
+def arena_task_command(
+    domain: str,
+    team: str,
+    task: int | None,
+    backend: str = "abstract",
+    episodes: int = 16,
+    agent: str = "original",
+) -> list[str]:
+    """One cell of the per-task tables: ``agent`` beside ``team`` on ``task`` (None: the tasks drawn per episode)."""
     return [
         ".venv/bin/embodied-adhoc",
         "trials",
         domain,
         "--backend",
-        "abstract",
+        backend,
         "--team",
         team,
-        "--task",
-        str(task),
+        *(["--task", str(task)] if task is not None else []),
         "--agents",
-        "original",
+        agent,
         "--episodes",
-        "16",
+        str(episodes),
         "--max-steps",
         "200",
         "--seed",
@@ -495,20 +502,45 @@ def arena_task_command(domain: str, team: str, task: int) -> list[str]:
     ]
 
 
-def arena_tasks_tables(data: dict) -> list[Table]:
+def solved_cell(stats: dict) -> str:
+    return f"{stats['steps_mean']:.2f} {ci_cell(stats['steps_ci95'])} ({100 * stats['success_rate']:.0f} % solved)"
+
+
+def arena_tasks_table(data: dict, backend: str) -> Table:
     headers = ["domain", "team", *(f"task {task}" for task in range(1, 5))]
-    rows = []
-    for domain, label in ARENA_TASK_DOMAINS.items():
-        for team in ARENA_TEAMS:
-            cells = []
-            for task in range(1, 5):
-                stats = data["runs"][f"{domain}-{team}-task{task}"]["original"]
-                cells.append(
-                    f"{stats['steps_mean']:.2f} {ci_cell(stats['steps_ci95'])} "
-                    f"({100 * stats['success_rate']:.0f} % solved)"
-                )
-            rows.append([f"{label}, grid twin", team, *cells])
-    return [Table("tasks", "", headers, rows)]
+    rows = [
+        [
+            f"{label}, {backend}",
+            team,
+            *(solved_cell(data["runs"][f"{domain}-{team}-task{task}"]["original"]) for task in range(1, 5)),
+        ]
+        for domain, label in ARENA_TASK_DOMAINS.items()
+        for team in ARENA_TEAMS
+    ]
+    return Table("tasks", "", headers, rows)
+
+
+def arena_tasks_tables(data: dict) -> list[Table]:
+    return [arena_tasks_table(data, "grid twin")]
+
+
+ARENA_RANDOM_TEAM = "tau1"
+"""The team beside which the MuJoCo per-task figure measures random in the ad hoc seat (tasks drawn per episode)."""
+
+
+def arena_tasks_mujoco_tables(data: dict) -> list[Table]:
+    random = [
+        [
+            f"{label}, MuJoCo",
+            ARENA_RANDOM_TEAM,
+            solved_cell(data["runs"][f"{domain}-{ARENA_RANDOM_TEAM}-random"]["random"]),
+        ]
+        for domain, label in ARENA_TASK_DOMAINS.items()
+    ]
+    return [
+        arena_tasks_table(data, "MuJoCo"),
+        Table("random", "Random in the ad hoc seat:", ["domain", "team", "random"], random),
+    ]
 
 
 ALL_FAULTS = (
@@ -1148,6 +1180,32 @@ FIGURES = {
             "cap of 200 steps.",
         ),
         Figure(
+            "arena-tasks-mujoco",
+            "Foraging and pursuit arenas on MuJoCo physics: each team with its original teammate on each task "
+            "(4 episodes per cell, seed 0), and random beside tau1",
+            {
+                **{
+                    f"{domain}-{team}-task{task}": arena_task_command(domain, team, task, "mujoco", 4)
+                    for domain in ARENA_TASK_DOMAINS
+                    for team in ARENA_TEAMS
+                    for task in range(1, 5)
+                },
+                **{
+                    f"{domain}-{ARENA_RANDOM_TEAM}-random": arena_task_command(
+                        domain, ARENA_RANDOM_TEAM, None, "mujoco", 4, "random"
+                    )
+                    for domain in ARENA_TASK_DOMAINS
+                },
+            },
+            arenas_extract,
+            arena_tasks_mujoco_tables,
+            arenas_compare,
+            ("docs/arenas.md",),
+            partial_checks=True,
+            notes="Mean steps to finish, the 95 % bootstrap interval of the mean (4 episodes: a wide one) and the "
+            "share solved within the cap of 200 steps; random's episodes draw their task, a capped one counts 200.",
+        ),
+        Figure(
             "sim-tours",
             "Physics lab: dead reckoning over full tours and the simulator's rates (10 tours, seeds 0-9)",
             {"bench": ["{python}", "scripts/bench_sim.py", "--tours", "10"]},
@@ -1611,6 +1669,53 @@ def localisation_model_tables(data: dict) -> list[Table]:
     return [Table("matrix", "", headers, rows)]
 
 
+def side_by_side_tables(data: dict) -> list[Table]:
+    """``bench_solvers.py --side-by-side``'s rows: each solver's lower / upper bound at each checkpoint, the time
+    this project needs to reach SARSOP's final lower bound, and both peaks."""
+    rows, checkpoints = [], list(data["rows"][0]["ours"]) if data["rows"] else []
+
+    def bounds(pair: Sequence[float] | None) -> str:
+        return "-" if pair is None else f"{pair[0]:.4f} / {pair[1]:.4f}"
+
+    for row in data["rows"]:
+        sarsop = row.get("sarsop", {})
+        reached = row.get("ours_seconds_to_sarsop_lower")
+        if not sarsop:
+            to_sarsop, memory = "-", f"{row['ours_peak_mb']:.0f} MB / -"
+        else:
+            to_sarsop = (
+                f"never (target {row['sarsop_final_lower']:.4f})"
+                if reached is None
+                else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
+            )
+            memory = (
+                f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
+            )
+        cells = [cell for t in checkpoints for cell in (bounds(row["ours"][t]), bounds(sarsop.get(t)))]
+        rows.append(
+            [
+                row["file"],
+                str(row["states"]),
+                str(row["observations"]),
+                row["solver"],
+                *cells,
+                to_sarsop,
+                memory,
+            ]
+        )
+    clock = data["rows"][0]["clock"] if data["rows"] else "cpu"
+    headers = [
+        "file",
+        "S",
+        "Z",
+        "solver",
+        *(f"{who} {t} s" for t in checkpoints for who in ("ours", "SARSOP")),
+        f"our {clock} s to SARSOP's final lower bound (ratio to the budget)",
+        "peak memory ours / SARSOP (ratio)",
+    ]
+    return [Table("rows", "", headers, rows)]
+
+
 RECORDED = {
     entry.name: entry
     for entry in (
@@ -1628,6 +1733,15 @@ RECORDED = {
             localisation_model_tables,
             "the fault sweep's physics episodes and scripted tours with the localiser on",
             "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py --confusion-out PATH",
+        ),
+        Recorded(
+            "solvers-side-by-side",
+            "This project's solver beside SARSOP on generated RockSample files: lower / upper bounds at CPU-second "
+            "checkpoints, time to SARSOP's final lower bound, peak memory",
+            "results/solvers/side_by_side.json",
+            side_by_side_tables,
+            "pomdpsol built and on the PATH, and the longest checkpoint's CPU seconds per solver and file; seconds "
+            "and memory depend on the host and its load (class timing)",
         ),
     )
 }
@@ -1734,13 +1848,24 @@ def recorded_block(entry: Recorded, key: str | None, page: Path) -> str:
         sys.exit(
             f"{page.relative_to(ROOT)}: marker results:{entry.name}.{key}: no such table in {entry.source}"
         )
-    provenance = data["provenance"]
+    command, date = recorded_provenance(entry, data)
+    when = (
+        f"wrote on {date[:10]} with its provenance inside"
+        if date
+        else "wrote (the file records no date, commit, kernel or package versions)"
+    )
     # The file is named, not linked: it lies outside the documentation site.
     return "\n\n".join(t.markdown() for t in tables) + (
         f"\n\nClass: **not re-run** (cost: {entry.cost}; one run on one host). *Generated by `{SCRIPT}` from "
-        f"`{entry.source}`, which `{provenance.get('command') or entry.command}` wrote on "
-        f"{provenance['date'][:10]} with its provenance inside.*"
+        f"`{entry.source}`, which `{command}` {when}.*"
     )
+
+
+def recorded_provenance(entry: Recorded, data: dict) -> tuple[str, str | None]:
+    """(the command that wrote the entry's file, its date or None): from the file's ``provenance``, or its top level
+    where the file keeps its command there, else the entry's own ``command``."""
+    provenance = data.get("provenance", data)
+    return provenance.get("command") or entry.command, provenance.get("date")
 
 
 def unrun_block(entry: Unrun, page: Path) -> str:
@@ -2172,7 +2297,7 @@ def index_page(documents: dict[str, dict]) -> str:
             klass = "; ".join(f"{t.key}: {reproducibility(figure, document, t.key)[0]}" for t in tables)
         lines.append(f"| [{figure.title}]({name}.md) | {klass} | `{script_of(figure)}` |")
     for entry in RECORDED.values():
-        command = json.loads((ROOT / entry.source).read_text())["provenance"].get("command") or entry.command
+        command = recorded_provenance(entry, json.loads((ROOT / entry.source).read_text()))[0]
         lines.append(
             f"| {entry.title} | not re-run, from `{entry.source}` (cost: {entry.cost}) | `{command}` |"
         )

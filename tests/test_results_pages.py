@@ -9,6 +9,7 @@ import json
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -339,6 +340,24 @@ def test_a_result_file_shipped_as_an_asset_renders_its_tables_and_says_it_was_no
     assert f"| 0 {data['nodes'][0]} | " + " | ".join(f"{p:.3f}".lstrip("0") for p in first) + " |" in block
     assert "Class: **not re-run** (cost: " in block and data["provenance"]["command"] in block
     assert f"from `{entry.source}`, which" in block
+
+
+def test_a_recorded_file_without_provenance_says_what_it_does_not_record(tmp_path):
+    module = load_script()
+    entry = module.RECORDED["solvers-side-by-side"]
+    row = {"file": "rs.pomdp", "states": 8, "actions": 2, "observations": 2, "solver": "hsvi", "clock": "cpu"}
+    row |= {"seconds": 5.0, "ours": {"5": [1.0, 2.0]}, "ours_peak_mb": 10.0, "ours_vectors": 3}
+    row |= {"sarsop": {"5": [1.5, 1.75]}, "sarsop_peak_mb": 5.0, "sarsop_final_lower": 1.5}
+    row |= {"ours_seconds_to_sarsop_lower": None, "time_ratio": None, "memory_ratio": 2.0}
+    source = tmp_path / "side_by_side.json"
+    source.write_text(json.dumps({"command": "bench --side-by-side rs.pomdp", "rows": [row]}))
+    block = module.recorded_block(replace(entry, source=str(source)), None, ROOT / "docs" / "pomdp.md")
+    assert "| rs.pomdp | 8 | 2 | hsvi | 1.0000 / 2.0000 | 1.5000 / 1.7500 | never (target 1.5000) |" in block
+    assert "`bench --side-by-side rs.pomdp` wrote (the file records no date, commit, kernel" in block
+    # A file that names its date in a provenance block is said to carry its provenance.
+    source.write_text(json.dumps({"provenance": {"command": "x", "date": "2026-12-02T10:00"}, "rows": [row]}))
+    block = module.recorded_block(replace(entry, source=str(source)), None, ROOT / "docs" / "pomdp.md")
+    assert "`x` wrote on 2026-12-02 with its provenance inside" in block
 
 
 def test_two_checks_by_one_kernel_of_different_rows_are_both_kept_and_counted(tmp_path, monkeypatch):
