@@ -30,6 +30,7 @@ RESULT = ROOT / "results" / "library-free.json"
 PAGE = ROOT / "docs" / "library_free.md"
 PLOT = ROOT / "docs" / "library_free_curve.png"
 SPEED = ROOT / "results" / "library-free-speed.json"
+BATCHES = ROOT / "results" / "library_free" / "collection-batches.json"
 START, END = "<!-- library-free start -->", "<!-- library-free end -->"
 DOMAINS = ("toxic-waste", "pursuit-task")
 KINDS = {"ppo-generalist": "generalist", "liam": "liam", "meliba": "meliba"}
@@ -189,6 +190,8 @@ def table(result: dict) -> str:
         lines.append(f"| {point['teammates']} | {_interval(point)} | {point['env_steps']:,} |")
     if SPEED.is_file():
         lines += ["", *speed_table(json.loads(SPEED.read_text()))]
+    if BATCHES.is_file():
+        lines += ["", *batch_table(json.loads(BATCHES.read_text()))]
     return "\n".join(lines)
 
 
@@ -209,6 +212,31 @@ def speed_table(speed: dict) -> list[str]:
             f"{row['train_steps_per_s'] / reference['train_steps_per_s']:.2f} | "
             f"{row['collect_steps_per_s']:.0f} | "
             f"{row['collect_steps_per_s'] / reference['collect_steps_per_s']:.2f} |"
+        )
+    return lines
+
+
+def batch_table(speed: dict) -> list[str]:
+    """The foraging collection sweep of ``scripts/library_free_speed.py --batches`` (per CPU second)."""
+    first = speed["batches"][0]
+    load = ", ".join(f"{value:.1f}" for value in speed["load_average"])
+    lines = [
+        f"Collection on the foraging grid against the number of sub-envs (`{speed['command']}`, "
+        f"{speed['kernel']}, load average {load} at the end on the 2-core host; one run): env steps per CPU "
+        "second of the vector env under random actions, and of the training loop's rollout (the shipped "
+        "ppo-generalist's action draw, then the vector env's step), each with its ratio to the first row.",
+        "",
+        "| sub-envs | vector env, random actions (steps/CPU s) | x first | rollout with the policy (steps/CPU s) "
+        "| x first | env's share of the rollout |",
+        "|---|---|---|---|---|---|",
+    ]
+    for row in speed["batches"]:
+        lines.append(
+            f"| {row['envs']} | {row['random_env_steps_per_cpu_s']:,.0f} | "
+            f"{row['random_env_steps_per_cpu_s'] / first['random_env_steps_per_cpu_s']:.2f} | "
+            f"{row['rollout_steps_per_cpu_s']:,.0f} | "
+            f"{row['rollout_steps_per_cpu_s'] / first['rollout_steps_per_cpu_s']:.2f} | "
+            f"{row['rollout_env_share']:.2f} |"
         )
     return lines
 

@@ -1,9 +1,13 @@
 """Training throughput of the library-free agents: env steps per second end to end (collection with the policy,
 GAE and the PPO updates, as ``train`` runs them) on each domain, and collection alone (random actions through
 the vector env), with the ratio of each to a reference measured in the same run: ppo-generalist on the foraging
-grid with the same settings.
+grid with the same settings. ``--batches`` adds the foraging grid's collection per CPU second at each number of
+sub-envs: the vector env alone under random actions, and the training loop's rollout (the shipped ppo-generalist
+sampling every sub-env's action, then the vector env's step; its short episodes reset sub-envs often), each
+with its ratio to the first batch size.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/library_free_speed.py [--updates 4] [--envs 16] [--json F]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/library_free_speed.py [--updates 4] [--envs 16]
+        [--batches 16,256,1024] [--json F]
 
 Timings depend on the machine and its load; on a busy host so do the ratios, as each row is timed once, in turn.
 """
@@ -12,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 
@@ -32,8 +37,19 @@ def parse() -> argparse.Namespace:
     )
     parser.add_argument("--agents", default=",".join(AGENTS))
     parser.add_argument("--domains", default=",".join(DOMAINS))
+    parser.add_argument(
+        "--batches",
+        default="",
+        help="comma-separated sub-env counts of the foraging collection sweep (empty: no sweep)",
+    )
     parser.add_argument("--json", help="also write the figures to this file")
     args = parser.parse_args()
+    try:
+        args.batches = [int(b) for b in args.batches.split(",") if b]
+    except ValueError:
+        parser.error(f"--batches {args.batches}: give comma-separated positive integers")
+    if any(b < 1 for b in args.batches):
+        parser.error(f"--batches {args.batches}: give comma-separated positive integers")
     for name in ("updates", "envs", "rollout", "collect_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} {getattr(args, name)}: give a positive integer")
@@ -84,6 +100,49 @@ def collection_rate(domain: str, args) -> float:
     return args.collect_steps * args.envs / seconds
 
 
+def batch_rates(envs: int, steps: int) -> dict:
+    """Foraging collection per CPU second with ``envs`` sub-envs over ``steps`` vector steps (the move table is
+    built before the clock starts): random actions through the vector env, and the rollout of the shipped
+    ppo-generalist (policy and env timed apart)."""
+    import torch
+
+    from embodied_adhoc.learning.generalist import TRAIN_TEAMS, load_generalist, shipped_weights
+    from embodied_adhoc.learning.recurrent_ppo import rollout_step
+    from embodied_adhoc.learning.vector_grid import GridVectorEnv
+
+    env = GridVectorEnv("foraging", envs, teams=list(TRAIN_TEAMS))
+    observation = env.reset(seed=0)[0]
+    rng = np.random.default_rng(0)
+    actions = rng.integers(0, 5, (steps, envs))
+    env.step(actions[0])
+    began = time.process_time()
+    for row in actions:
+        env.step(row)
+    random_rate = steps * envs / (time.process_time() - began)
+    model = load_generalist(shipped_weights("foraging"))[0]
+    torch.manual_seed(0)
+    observation = env.reset(seed=1)[0]
+    hidden, previous = model.initial_state(envs), torch.full((envs,), model.no_action)
+    fresh = torch.ones(envs, dtype=torch.bool)
+    policy_seconds = env_seconds = 0.0
+    for _ in range(steps):
+        began = time.process_time()
+        action, _, _, hidden = rollout_step(model, torch.as_tensor(observation), previous, hidden, fresh)
+        middle = time.process_time()
+        observation, _, terminated, truncated, _ = env.step(action.numpy())
+        env_seconds += time.process_time() - middle
+        policy_seconds += middle - began
+        previous, fresh = action, torch.as_tensor(terminated | truncated)
+    env.close()
+    return {
+        "envs": envs,
+        "steps": steps * envs,
+        "random_env_steps_per_cpu_s": random_rate,
+        "rollout_steps_per_cpu_s": steps * envs / (policy_seconds + env_seconds),
+        "rollout_env_share": env_seconds / (policy_seconds + env_seconds),
+    }
+
+
 def main() -> int:
     import torch
 
@@ -121,6 +180,26 @@ def main() -> int:
             f"{row['train_steps_per_s'] / reference:.2f} | {row['collect_steps_per_s']:.0f} | "
             f"{row['collect_steps_per_s'] / collect_reference:.2f} |"
         )
+    batches = []
+    if args.batches:
+        print(
+            f"uptime: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} (load 1/5/15 min)"
+        )
+        print(
+            "| sub-envs | random actions (steps/CPU s) | x first | rollout (steps/CPU s) | x first | env share |"
+        )
+        print("|---|---|---|---|---|---|")
+        for envs in args.batches:
+            batches.append(batch_rates(envs, max(20, 16_384 // envs)))
+            first, row = batches[0], batches[-1]
+            print(
+                f"| {envs} | {row['random_env_steps_per_cpu_s']:.0f} | "
+                f"{row['random_env_steps_per_cpu_s'] / first['random_env_steps_per_cpu_s']:.2f} | "
+                f"{row['rollout_steps_per_cpu_s']:.0f} | "
+                f"{row['rollout_steps_per_cpu_s'] / first['rollout_steps_per_cpu_s']:.2f} | "
+                f"{row['rollout_env_share']:.2f} |",
+                flush=True,
+            )
     if args.json:
         import platform
         import subprocess
@@ -137,7 +216,10 @@ def main() -> int:
             "reference_domain": REFERENCE[1],
             "reference": {"train_steps_per_s": reference, "collect_steps_per_s": collect_reference},
             "rows": rows,
+            "load_average": list(os.getloadavg()),
         }
+        if batches:
+            document["batches"] = batches
         Path(args.json).write_text(json.dumps(document, indent=1) + "\n")
     return 0
 

@@ -276,6 +276,17 @@ def _start(domain: str, vector_kwargs: dict, config: RecurrentPpoConfig):
     return rng, device, env, observation, IndexNetworkConfig(env.n_observations, env.n_actions, **sizes)
 
 
+@torch.no_grad()
+def rollout_step(model: RecurrentActorCritic, observation, previous, hidden, starts):
+    """One rollout step of every sub-env: (sampled actions, their log-probabilities, values, new GRU state). The
+    logits are the network's own, so the distribution skips its per-call argument checks; its draws are the
+    checked distribution's."""
+    logits, value, hidden = model.step(observation, previous, hidden, starts)
+    distribution = torch.distributions.Categorical(logits=logits, validate_args=False)
+    action = distribution.sample()
+    return action, distribution.log_prob(action), value, hidden
+
+
 def segment_loss(model: RecurrentActorCritic, segment: dict, index: torch.Tensor, config: RecurrentPpoConfig):
     """The clipped PPO objective of the sub-envs ``index`` of a rollout segment: the GRU re-run over their whole
     sequences from the state it had when the segment began, the reset steps left out."""
@@ -372,11 +383,8 @@ def train_recurrent_ppo(
         finished, solved = [], []
         for t in range(steps):
             obs_buf[t], previous_buf[t], start_buf[t], valid_buf[t] = next_obs, previous, fresh, ~resetting
-            with torch.no_grad():
-                logits, value, hidden = model.step(next_obs, previous, hidden, fresh)
-                distribution = torch.distributions.Categorical(logits=logits)
-                action = distribution.sample()
-            action_buf[t], logprob_buf[t], value_buf[t] = action, distribution.log_prob(action), value
+            action, logprob, value, hidden = rollout_step(model, next_obs, previous, hidden, fresh)
+            action_buf[t], logprob_buf[t], value_buf[t] = action, logprob, value
             observation, reward, terminated, truncated, infos = env.step(action.cpu().numpy())
             if auxiliary is not None:
                 auxiliary.record(t, infos)

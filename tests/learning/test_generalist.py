@@ -23,6 +23,7 @@ from embodied_adhoc.learning.recurrent_ppo import (
     CHECKPOINT,
     RecurrentActorCritic,
     RecurrentPpoConfig,
+    rollout_step,
     train_recurrent_ppo,
 )
 from embodied_adhoc.learning.weights import load_weights
@@ -71,6 +72,23 @@ def test_a_checkpoint_resumes_to_the_uninterrupted_result(tmp_path):
             RecurrentPpoConfig(**{**config.__dict__, "learning_rate": 1e-3}),
             folder=tmp_path,
         )
+
+
+def test_the_rollout_step_draws_what_the_checked_distribution_draws():
+    model = RecurrentActorCritic(NetworkConfig(channels=4), 8)
+    observations = torch.rand(64, 4, 5, 5)
+    previous, hidden = torch.randint(0, 6, (64,)), torch.rand(64, 8)
+    starts = torch.rand(64) < 0.3
+    torch.manual_seed(11)
+    action, logprob, value, state = rollout_step(model, observations, previous, hidden, starts)
+    torch.manual_seed(11)
+    with torch.no_grad():
+        logits, expected_value, expected_state = model.step(observations, previous, hidden, starts)
+        checked = torch.distributions.Categorical(logits=logits, validate_args=True)
+        expected = checked.sample()
+    assert len(set(expected.tolist())) > 1  # the draws are not all one action
+    assert torch.equal(action, expected) and torch.equal(logprob, checked.log_prob(expected))
+    assert torch.equal(value, expected_value) and torch.equal(state, expected_state)
 
 
 def test_the_gru_state_starts_afresh_at_every_episode_start():
