@@ -56,6 +56,12 @@ def parse() -> argparse.Namespace:
     )
     parser.add_argument("--render-only", action="store_true")
     parser.add_argument(
+        "--weights",
+        help="score this ppo-generalist weights file on --domain's held-out suite, print its IQM as JSON and "
+        "write nothing else (a run of your own beside the shipped agents)",
+    )
+    parser.add_argument("--domain", choices=DOMAINS, default="pursuit-task", help="the domain of --weights")
+    parser.add_argument(
         "--only",
         choices=(*DOMAINS, "curve"),
         help="run one part's trials and write nothing (parts run side by side; a full run then resumes them)",
@@ -272,8 +278,31 @@ def render(result: dict) -> None:
     PAGE.write_text(f"{head}{START}\n{table(result)}\n{END}{rest.split(END, 1)[1]}")
 
 
+def score_weights(args: argparse.Namespace) -> dict:
+    """The held-out IQM of the ppo-generalist weights ``args.weights`` on ``args.domain`` (the bench's episodes,
+    seed and plug-in file)."""
+    from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
+
+    weights = Path(args.weights).resolve()
+    if not weights.is_file():
+        raise SystemExit(f"--weights {args.weights}: no such file; give a ppo-generalist .safetensors")
+    out = Path(args.out) / f"weights-{weights.stem}"
+    plugin = out / "agent.py"
+    out.mkdir(parents=True, exist_ok=True)
+    plugin.write_text(PLUGIN_FILE.format(weights=str(weights), count=weights.stem))
+    spec = f"{plugin}:make"
+    summary = evaluate(
+        (spec,), resolve_suite("heldout", (args.domain,)), out / "eval",
+        episodes=args.episodes, seed=args.seed, progress=False, plots=False,
+    )  # fmt: skip
+    return _aggregate(summary, args.domain)[spec]
+
+
 def main() -> int:
     args = parse()
+    if args.weights:
+        print(json.dumps(score_weights(args)))
+        return 0
     if args.only:
         run(args)
         return 0
