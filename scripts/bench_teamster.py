@@ -74,7 +74,31 @@ def worker(args: argparse.Namespace) -> dict:
     record = run_trial(args.agent, args.trial, config)
     total_cpu, wall = time.process_time() - start_cpu, time.perf_counter() - start_wall
     finals = {team: curve[-1][1] for team, curve in record["curves"].items()}
-    return {"cpu": cpu, "steps": steps, "total_cpu": total_cpu, "wall": wall, "finals": finals}
+    result = {"cpu": cpu, "steps": steps, "total_cpu": total_cpu, "wall": wall, "finals": finals}
+    return result | _forward_floor(args.wave or 20)
+
+
+def _forward_floor(wave: int, calls: int = 300) -> dict:
+    """CPU time of one planner call of the transition network (a wave of ``wave`` states x 5 agents) and the
+    rate of its products in multiply-adds per second: the part of a decision that no change of the code around
+    the networks removes (``iterations / wave x depth`` such calls per decision)."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from embodied_adhoc.domains.pursuit4 import Pursuit4
+    from embodied_adhoc.learning.teamster import LearnedEnvironment
+
+    world, rng = Pursuit4(), np.random.default_rng(0)
+    environment = LearnedEnvironment(world, rng)
+    rows = environment.features.transition(world.sample_states(rng, wave), rng.integers(0, 5, (wave, 4)))
+    sizes = [layer.weight.numel() for layer in environment.transition_net if hasattr(layer, "weight")]
+    with threadpool_limits(limits=1, user_api="blas"):
+        environment.transition_forward(rows)
+        start = time.process_time()
+        for _ in range(calls):
+            environment.transition_forward(rows)
+        seconds = (time.process_time() - start) / calls
+    return {"forward_ms": seconds * 1e3, "forward_gmacs": sum(sizes) * rows.shape[0] / seconds / 1e9}
 
 
 def _run_tree(tree: Path | None, argv: list[str]) -> dict:
@@ -101,6 +125,12 @@ def _line(name: str, result: dict) -> str:
     return (
         f"{name:22s} {'  '.join(per)} ms/step   trial {result['total_cpu']:7.1f} CPU s "
         f"({result['wall']:.1f} s wall)   final evaluations {result['finals']}"
+        + (
+            f"\n{'':22s} transition forward per planner call {result['forward_ms']:.3f} ms CPU "
+            f"({result['forward_gmacs']:.1f} GMAC/s)"
+            if "forward_ms" in result
+            else ""
+        )
     )
 
 
