@@ -8,7 +8,6 @@ import torch
 
 import embodied_adhoc.envs  # noqa: F401  (registers the ids)
 from embodied_adhoc.decision.agents.base import protocol_gaps
-from embodied_adhoc.domains.grid_rules import GridConfig
 from embodied_adhoc.domains.grid_rules_obs import egocentric_batch
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.liam import (
@@ -118,20 +117,26 @@ def test_the_reconstruction_loss_decreases_on_a_fixed_batch():
     assert after < 0.8 * before, (before, after)
 
 
-def test_the_shipped_agent_loads_without_its_decoder_and_acts_from_observations_alone():
-    path = shipped_weights("foraging")
+@pytest.mark.parametrize(
+    ("domain", "env_id"),
+    [("foraging", "EmbodiedAdhoc/ForagingGrid-v0"), ("pursuit", "EmbodiedAdhoc/PursuitGrid-v0")],
+)
+def test_the_shipped_agent_loads_without_its_decoder_and_acts_from_observations_alone(domain, env_id):
+    path = shipped_weights(domain)
     tensors, metadata = load_weights(path)  # safetensors: tensors and a JSON header, no pickle
     assert metadata["kind"] == "liam" and metadata["env_kwargs"]["teams"] == ["tau0", "tau1", "tau2"]
     assert path.stat().st_size < 2_000_000
     assert not any(k.startswith("decoder.") for k in tensors)  # the reconstruction is training-only
     network = RecurrentActorCritic(NetworkConfig(**metadata["network"]), int(metadata["recurrent"]))
     load_into(network, path)  # exactly the execution network's parameters
-    agent = liam_agent("foraging", None, GridConfig())
+    env = gymnasium.make(env_id)
+    agent = liam_agent(domain, None, env.unwrapped.core.rules.config)
+    env.close()
     assert agent.name == "liam" and protocol_gaps(agent) == []
     assert agent.observes_raw and not agent.observes_state and agent.task_posterior is None
 
     def episode(seed: int) -> list[int]:
-        env = gymnasium.make("EmbodiedAdhoc/ForagingGrid-v0")
+        env = gymnasium.make(env_id)
         observation, _ = env.reset(seed=seed)
         agent.reset(np.random.default_rng(seed))
         agent.start(observation)
