@@ -571,3 +571,24 @@ def test_the_fault_table_prints_each_settings_counts_per_episode_and_refuses_a_r
     del broken["agents"]["hotspot"]["per_episode_mean"]["fault_blocked_moves"]
     with pytest.raises(SystemExit, match="fault-table none: .* no fault_blocked_moves per episode"):
         figure.extract({**outputs, "none": json.dumps(broken)})
+
+
+def test_the_mujoco_per_task_figure_runs_each_cell_on_physics_and_random_beside_its_team():
+    module = load_script()
+    figure = module.FIGURES["arena-tasks-mujoco"]
+    assert len(figure.commands) == 26
+    assert all(argv[argv.index("--backend") + 1] == "mujoco" for argv in figure.commands.values())
+    random = figure.commands["pursuit-tau1-random"]
+    assert "--task" not in random and random[random.index("--agents") + 1] == "random"
+    stats = {"trials": 4, "steps_mean": 9.5, "steps_sd": 1.0, "steps_ci95": [8.75, 10.25]}
+    stats |= {"success_rate": 1.0, "identify_steps_mean": None}
+    outputs = {
+        key: json.dumps({"agents": {"random" if key.endswith("random") else "original": stats}})
+        for key in figure.commands
+    }
+    tasks, randoms = figure.tables(figure.extract(outputs))
+    assert tasks.rows[0][:3] == ["LBF, MuJoCo", "tau0", "9.50 [8.75, 10.25] (100 % solved)"]
+    assert randoms.rows == [
+        ["LBF, MuJoCo", "tau1", "9.50 [8.75, 10.25] (100 % solved)"],
+        ["pursuit, MuJoCo", "tau1", "9.50 [8.75, 10.25] (100 % solved)"],
+    ]
