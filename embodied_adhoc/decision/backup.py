@@ -147,6 +147,11 @@ class BackupOperator:
             matrix.nnz < _DENSE_DENSITY * pomdp.n_states * pomdp.n_observations
             for matrix in self.observation_rows
         )
+        # backup_one's layout: every action's T_a^T and O_a stacked, row a * S + s', so one product predicts a
+        # belief under every action and one CSR row lookup finds the observations of each predicted state.
+        self._stacked_transitions_t = sp.vstack(self.transitions_t, format="csr")
+        self._stacked_observations = sp.vstack(self.observation_rows, format="csr")
+        self._stacked_observations.sort_indices()
 
     def close(self) -> None:
         """Stop the product threads (``threads > 1``); the operator still works afterwards, on one thread."""
@@ -228,11 +233,8 @@ class BackupOperator:
         n_obs = self.n_observations
         ends, columns = np.nonzero(predicted)  # predicted is (S, n)
         mass = predicted[ends, columns]
-        counts = np.diff(observation.indptr)[ends]
-        total = int(counts.sum())
-        owner = np.repeat(np.arange(len(ends)), counts)
-        first = np.repeat(np.cumsum(counts) - counts, counts)
-        position = observation.indptr[ends][owner] + np.arange(total) - first
+        owner, position = _row_entries(observation, ends)
+        total = len(position)
         keys = columns[owner] * n_obs + observation.indices[position]  # branch (i, z) of every product entry
         if predicted.shape[1] * n_obs <= max(4 * total, 1 << 16):
             # The branches present, numbered in key order without sorting (np.unique's argsort would be a
@@ -282,6 +284,64 @@ class BackupOperator:
             branch_beliefs[rows], entries * prepared.alphas[best[rows], states], minlength=predicted.shape[1]
         )
         return branch_keys % n_obs, branch_beliefs, best, values
+
+    def backup_one(
+        self,
+        belief: np.ndarray,
+        alphas: np.ndarray,
+        alphas_t: np.ndarray,
+        fallback_scores: tuple[np.ndarray, ...],
+    ) -> tuple[np.ndarray, int, float, np.ndarray]:
+        """The backup at one belief (S,): ``(vector (S,), action, value, children (Z,))``, the same bits as
+        ``backup(belief[None, :], alphas, with_children=True, project=False)`` (row 0 of each).
+
+        ``alphas`` (K, S) float64, ``alphas_t`` its (S, K) float32 transpose (a view into a wider buffer is read
+        without a copy of the whole) and ``fallback_scores`` its :meth:`fallback_scores`, as a caller growing its
+        set keeps them (the solver's trials back up one belief
+        at a time). Every action and observation is handled at once: one product predicts the belief under all
+        actions, one sparse (branches x S) matrix holds the weights of every possible branch ``(a, z)`` and one
+        product with ``alphas_t`` scores them all; the fallback of impossible branches is found for the best
+        action alone. Each branch's scores, each action's continuation and the vector are computed from the same
+        entries, summed in the same order, as the batched backup's, hence the same bits.
+        """
+        n_states, n_obs = self.pomdp.n_states, self.n_observations
+        immediate = dot(belief, self.pomdp.rewards)  # (A,): R(b, a), as a row of the batched product
+        # predicted[a * S + s'] = sum_s b(s) T(s, a, s'), each row summed as the batched (S, 1) product sums it
+        predicted = self._stacked_transitions_t @ belief
+        flat = np.flatnonzero(
+            predicted
+        )  # (a, s') increasing: the batched backup's np.nonzero order per action
+        mass = predicted[flat]
+        observation = self._stacked_observations
+        owner, position = _row_entries(observation, flat)
+        keys = (flat // n_states)[owner] * n_obs + observation.indices[
+            position
+        ]  # branch (a, z) of each entry
+        present = np.zeros(self.pomdp.n_actions * n_obs, dtype=bool)
+        present[keys] = True
+        branch_keys, rows = np.flatnonzero(present), (np.cumsum(present) - 1)[keys]
+        states = flat[owner] % n_states
+        entries = mass[owner] * observation.data[position]
+        # Within a branch the entries come in increasing s', the order the batched matrix's rows are sorted in.
+        # The product reads only the rows of alphas_t at the reached states (numbered in increasing order, so each
+        # row's terms and their order are unchanged): a copy of those rows instead of all S.
+        reached = np.flatnonzero(np.bincount(states, minlength=n_states))
+        number = np.zeros(n_states, dtype=np.int64)
+        number[reached] = np.arange(reached.size)
+        weights = sp.csr_matrix(
+            (entries.astype(np.float32), (rows, number[states])), shape=(len(branch_keys), reached.size)
+        )
+        best = self.products(weights, alphas_t[reached], _row_argmax)  # (branches,)
+        continuation = np.bincount(
+            branch_keys[rows] // n_obs, entries * alphas[best[rows], states], minlength=self.pomdp.n_actions
+        )
+        action = int(np.argmax(immediate + self.discount * continuation))
+        chosen = np.argmax(fallback_scores[action], axis=1)  # (Z,): impossible branches' continuation
+        mine = branch_keys // n_obs == action
+        chosen[branch_keys[mine] % n_obs] = best[mine]
+        vector = self._vectors(alphas, action, chosen[:, None])  # (S, 1)
+        value = np.add.reduce(belief[:, None] * vector, axis=0)  # as the batched backup sums it
+        return vector[:, 0], action, float(value[0]), chosen
 
     def backup(
         self,
@@ -413,6 +473,15 @@ def _fixed_order_scores(
 ):
     """``predicted[:, beliefs[j]] . projected[:, columns[j]]`` for each ``j``, summed over ``s`` in increasing order."""
     return np.add.reduce(predicted[:, beliefs] * projected[:, columns], axis=0)
+
+
+def _row_entries(matrix: sp.csr_matrix, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The stored entries of ``matrix``'s ``rows`` (each row's in stored order, rows in the given order): for each,
+    the index in ``rows`` it belongs to and its position in ``matrix.data`` / ``matrix.indices``."""
+    counts = np.diff(matrix.indptr)[rows]
+    owner = np.repeat(np.arange(len(rows)), counts)
+    first = np.repeat(np.cumsum(counts) - counts, counts)
+    return owner, matrix.indptr[rows][owner] + np.arange(int(counts.sum())) - first
 
 
 def _row_argmax(scores: np.ndarray) -> np.ndarray:

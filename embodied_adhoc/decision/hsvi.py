@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.backup import BackupOperator, PreparedAlphas, blind_policy_vectors
+from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
 from embodied_adhoc.decision.belief_expansion import excess_gap_path, max_depth
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import CLOCKS, ProgressCallback, SolverProgress
@@ -105,29 +105,24 @@ class _LowerBound:
         rows = sp.csr_matrix(beliefs[:, support])
         return dot(rows, self._values_t[support, : len(self)]).max(axis=1)
 
-    def prepared(self) -> PreparedAlphas:
-        count = len(self)
-        return self.operator.prepare_parts(
-            self.graph.vectors,
-            np.ascontiguousarray(self._scores_t[:, :count]),
-            tuple(scores[:, :count] for scores in self._fallback),
-        )
-
     def back_up(self, belief: np.ndarray) -> bool:
         """A point-based backup at ``belief``; the vector joins the bound where it raises ``L(belief)``."""
-        vector, action, value, children = self.operator.backup(
-            belief[None, :], self.prepared(), with_children=True, project=False
-        )
-        if value[0] <= float(self.values(belief)[0]) + _IMPROVES:
-            return False
         count = len(self)
-        self.graph.add(vector, action, children)
+        vector, action, value, children = self.operator.backup_one(
+            belief,
+            self.graph.vectors,
+            self._scores_t[:, :count],
+            tuple(scores[:, :count] for scores in self._fallback),
+        )
+        if value <= float(self.values(belief)[0]) + _IMPROVES:
+            return False
+        self.graph.add(vector[None, :], action, children[None, :])
         if count == self._values_t.shape[1]:
             self._values_t = _wider(self._values_t)
             self._scores_t = _wider(self._scores_t)
             self._fallback = [_wider(scores) for scores in self._fallback]
-        self._values_t[:, count] = vector[0]
-        self._scores_t[:, count] = vector[0]
+        self._values_t[:, count] = vector
+        self._scores_t[:, count] = vector
         for buffer, scores in zip(self._fallback, self.operator.fallback_scores(vector), strict=True):
             buffer[:, count] = scores[:, 0]
         return True

@@ -18,6 +18,7 @@ from embodied_adhoc.decision.beliefs import collect_beliefs
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 from embodied_adhoc.decision.pomdp_io import read_pomdp
+from embodied_adhoc.decision.rocksample import rocksample
 
 CORPUS = Path(__file__).resolve().parents[2] / ".." / "shared" / "pomdp"
 
@@ -303,3 +304,43 @@ def test_row_products_equal_the_whole_product_and_refuse_zero_threads():
         products.close()
     with pytest.raises(SolverError, match="threads must be an integer >= 1, got 0"):
         PerseusConfig(threads=0)
+
+
+@pytest.mark.parametrize(
+    "name", ["tiger.95.POMDP", "sparse-identity", "single-state", "dense-observations", "rocksample"]
+)
+def test_single_belief_backup_is_the_batched_backup_bit_for_bit(name):
+    """backup_one (all actions and observations of one belief in one product) gives the vector, action, value and
+    plan of the batched support-restricted backup on that belief, to the bit: on sparse and dense observation
+    models, with exact duplicates among the vectors (ties), point-mass beliefs (impossible branches) and beliefs
+    collected by simulation."""
+    if name == "single-state":
+        pomdp = _single_state_observation_pomdp()
+    elif name == "dense-observations":
+        rng = np.random.default_rng(3)
+        observation = rng.random((25, 6)) + 0.05  # every state emits every observation
+        observation /= observation.sum(axis=1, keepdims=True)
+        pomdp = _random_pomdp(rng, 25, 4, observation, density=0.3, bump=0.2)
+    elif name == "rocksample":
+        pomdp = rocksample(3, 2)
+    else:
+        pomdp = _model(name)
+    operator = BackupOperator(pomdp)
+    rng = np.random.default_rng(9)
+    alphas = rng.normal(size=(40, pomdp.n_states)) * 5.0
+    alphas[9] = alphas[2]  # an exact duplicate: the first of the two must win
+    beliefs = collect_beliefs(pomdp, 30, np.random.default_rng(2))
+    point = np.zeros((3, pomdp.n_states))
+    point[np.arange(3), np.arange(3) % pomdp.n_states] = 1.0
+    beliefs = np.vstack([beliefs, point])
+    alphas_t = np.ascontiguousarray(alphas.T, dtype=np.float32)
+    fallback_scores = operator.fallback_scores(alphas)
+    for belief in beliefs:
+        vectors, actions, values, children = operator.backup(
+            belief[None, :], alphas, with_children=True, project=False
+        )
+        vector, action, value, plan = operator.backup_one(belief, alphas, alphas_t, fallback_scores)
+        np.testing.assert_array_equal(vector, vectors[0])
+        assert action == actions[0]
+        assert value == values[0]  # the same float, not a close one
+        np.testing.assert_array_equal(plan, children[0])
