@@ -24,13 +24,12 @@ from __future__ import annotations
 import json
 import math
 import multiprocessing
-import os
 import re
-import resource
 import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +41,7 @@ from embodied_adhoc.commands.pomdp import auto_solver
 from embodied_adhoc.decision.backup import BackupOperator
 from embodied_adhoc.decision.beliefs import collect_beliefs
 from embodied_adhoc.decision.hsvi import HsviConfig, hsvi
+from embodied_adhoc.decision.memory import peak_mb
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 from embodied_adhoc.decision.pomdp_io import read_pomdp
@@ -269,7 +269,8 @@ def _at(trace: list[tuple[float, float, float]], seconds: float) -> tuple[float,
 
 def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, float]], float] | None:
     """Run ``pomdpsol`` for ``seconds``: its progress table (time, #trial, #backup, lb, ub, ...) parsed, and its
-    peak resident memory in MB (from the rusage of its own wait, so other children do not count)."""
+    peak resident memory in MB (its ``VmHWM``, read every 20 ms while it runs: the rusage of its wait would carry
+    this process's own peak over the fork and exec)."""
     binary = shutil.which("pomdpsol")
     if binary is None:
         return None
@@ -280,15 +281,24 @@ def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, f
             stderr=subprocess.DEVNULL,
             text=True,
         )
+        peaks = [0.0]
+
+        def watch() -> None:
+            while process.poll() is None:
+                peaks.append(peak_mb(process.pid) or peaks[-1])
+                time.sleep(0.02)
+
+        watcher = threading.Thread(target=watch, daemon=True)
+        watcher.start()
         output = process.stdout.read()
-        _, status, usage = os.wait4(process.pid, 0)
-        process.returncode = os.waitstatus_to_exitcode(status)
+        process.wait()
+        watcher.join()
     trace = []
     for line in output.splitlines():
         fields = line.split()
         if len(fields) >= 5 and all(re.fullmatch(r"-?[0-9.]+(e[-+]?[0-9]+)?", f) for f in fields[:5]):
             trace.append((float(fields[0]), float(fields[3]), float(fields[4])))
-    return trace, usage.ru_maxrss / 1024  # Linux: kilobytes
+    return trace, max(peaks)
 
 
 def _measured_solve(path: Path, config, results) -> None:
@@ -299,7 +309,8 @@ def _measured_solve(path: Path, config, results) -> None:
     policy = solve(
         read_pomdp(path), config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0))
     )
-    results.put((points, len(policy.alphas), resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024))
+    # VmHWM: the spawned interpreter's ru_maxrss would start at the launching process's peak
+    results.put((points, len(policy.alphas), peak_mb()))
 
 
 def perseus_measured(path: Path, config) -> tuple[list[tuple[float, float, float]], int, float]:
@@ -403,10 +414,10 @@ def side_by_side_table(args: Args) -> None:
             + " |",
             flush=True,
         )
-    if args.json_out:
-        out = Path(args.json_out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps({"command": " ".join(sys.argv), "rows": rows}, indent=1) + "\n")
+        if args.json_out:  # after each row, so a run stopped early keeps the models it finished
+            out = Path(args.json_out)
+            out.parent.mkdir(parents=True, exist_ok=True)
+            out.write_text(json.dumps({"command": " ".join(sys.argv), "rows": rows}, indent=1) + "\n")
 
 
 def anytime_row(name: str, args: Args) -> None:

@@ -42,3 +42,17 @@ def default_cap_mb() -> float | None:
     the available memory is unknown)."""
     available = available_mb()
     return None if available is None else resident_mb() + DEFAULT_SHARE * available
+
+
+def peak_mb(pid: int | str = "self") -> float | None:
+    """The peak resident memory (``VmHWM``) of process ``pid`` in MiB, None where ``/proc`` does not give it.
+
+    Unlike ``getrusage``'s ``ru_maxrss``, which Linux carries over a fork and an exec (a child started by a large
+    process reports at least that process's peak), ``VmHWM`` belongs to the memory map the process runs in."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) / 1024
+    except (OSError, IndexError, ValueError):
+        return None
+    return None

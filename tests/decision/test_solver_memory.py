@@ -4,6 +4,9 @@ bounds; and the readings it is built on (decision/memory.py)."""
 from __future__ import annotations
 
 import math
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -24,6 +27,23 @@ def test_resident_memory_is_read_and_positive():
     assert memory.resident_mb() > 1.0
     available = memory.available_mb()
     assert available is None or available > 0.0
+
+
+def test_a_peak_belongs_to_the_process_not_to_the_one_that_started_it():
+    """VmHWM of a small child started by this (larger) process is the child's own: getrusage's ru_maxrss would
+    report at least this process's peak, carried over the fork and exec."""
+    own = memory.peak_mb()
+    assert own is not None and own >= memory.resident_mb() - 1.0
+    child = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 30.0
+        peak = None
+        while peak is None and time.monotonic() < deadline:  # until the child's memory map is there
+            peak = memory.peak_mb(child.pid)
+        assert peak is not None and 0.0 < peak < own
+    finally:
+        child.communicate(b"")
+    assert memory.peak_mb(child.pid) is None  # reaped: no process, no reading
 
 
 def test_default_cap_is_the_resident_memory_plus_a_share_of_the_available(monkeypatch):

@@ -1,0 +1,67 @@
+"""scripts/bench_solvers.py --side-by-side on a tiny model: without pomdpsol on the PATH it says that SARSOP is
+absent and still writes this project's bounds, peak memory and vectors; the checkpoint reading and the time to a
+target come from the solve's own trace."""
+
+from __future__ import annotations
+
+import importlib
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from embodied_adhoc import paths
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture
+def script(monkeypatch):
+    monkeypatch.syspath_prepend(str(ROOT / "scripts"))
+    return importlib.import_module("bench_solvers")
+
+
+@pytest.mark.parametrize("solver", ["hsvi", "perseus"])
+def test_side_by_side_without_pomdpsol_says_so_and_writes_our_rows(tmp_path, solver):
+    empty = tmp_path / "bin"
+    empty.mkdir()
+    out = tmp_path / "side.json"
+    env = {**os.environ, "PATH": str(empty), "OPENBLAS_NUM_THREADS": "1"}
+    tiger = paths.asset("data/tiger.95.POMDP")
+    command = [sys.executable, str(ROOT / "scripts" / "bench_solvers.py"), "--side-by-side", str(tiger)]
+    command += ["--checkpoints", "0.2", "2", "--solver", solver, "--json-out", str(out)]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    assert "pomdpsol not on the PATH" in done.stdout
+    (row,) = json.loads(out.read_text())["rows"]
+    assert row["file"] == "tiger.95.POMDP" and row["solver"] == solver
+    assert "sarsop" not in row and "time_ratio" not in row
+    assert row["ours_vectors"] >= 1 and row["ours_peak_mb"] > 0.0
+    assert set(row["ours"]) == {"0.2", "2"}
+    lower, upper = row["ours"]["2"]  # a tiger trial or stage takes milliseconds: there is a point by 2 s
+    assert -100.0 < lower <= upper < 1000.0
+    assert f"| tiger.95.POMDP | 2 | 2 | {solver} |" in done.stdout
+
+
+def test_side_by_side_refuses_a_missing_file(tmp_path):
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "bench_solvers.py"), "--side-by-side", str(tmp_path / "no")],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 2
+    assert "--side-by-side: no file" in done.stderr
+
+
+def test_checkpoints_and_time_to_target_read_the_trace(script):
+    trace = [(0.1, 1.0, 5.0), (0.4, 2.0, 4.0), (1.5, 3.0, 3.5)]
+    assert script._at(trace, 0.05) is None
+    assert script._at(trace, 0.4) == (2.0, 4.0)
+    assert script._at(trace, 1.0) == (2.0, 4.0)
+    assert script._reached(trace, 2.5) == 1.5
+    assert script._reached(trace, 3.5) is None
