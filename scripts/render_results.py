@@ -1405,14 +1405,6 @@ UNRUN = {
     entry.name: entry
     for entry in (
         Unrun(
-            "arena-tasks-mujoco",
-            "Foraging and pursuit arenas on MuJoCo physics: each team with its original teammate on each task",
-            "MUJOCO_GL=egl .venv/bin/embodied-adhoc trials <domain> --backend mujoco --team <t> --task <k> "
-            "--agents original --episodes 4 --max-steps 200 (24 cells)",
-            "96 physics episodes of about 10 macro steps each, and random's 8 (tau1, 4 per domain)",
-            STATISTICAL,
-        ),
-        Unrun(
             "teamster-changed",
             "TEAMSTER Part B: 12 trials at T = 500 per team and a changed environment (predator moves fail w.p. 0.5)",
             "embodied-adhoc teamster pursuit --agents A --trials K --steps 500 --eval-steps 50 --points 5 "
