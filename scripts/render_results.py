@@ -25,9 +25,10 @@ Each table states its class, derived from the runs in its result file, never typ
 * *not re-checked*: only one kernel has run it;
 * "... (the part checked)": every check ran some of the commands or rows only, and the class holds for those.
 
-Tables that no file in ``results/`` holds are marked the same way: ``RECORDED`` ones are generated from a result
-file that ships as an asset (its provenance inside; class *not re-run*), and ``UNRUN`` ones render as a block that
-names the command, what a run costs and the class the table will have, and prints no number.
+Tables that no run of this script made are marked the same way: ``RECORDED`` ones are generated from a result
+file that its own script wrote (an asset, or a file whose run needs what a frozen copy of the commit lacks, e.g. a
+solver binary on the PATH; class *not re-run*, with the provenance the file holds), and ``UNRUN`` ones render as a
+block that names the command, what a run costs and the class the table will have, and prints no number.
 
 ``--check`` renders in memory and exits 1 when a committed page differs from what the committed result files
 render, naming the page, the table and the command to re-run (fast: nothing is solved or simulated)::
@@ -1582,8 +1583,9 @@ UNRUN = {
 
 @dataclass(frozen=True)
 class Recorded:
-    """Tables generated from a result file that ships in the repository (an asset the package reads, written by
-    its own script with its provenance inside), not re-run by this script: the pages print what the file holds."""
+    """Tables generated from a result file that ships in the repository, written by its own script (an asset the
+    package reads, or a run that needs what a frozen copy of the commit lacks), not re-run by this script: the pages
+    print what the file holds and the provenance it records."""
 
     name: str
     title: str
