@@ -225,10 +225,10 @@ def speed_table(speed: dict) -> list[str]:
 def batch_table(speed: dict) -> list[str]:
     """The foraging collection sweep of ``scripts/library_free_speed.py --batches`` (per CPU second)."""
     first = speed["batches"][0]
-    load = ", ".join(f"{value:.1f}" for value in speed["load_average"])
     lines = [
         f"Collection on the foraging grid against the number of sub-envs (`{speed['command']}`, "
-        f"{speed['kernel']}, load average {load} at the end on the 2-core host; one run): env steps per CPU "
+        f"{speed['kernel']}, one run on a 2-core host; class: timing, the ratios within the run carry over, the "
+        "rates depend on the host and its load, which the result file records): env steps per CPU "
         "second of the vector env under random actions, and of the training loop's rollout (the shipped "
         "ppo-generalist's action draw, then the vector env's step), each with its ratio to the first row.",
         "",
