@@ -83,15 +83,17 @@ class _LowerBound:
     """The plan graph's vectors with the parts the backups and value products read, grown in place.
 
     Every row of the graph is part of the bound (the blind policies, then each kept backup), so its vectors are a
-    contiguous view; their float64 and float32 transposes and the backups' fallback scores are kept in buffers
-    that double when full, so a backup costs no rebuild of them."""
+    contiguous view; their float32 transpose and the backups' fallback scores are kept in buffers that double when
+    full, so a backup costs no rebuild of them. The value products read the float64 vectors on a belief's support
+    alone, so no float64 transpose of the whole set is kept."""
 
     def __init__(self, pomdp: POMDP, operator: BackupOperator) -> None:
         self.operator = operator
         self.graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
         vectors = self.graph.vectors
-        self._values_t = np.ascontiguousarray(vectors.T)  # (S, capacity) float64: the value products
-        self._scores_t = self._values_t.astype(np.float32)  # (S, capacity) float32: the backups' scores
+        self._scores_t = np.ascontiguousarray(
+            vectors.T, dtype=np.float32
+        )  # (S, capacity): the backups' scores
         self._fallback = [np.array(scores) for scores in operator.fallback_scores(vectors)]  # (Z, capacity)
 
     def __len__(self) -> int:
@@ -103,7 +105,7 @@ class _LowerBound:
         beliefs = np.atleast_2d(beliefs)
         support = np.flatnonzero(beliefs.any(axis=0))
         rows = sp.csr_matrix(beliefs[:, support])
-        return dot(rows, self._values_t[support, : len(self)]).max(axis=1)
+        return dot(rows, self.graph.vectors[:, support].T).max(axis=1)
 
     def back_up(self, belief: np.ndarray) -> bool:
         """A point-based backup at ``belief``; the vector joins the bound where it raises ``L(belief)``."""
@@ -117,11 +119,9 @@ class _LowerBound:
         if value <= float(self.values(belief)[0]) + _IMPROVES:
             return False
         self.graph.add(vector[None, :], action, children[None, :])
-        if count == self._values_t.shape[1]:
-            self._values_t = _wider(self._values_t)
+        if count == self._scores_t.shape[1]:
             self._scores_t = _wider(self._scores_t)
             self._fallback = [_wider(scores) for scores in self._fallback]
-        self._values_t[:, count] = vector
         self._scores_t[:, count] = vector
         for buffer, scores in zip(self._fallback, self.operator.fallback_scores(vector), strict=True):
             buffer[:, count] = scores[:, 0]
