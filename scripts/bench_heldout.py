@@ -6,6 +6,12 @@ between the ``<!-- bench:heldout start/end -->`` markers of ``docs/benchmark.md`
     .venv/bin/python scripts/bench_heldout.py --domains ntu,cit   # these domains only, merged into the file
     .venv/bin/python scripts/bench_heldout.py --physics       # the lab's physics subset beside its abstract runs
     .venv/bin/python scripts/bench_heldout.py --render-only   # render the page from the result file
+    OPENBLAS_CORETYPE=Sandybridge .venv/bin/python scripts/bench_heldout.py --check toxic-waste,power-plant
+
+``--check D,...`` runs those domains' held-out suite again (under another BLAS kernel: ``OPENBLAS_CORETYPE``, with
+a policy cache of that kernel's own: ``XDG_CACHE_HOME``) and keeps it in the file's ``kernel_checks``, beside the
+published entries it does not replace, with the comparison: every agent's mean and IQM inside the published 95 %
+interval.
 
 Every agent of a domain runs on every member for the same episodes on the abstract backends. A run replaces the
 entries of the suites and domains it ran in the result file and keeps the others, each entry with the commit,
@@ -76,6 +82,12 @@ class Args:
     physics: bool = False
     physics_episodes: int = 8  # per member and agent on each backend
     render_only: bool = False
+    check: tuple[str, ...] = ()  # domains whose held-out suite runs as a second kernel's check
+
+
+SUITE_COMMAND = ".venv/bin/python scripts/bench_heldout.py"
+"""The file's ``command``: the whole suite (every domain, both suites), which reproduces every part; each part keeps
+the command of its own run."""
 
 
 def parse() -> Args:
@@ -90,11 +102,18 @@ def parse() -> Args:
     )
     parser.add_argument("--physics-episodes", type=int, default=Args.physics_episodes)
     parser.add_argument("--render-only", action="store_true")
+    parser.add_argument(
+        "--check",
+        default="",
+        help="domains whose held-out suite to run as a second kernel's check (kernel_checks)",
+    )
     ns = parser.parse_args()
     domains = tuple(d for d in ns.domains.split(",") if d)
-    unknown = [d for d in domains if d not in AGENTS]
-    if unknown:
-        parser.error(f"--domains {','.join(unknown)}: choose from {', '.join(AGENTS)}")
+    check = tuple(d for d in ns.check.split(",") if d)
+    for flag, names in (("--domains", domains), ("--check", check)):
+        unknown = [d for d in names if d not in AGENTS]
+        if unknown:
+            parser.error(f"{flag} {','.join(unknown)}: choose from {', '.join(AGENTS)}")
     if ns.episodes < 2 or ns.physics_episodes < 2:
         parser.error("--episodes and --physics-episodes: at least 2 (the intervals resample episodes)")
     return Args(
@@ -106,6 +125,7 @@ def parse() -> Args:
         ns.physics,
         ns.physics_episodes,
         ns.render_only,
+        check,
     )
 
 
@@ -146,11 +166,13 @@ def run(args: Args) -> dict:
                 # this entry's own run: what it ran at, and its wall time (cold or warm caches: see the docs)
                 "commit": provenance["commit"],
                 "kernel": provenance["kernel"],
+                "command": provenance["command"],
                 "wall_s": round(time.perf_counter() - clock, 1),
             }
     return {
         "figure": "benchmark-heldout",
         **provenance,
+        "command": SUITE_COMMAND,
         "started": started,
         "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         "suites": results,
@@ -164,18 +186,108 @@ def merge(previous: dict, fresh: dict) -> dict:
         k: previous[k] for k in ("commit", "kernel") if k in previous
     }  # entries from before per-entry fields
     suites = {
-        suite: {domain: made | _slim(scope) for domain, scope in domains.items()}
+        suite: {
+            domain: made | _own_command(previous, suite, domain) | _slim(scope)
+            for domain, scope in domains.items()
+        }
         for suite, domains in previous.get("suites", {}).items()
     }
     for suite, domains in fresh.get("suites", {}).items():
         suites.setdefault(suite, {}).update({domain: _slim(scope) for domain, scope in domains.items()})
-    merged = previous | fresh | {"suites": suites}
+    kernel_checks = previous.get("kernel_checks", {}) | fresh.get("kernel_checks", {})
+    merged = previous | fresh | {"suites": suites, "command": SUITE_COMMAND}
+    if kernel_checks:
+        merged["kernel_checks"] = {
+            domain: entry | {"comparison": compare_check(entry, suites["heldout"][domain])}
+            for domain, entry in kernel_checks.items()
+        }
     checks = best_response_check(suites)
     print(
         f"best-response check: {checks['checked']} (teammate, agent) cells, {len(checks['above'])} above",
         file=sys.stderr,
     )
     return merged | {"best_response_check": checks}
+
+
+def _own_command(previous: dict, suite: str, domain: str) -> dict:
+    """An entry's own command where the file's top-level one is a partial run's that names its suite and domain
+    (files from before per-entry commands); otherwise none is known."""
+    command = previous.get("command", "")
+    words = command.split()
+    named = {
+        flag: words[words.index(flag) + 1].split(",")
+        for flag in ("--domains", "--suites")
+        if flag in words[:-1]
+    }
+    if command == SUITE_COMMAND or "--domains" not in named:
+        return {}
+    return (
+        {"command": command}
+        if domain in named["--domains"] and suite in named.get("--suites", Args.suites)
+        else {}
+    )
+
+
+def run_check(args: Args) -> dict:
+    """The held-out suite of ``args.check``'s domains run again (resumable under ``--out``/check-<kernel>): the
+    file's ``kernel_checks`` fields for them."""
+    from embodied_adhoc.experiments.identity import blas_kernel
+
+    kernel = blas_kernel().split(":")[-1]
+    clock = time.process_time()
+    fresh = run(Args(args.episodes, args.seed, ("heldout",), args.check, f"{args.out}/check-{kernel}"))
+    cpu = round(time.process_time() - clock, 1)
+    return {
+        "kernel_checks": {
+            domain: {
+                "kernel": entry["kernel"],
+                "commit": entry["commit"],
+                "command": " ".join([f"OPENBLAS_CORETYPE={kernel}", SUITE_COMMAND, *sys.argv[1:]]),
+                "wall_s": entry["wall_s"],
+                "cpu_s_all_checked_domains": cpu,
+                "episodes": entry["episodes"],
+                "seed": entry["seed"],
+                "version": entry["version"],
+                "aggregate": {
+                    agent: {key: values[key] for key in ("iqm", "mean")}
+                    for agent, values in entry["aggregate"].items()
+                },
+            }
+            for domain, entry in fresh["suites"]["heldout"].items()
+        }
+    }
+
+
+def compare_check(check: dict, published: dict) -> dict:
+    """A second kernel's run against the published entry: each agent's IQM and mean inside the published 95 %
+    interval (same episodes, seed and suite version asked for; a difference in any is reported, not compared)."""
+    same = {
+        k: (check[k], published.get(k))
+        for k in ("episodes", "seed", "version")
+        if check[k] != published.get(k)
+    }
+    outside = [
+        f"{agent} {key} {values[key]:.4g} not in {published['aggregate'][agent][f'{key}_ci']}"
+        for agent, values in check["aggregate"].items()
+        for key in ("iqm", "mean")
+        if not published["aggregate"][agent][f"{key}_ci"][0]
+        <= values[key]
+        <= published["aggregate"][agent][f"{key}_ci"][1]
+    ]
+    identical = all(
+        float(f"{values[key]:.6g}") == float(f"{published['aggregate'][agent][key]:.6g}")
+        for agent, values in check["aggregate"].items()
+        for key in ("iqm", "mean")
+    )
+    return {
+        "published_kernel": published.get("kernel"),
+        "second_kernel": check["kernel"] != published.get("kernel"),
+        "settings_differ": {k: list(v) for k, v in same.items()},
+        "outside": outside,
+        "identical_to_6_digits": identical,
+        "inside": not outside and not same,
+        "rule": "every agent's IQM and mean inside the published 95 % stratified-bootstrap interval",
+    }
 
 
 def run_physics(args: Args) -> dict:
@@ -271,6 +383,34 @@ def _runs(result: dict) -> str:
     return "Runs (wall seconds of the held-out + validation runs where recorded): " + "; ".join(parts) + "."
 
 
+def kernel_check_lines(kernel_checks: dict) -> list[str]:
+    """The second-kernel checks: per domain, its kernel, command and cost, and whether every agent's held-out IQM
+    and mean lies inside the published interval."""
+    if not kernel_checks:
+        return []
+    lines = [
+        "",
+        "Second-kernel checks of the held-out suite (every agent's IQM and mean against the published 95 % "
+        "interval):",
+    ]
+    for domain, check in kernel_checks.items():
+        comparison = check["comparison"]
+        verdict = (
+            "every agent inside"
+            + (" (identical to 6 significant digits)" if comparison["identical_to_6_digits"] else "")
+            if comparison["inside"]
+            else "outside: "
+            + "; ".join(
+                comparison["outside"] + [f"{k} {v}" for k, v in comparison["settings_differ"].items()]
+            )
+        )
+        lines.append(
+            f"- {domain}: {check['kernel']} (published {comparison['published_kernel']}), `{check['command']}` at "
+            f"commit {check['commit'][:10]}, {check['wall_s']:.0f} s wall: {verdict}."
+        )
+    return lines
+
+
 def physics_table(physics: dict) -> list[str]:
     """The lab's physics subset: per agent, the normalised mean on each backend over the same episodes, the
     difference and Welch's test, pooled and per member."""
@@ -309,8 +449,9 @@ def table(result: dict) -> str:
     lines = [
         f"{first['episodes']} episodes per teammate and agent, seed {first.get('seed', 0)}, abstract backends; "
         "scores normalised per teammate (0 random ego, 1 exact best response); agents marked * observe the true "
-        f"state. Generated by `{result['command']}` (the last run merged into the file) at commit "
-        f"{result['commit'][:10]} (BLAS {result['kernel']}). {_runs(result)}",
+        f"state. The whole suite: `{result['command']}` (each part was run on its own with `--domains`; the file "
+        f"keeps each part's command); the last part merged at commit {result['commit'][:10]} (BLAS "
+        f"{result['kernel']}). {_runs(result)}",
         "",
         "| domain | agent | held-out IQM [95% CI] | held-out mean [95% CI] | validation IQM [95% CI] |",
         "|---|---|---|---|---|",
@@ -332,6 +473,7 @@ def table(result: dict) -> str:
             f"normalised mean exceeds the best response's expected score from the same starts beyond a one-sided "
             f"99 % t bound: {above}.",
         ]
+    lines += kernel_check_lines(result.get("kernel_checks", {}))
     lines += [
         "",
         "Per held-out teammate: each agent's normalised mean and, in parentheses, its mean final posterior on the "
@@ -395,7 +537,7 @@ def main() -> int:
     if not args.render_only:
         from embodied_adhoc.atomic import atomic_write_text
 
-        fresh = run_physics(args) if args.physics else run(args)
+        fresh = run_physics(args) if args.physics else run_check(args) if args.check else run(args)
         previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}  # read now: runs may overlap
         atomic_write_text(RESULT, dumps(merge(previous, fresh)) + "\n")
     render(json.loads(RESULT.read_text()))

@@ -71,3 +71,62 @@ def test_compact_json_reads_back_and_puts_plain_objects_on_one_line(script):
     assert json.loads(text) == {**value, "b": {"c": 0.123457, "d": None}}
     assert '"b": {"c": 0.123457, "d": null}' in text
     assert '"a": [1, 2.0, "x"]' in text
+
+
+def _published(mean: float, low: float, high: float, **extra) -> dict:
+    cell = {"iqm": mean, "iqm_ci": [low, high], "mean": mean, "mean_ci": [low, high]}
+    return {
+        "aggregate": {"x": cell},
+        "episodes": 32,
+        "seed": 0,
+        "version": "2",
+        "kernel": "openblas:Haswell",
+        **extra,
+    }
+
+
+def _check(mean: float, **extra) -> dict:
+    return {"aggregate": {"x": {"iqm": mean, "mean": mean}}, "episodes": 32, "seed": 0, "version": "2"} | {
+        "kernel": "openblas:Sandybridge",
+        **extra,
+    }
+
+
+def test_a_second_kernel_check_passes_inside_the_published_interval_and_names_what_falls_outside(script):
+    inside = script.compare_check(_check(0.5000001), _published(0.5, 0.4, 0.6))
+    assert inside["inside"] and inside["second_kernel"] and inside["identical_to_6_digits"]
+    assert inside["outside"] == [] and inside["published_kernel"] == "openblas:Haswell"
+    shifted = script.compare_check(_check(0.55), _published(0.5, 0.4, 0.6))
+    assert shifted["inside"] and not shifted["identical_to_6_digits"]
+    outside = script.compare_check(_check(0.65), _published(0.5, 0.4, 0.6))
+    assert (
+        not outside["inside"]
+        and len(outside["outside"]) == 2
+        and outside["outside"][0].startswith("x iqm 0.65")
+    )
+    other_episodes = script.compare_check(_check(0.5, episodes=8), _published(0.5, 0.4, 0.6))
+    assert not other_episodes["inside"] and other_episodes["settings_differ"] == {"episodes": [8, 32]}
+
+
+def test_the_file_command_reruns_the_whole_suite_and_a_partial_run_command_moves_to_its_own_entries(script):
+    partial = ".venv/bin/python scripts/bench_heldout.py --domains ntu --suites heldout --out /tmp/x"
+    previous = {
+        "commit": "c",
+        "kernel": "openblas:Haswell",
+        "command": partial,
+        "suites": {
+            "heldout": {"ntu": _scope(("x",), 0.5, seed=0, version="2"), "grid": _scope(("x", "y"), 0.2)},
+            "validation": {"ntu": _scope(("x", "y"), 0.5)},
+        },
+        "kernel_checks": {"ntu": _check(0.5, episodes=8, commit="c", command="k", wall_s=1.0)},
+    }
+    previous["suites"]["heldout"]["ntu"]["aggregate"] = _published(0.5, 0.4, 0.6)["aggregate"]
+    merged = script.merge(previous, {})
+    assert merged["command"] == script.SUITE_COMMAND
+    assert merged["suites"]["heldout"]["ntu"]["command"] == partial
+    assert "command" not in merged["suites"]["heldout"]["grid"]  # another run's: not known
+    assert "command" not in merged["suites"]["validation"]["ntu"]  # the partial run did not run validation
+    assert merged["kernel_checks"]["ntu"]["comparison"]["inside"]
+    assert "ntu: openblas:Sandybridge (published" in "\n".join(
+        script.kernel_check_lines(merged["kernel_checks"])
+    )
