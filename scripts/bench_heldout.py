@@ -248,6 +248,7 @@ def run_check(args: Args) -> dict:
                 "episodes": entry["episodes"],
                 "seed": entry["seed"],
                 "version": entry["version"],
+                "members": [[row["name"], row["params"]] for row in entry["teammates"]],
                 "aggregate": {
                     agent: {key: values[key] for key in ("iqm", "mean")}
                     for agent, values in entry["aggregate"].items()
@@ -260,12 +261,14 @@ def run_check(args: Args) -> dict:
 
 def compare_check(check: dict, published: dict) -> dict:
     """A second kernel's run against the published entry: each agent's IQM and mean inside the published 95 %
-    interval (same episodes, seed and suite version asked for; a difference in any is reported, not compared)."""
-    same = {
-        k: (check[k], published.get(k))
-        for k in ("episodes", "seed", "version")
-        if check[k] != published.get(k)
-    }
+    interval (same episodes, seed and members, by name and parameters, asked for; a difference in any is reported,
+    not compared)."""
+    same = {k: (check[k], published.get(k)) for k in ("episodes", "seed") if check[k] != published.get(k)}
+    members = [[row["name"], row.get("params")] for row in published.get("teammates", [])]
+    if (
+        check.get("members", members) != members
+    ):  # another suite version may keep a domain's members as they were
+        same["members"] = (check["members"], members)
     outside = [
         f"{agent} {key} {values[key]:.4g} not in {published['aggregate'][agent][f'{key}_ci']}"
         for agent, values in check["aggregate"].items()
@@ -282,6 +285,7 @@ def compare_check(check: dict, published: dict) -> dict:
     return {
         "published_kernel": published.get("kernel"),
         "second_kernel": check["kernel"] != published.get("kernel"),
+        "versions": [check["version"], published.get("version")],
         "settings_differ": {k: list(v) for k, v in same.items()},
         "outside": outside,
         "identical_to_6_digits": identical,
@@ -404,8 +408,11 @@ def kernel_check_lines(kernel_checks: dict) -> list[str]:
                 comparison["outside"] + [f"{k} {v}" for k, v in comparison["settings_differ"].items()]
             )
         )
+        members = "other" if "members" in comparison["settings_differ"] else "same"
         lines.append(
-            f"- {domain}: {check['kernel']} (published {comparison['published_kernel']}), `{check['command']}` at "
+            f"- {domain}: {check['kernel']}, suite v{comparison['versions'][0]} (published "
+            f"{comparison['published_kernel']}, v{comparison['versions'][1]}; {members} members and parameters), "
+            f"`{check['command']}` at "
             f"commit {check['commit'][:10]}, {check['wall_s']:.0f} s wall: {verdict}."
         )
     return lines

@@ -106,6 +106,11 @@ def test_a_second_kernel_check_passes_inside_the_published_interval_and_names_wh
     )
     other_episodes = script.compare_check(_check(0.5, episodes=8), _published(0.5, 0.4, 0.6))
     assert not other_episodes["inside"] and other_episodes["settings_differ"] == {"episodes": [8, 32]}
+    published = _published(0.5, 0.4, 0.6, teammates=[{"name": "m", "params": {"p": 0.5}}], version="1")
+    same_members = script.compare_check(_check(0.5, members=[["m", {"p": 0.5}]]), published)
+    assert same_members["inside"] and same_members["versions"] == ["2", "1"]
+    other_members = script.compare_check(_check(0.5, members=[["m", {"p": 0.6}]]), published)
+    assert not other_members["inside"] and list(other_members["settings_differ"]) == ["members"]
 
 
 def test_the_file_command_reruns_the_whole_suite_and_a_partial_run_command_moves_to_its_own_entries(script):
@@ -127,6 +132,6 @@ def test_the_file_command_reruns_the_whole_suite_and_a_partial_run_command_moves
     assert "command" not in merged["suites"]["heldout"]["grid"]  # another run's: not known
     assert "command" not in merged["suites"]["validation"]["ntu"]  # the partial run did not run validation
     assert merged["kernel_checks"]["ntu"]["comparison"]["inside"]
-    assert "ntu: openblas:Sandybridge (published" in "\n".join(
+    assert "ntu: openblas:Sandybridge, suite v2 (published openblas:Haswell" in "\n".join(
         script.kernel_check_lines(merged["kernel_checks"])
     )
