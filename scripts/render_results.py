@@ -1798,16 +1798,36 @@ def self_rendered_script(entry: SelfRendered):
 
 
 def self_rendered_class(entry: SelfRendered, data: dict) -> str:
-    # A file merged from several runs records each part's kernel beside it; no part holds a second kernel's run.
+    # A file merged from several runs records each part's kernel beside it; a part's second-kernel run, where the
+    # script made one, lies in ``kernel_checks`` with the script's own comparison against the published intervals.
     kernels = {data["kernel"]} | {
         part["kernel"]
         for parts in data.get("suites", {}).values()
         for part in parts.values()
         if isinstance(part, dict) and part.get("kernel")
     }
+    comparisons = {
+        part: check["comparison"]
+        for part, check in data.get("kernel_checks", {}).items()
+        if check["comparison"]["second_kernel"]
+    }
+    failed = sorted(part for part, comparison in comparisons.items() if not comparison["inside"])
+    if failed:
+        return (
+            f"check failed ({', '.join(failed)}: a second kernel's run lies outside the published intervals)"
+        )
+    if not comparisons:
+        return (
+            f"not re-checked (one run of each part, under {' and '.join(sorted(kernels))} only; class once "
+            f"a second kernel's run lies inside its intervals: {entry.klass})"
+        )
+    parts = sorted({domain for suite in data.get("suites", {}).values() for domain in suite})
+    unchecked = [part for part in parts if part not in comparisons]
+    if not unchecked:
+        return entry.klass
     return (
-        f"not re-checked (one run of each part, under {' and '.join(sorted(kernels))} only; class once "
-        f"a second kernel's run lies inside its intervals: {entry.klass})"
+        f"{entry.klass} (the part checked: {', '.join(sorted(comparisons))} re-ran under a second kernel inside "
+        f"the published intervals; {', '.join(unchecked)} one kernel's run only)"
     )
 
 
@@ -2410,7 +2430,8 @@ def self_rendered_row(entry: SelfRendered, page: Path, title: str, best) -> list
     for domain, agent, value, note in best(data):
         low, high = value["iqm_ci"]
         cells.append(f"{domain} {agent} {value['iqm']:.2f} [{low:.2f}, {high:.2f}]{note}")
-    klass = self_rendered_class(entry, data).split(" (")[0]
+    full = self_rendered_class(entry, data)
+    klass = full.split(" (")[0] + (" (the part checked)" if "(the part checked" in full else "")
     return [title, "; ".join(cells), "-", f"[{klass}]({os.path.relpath(ROOT / entry.page, page.parent)})"]
 
 

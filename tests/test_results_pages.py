@@ -404,20 +404,43 @@ def test_a_self_rendered_table_is_checked_and_its_class_and_headline_come_from_i
     done = run_check(root)
     assert done.returncode == 1
     assert f"{entry.page}: the table of {entry.script}" in done.stdout
-    # The class names the one kernel the file was made on; the headline takes its domains from the file.
+    # The class comes from the file's kernel checks; the headline takes its domains from the file.
     data = json.loads((ROOT / entry.source).read_text())
     block = module.self_rendered_block(entry, ROOT / entry.page)
-    kernels = {data["kernel"]} | {
-        part["kernel"] for parts in data["suites"].values() for part in parts.values() if "kernel" in part
-    }
-    assert f"under {' and '.join(sorted(kernels))} only" in block and data["command"] in block
+    klass = module.self_rendered_class(entry, data)
+    assert f"Class: **{klass}**" in block and data["command"] in block
     row = module.heldout_headline(entry, ROOT / "README.md")
     privileged = module.self_rendered_script(entry).PRIVILEGED
     for domain, scope in data["suites"]["heldout"].items():
         fair = {a: v["iqm"] for a, v in scope["aggregate"].items() if a not in privileged}
         best = max(fair, key=fair.get)
         assert f"{domain} {best} {fair[best]:.2f} [" in row[1]
-    assert row[3] == f"[not re-checked]({entry.page})"
+    short = klass.split(" (")[0] + (" (the part checked)" if "(the part checked" in klass else "")
+    assert row[3] == f"[{short}]({entry.page})"
+
+
+def test_a_self_rendered_class_counts_only_the_parts_a_second_kernel_re_ran_inside_the_intervals():
+    module = load_script()
+    entry = module.SELF_RENDERED["benchmark-heldout"]
+    suites = {"heldout": {"lab": {"kernel": "openblas:Haswell"}, "gridworld": {"kernel": "openblas:Haswell"}}}
+    data = {"kernel": "openblas:Haswell", "suites": suites}
+
+    def check(inside, second_kernel=True):
+        return {"comparison": {"second_kernel": second_kernel, "inside": inside}}
+
+    assert module.self_rendered_class(entry, data).startswith("not re-checked (one run of each part, under")
+    # a "check" under the published kernel is no check
+    same = {**data, "kernel_checks": {"lab": check(True, second_kernel=False)}}
+    assert module.self_rendered_class(entry, same).startswith("not re-checked")
+    part = {**data, "kernel_checks": {"lab": check(True)}}
+    assert module.self_rendered_class(entry, part) == (
+        f"{entry.klass} (the part checked: lab re-ran under a second kernel inside the published intervals; "
+        "gridworld one kernel's run only)"
+    )
+    both = {**data, "kernel_checks": {"lab": check(True), "gridworld": check(True)}}
+    assert module.self_rendered_class(entry, both) == entry.klass
+    failed = {**data, "kernel_checks": {"lab": check(True), "gridworld": check(False)}}
+    assert module.self_rendered_class(entry, failed).startswith("check failed (gridworld:")
 
 
 def test_the_ablation_check_holds_each_mean_to_the_published_t_interval():
