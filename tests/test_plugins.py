@@ -10,6 +10,7 @@ import shutil
 import subprocess
 import sys
 import tomllib
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -347,3 +348,32 @@ def test_teamster_takes_a_chapter_4_plugin(tmp_path):
     bad = _cli("teamster", "pursuit", "--agents", "my_adhoc_agent:make_agent", "--steps", "10", "--points", "1",
                cwd=tmp_path)  # fmt: skip
     assert bad.returncode == 2 and "does not meet the chapter-4 TeamworkAgent protocol" in bad.stderr
+
+
+def test_a_file_plugin_draws_the_same_trials_from_any_folder(user_folder):
+    from embodied_adhoc.experiments import seeding
+    from embodied_adhoc.experiments.domains.toxic_waste import DOMAIN
+    from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+
+    # a registered name keeps its key; a file plug-in is keyed by file name and callable, not by its folder
+    assert seeding.agent_key("hotspot") == zlib.crc32(b"hotspot")
+    assert seeding.agent_key("/a/b/my_agent.py:make") == seeding.agent_key("my_agent.py:make")
+    assert seeding.agent_key("my_agent.py:make") != seeding.agent_key("other.py:make")
+    assert seeding.agent_key("my_agent.py:make") != seeding.agent_key("my_agent.py:build")
+    assert seeding.env_seed(3, 1, "./x/my_agent.py:make") == seeding.env_seed(3, 1, "../y/my_agent.py:make")
+
+    rows = []
+    for folder in ("first", "second/deeper"):
+        (user_folder / folder).mkdir(parents=True)
+        shutil.copy(user_folder / "my_agent.py", user_folder / folder / "my_agent.py")
+        spec = f"./{folder}/my_agent.py:make"
+        config = SweepConfig("toxic-waste", "abstract", DOMAIN.options(), (spec,), episodes=3, seed=5)
+        run_sweep(config, out=user_folder / f"run-{folder.replace('/', '-')}")
+        with open(user_folder / f"run-{folder.replace('/', '-')}" / "trials.csv", newline="") as handle:
+            rows.append(
+                [
+                    {k: v for k, v in row.items() if k not in ("agent", "check")}
+                    for row in csv.DictReader(handle)
+                ]
+            )
+    assert len(rows[0]) == 3 and rows[0] == rows[1]

@@ -8,6 +8,7 @@
 
 from __future__ import annotations
 
+import os
 import zlib
 
 import numpy as np
@@ -20,7 +21,14 @@ def _sequence(seed: int, *key: int) -> np.random.SeedSequence:
 
 
 def agent_key(name: str) -> int:
-    """A stable integer for an agent name (CRC-32 of its UTF-8 bytes)."""
+    """A stable integer for an agent name (CRC-32 of its UTF-8 bytes).
+
+    A plug-in named by its file (``path/to/file.py:callable``) is keyed by the file's name and the callable, not
+    its folder, so the same agent draws the same trials from any working directory or output folder (a run's
+    identity hashes the file's content apart from this)."""
+    path, sep, target = name.rpartition(":")
+    if sep and path.endswith(".py"):
+        name = f"{os.path.basename(path)}:{target}"
     return zlib.crc32(name.encode("utf-8"))
 
 
