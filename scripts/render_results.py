@@ -1486,31 +1486,6 @@ UNRUN = {
             STATISTICAL,
         ),
         Unrun(
-            "solvers-sarsop",
-            "Perseus beside SARSOP at 5 and 20 CPU seconds",
-            "OPENBLAS_NUM_THREADS=1 PATH=SARSOP:$PATH .venv/bin/python scripts/bench_solvers.py --only-anytime "
-            "--checkpoints 5 20 --problems sarsop-TagAvoid.pomdp cit.POMDP hallway2.POMDP",
-            "20 CPU s per solver and file, and SARSOP's pomdpsol built and on the PATH",
-            TIMING,
-        ),
-        Unrun(
-            "solvers-626",
-            "Perseus on the thesis-size sparse POMDP (626 states, 5,000 beliefs): seconds to converge",
-            "OPENBLAS_NUM_THREADS=1 .venv/bin/embodied-adhoc pomdp solve DIR/pursuit-task-m0.pomdp --beliefs 5000 "
-            "--tolerance 0.01 --no-expand --seed 0 --json --quiet",
-            "a few CPU minutes per solve",
-            TIMING,
-        ),
-        Unrun(
-            "solvers-corpus",
-            "The solver benchmarks: backup speed, the corpus against SARSOP, the generated 626-state model",
-            "OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/bench_solvers.py --time-limit 30 "
-            "--generated-time-limit 60",
-            "30 s per corpus file (13 files), the naive reference backups and two rules x two stages on the "
-            "generated model: about half an hour",
-            TIMING,
-        ),
-        Unrun(
             "live-realtime",
             "HOTSPOT turn-based against real time, scripted human (physics lab)",
             ".venv/bin/python scripts/bench_realtime.py --episodes 16 --paced-episodes 4",
@@ -1730,8 +1705,8 @@ RECORDED = {
         ),
         Recorded(
             "solvers-side-by-side",
-            "This project's solver beside SARSOP on generated RockSample files: lower / upper bounds at CPU-second "
-            "checkpoints, time to SARSOP's final lower bound, peak memory",
+            "This project's solver beside SARSOP (generated RockSample files, Tag, cit, hallway2): lower / upper "
+            "bounds at CPU-second checkpoints, time to SARSOP's final lower bound, peak memory",
             "results/solvers/side_by_side.json",
             side_by_side_tables,
             "pomdpsol built and on the PATH, and the longest checkpoint's CPU seconds per solver and file; seconds "

@@ -6,6 +6,7 @@ Nothing here solves or simulates: the check renders the committed ``results/*.js
 import copy
 import importlib.util
 import json
+import re
 import shutil
 import subprocess
 import sys
@@ -531,6 +532,18 @@ def test_no_table_is_both_unrun_and_generated_from_a_result_file():
     module = load_script()
     generated = {path.stem for path in (ROOT / "results").glob("*.json")}
     assert not generated & set(module.UNRUN), "a figure with a result file keeps its Unrun entry"
+
+
+def test_every_unrun_and_recorded_table_stands_on_a_page():
+    # the index lists these as tables of the user pages: one no page shows is a stale entry
+    module = load_script()
+    text = "".join(path.read_text() for path in [ROOT / "README.md", *(ROOT / "docs").rglob("*.md")])
+    orphans = [
+        name
+        for name in [*module.UNRUN, *module.RECORDED]
+        if not re.search(rf"<!-- results:{re.escape(name)}(\.[\w-]+)? start -->", text)
+    ]
+    assert orphans == []
 
 
 def test_a_figure_defined_before_its_first_run_shows_its_unrun_block_until_it_has_a_result_file(monkeypatch):
