@@ -265,9 +265,8 @@ def compare_check(check: dict, published: dict) -> dict:
     not compared)."""
     same = {k: (check[k], published.get(k)) for k in ("episodes", "seed") if check[k] != published.get(k)}
     members = [[row["name"], row.get("params")] for row in published.get("teammates", [])]
-    if (
-        check.get("members", members) != members
-    ):  # another suite version may keep a domain's members as they were
+    # another suite version may keep a domain's members as they were: members are compared, not version labels
+    if check.get("members", members) != members:
         same["members"] = (check["members"], members)
     outside = [
         f"{agent} {key} {values[key]:.4g} not in {published['aggregate'][agent][f'{key}_ci']}"
