@@ -1,6 +1,6 @@
 """Fault sweep of the physics lab: HOTSPOT in ``EmbodiedAdhoc/ToxicWaste-v0`` under sensor and actuator
 faults, with the lidar Monte Carlo localiser on and off (wheel odometry alone), same seeds; and the localiser's
-cost per control step against the physics step, measured in the same run.
+cost per control step against the physics step, measured in the same run (``--no-sweep``: the cost alone).
 
 Per row and mode it prints the success rate, the mean steps (capped episodes count the cap), the worst pose error
 (the pose the controller tracked vs the truth, over every step of every episode), blocked macro steps and the
@@ -16,6 +16,7 @@ setting (every edge of the lab both ways from the door, a reading after each mac
 
 Usage: MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py [--episodes 16] [--seed 0] [--max-steps 100]
        [--workers 1] [--rows defaults encoder_noise=0.05 ...] [--confusion-out PATH] [--cost-seconds 60]
+       [--no-sweep]
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from __future__ import annotations
 import datetime
 import os
 import subprocess
+import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -68,6 +70,8 @@ class Args:
     """scripted tours per fault setting added to the measured confusion (seeds 0..N-1)"""
     cost_seconds: float = 60.0
     """simulated seconds of driving for the cost measurement (0: skip)"""
+    no_sweep: bool = False
+    """skip the fault sweep (with --cost-seconds: measure the localiser's cost only)"""
 
 
 def parse_row(text: str) -> dict[str, float]:
@@ -190,10 +194,11 @@ def tour_readings(row: str, seed: int) -> list[tuple[int, int | None]]:
 
 
 def localiser_cost(seconds: float) -> dict[str, float]:
-    """Wall time per control step of: the physics (its substeps: ``mj_step`` on the world's model and data, as
-    :meth:`LabWorld.tick` runs it), the localiser (lidar scan + filter: :meth:`LabWorld.sense` less its odometry),
-    the odometry (``sense`` with the localiser detached), and the physics step of the same scene without the
-    lidar's rangefinders; one scripted drive, this process."""
+    """CPU time of this process per control step (other processes' load changes it less than wall time) of: the
+    physics (its substeps: ``mj_step`` on the world's model and data, as :meth:`LabWorld.tick` runs it), the
+    localiser (lidar scan + filter: :meth:`LabWorld.sense` less its odometry), the odometry (``sense`` with the
+    localiser detached), and the physics step of the same scene without the lidar's rangefinders; one scripted
+    drive."""
     import mujoco
 
     from embodied_adhoc import paths
@@ -212,20 +217,20 @@ def localiser_cost(seconds: float) -> dict[str, float]:
             world.localiser.reset(
                 world.localiser.rng, world.odometry.pose, world.true_robot_pose(), time=world.data.time
             )
-        start = time.perf_counter()
+        start = time.process_time()
         mujoco.mj_step(world.model, world.data, nstep=world.substeps)
-        middle = time.perf_counter()
+        middle = time.process_time()
         world.sense()
-        end = time.perf_counter()
+        end = time.process_time()
         physics += middle - start
         sensing += end - middle
     # odometry alone (the sensing without the localiser) on the same world
     localiser, world.localiser = world.localiser, None
     odometry = 0.0
     for _ in range(ticks):
-        start = time.perf_counter()
+        start = time.process_time()
         world.sense()
-        odometry += time.perf_counter() - start
+        odometry += time.process_time() - start
     world.localiser = localiser
     # the scene without the lidar's rangefinders: what the physics step cost before the lidar
     spec = mujoco.MjSpec.from_file(str(paths.scene("lab.xml")))
@@ -236,10 +241,10 @@ def localiser_cost(seconds: float) -> dict[str, float]:
     model.opt.timestep = world.config.timestep
     data = mujoco.MjData(model)
     data.ctrl[:2] = 4.0
-    start = time.perf_counter()
+    start = time.process_time()
     for _ in range(ticks):
         mujoco.mj_step(model, data, nstep=world.substeps)
-    bare = time.perf_counter() - start
+    bare = time.process_time() - start
     world.close()
     return {
         "control_steps": ticks,
@@ -315,12 +320,13 @@ def table_line(row: str, localisation: bool, chosen: list[dict]) -> str:
     )
 
 
-def main() -> None:
-    args = parse_dataclass_args(Args, __doc__)
-    if args.episodes < 1 or args.workers < 1:
-        raise SystemExit("bench_faults: --episodes and --workers must be >= 1")
-    for row in args.rows:
-        parse_row(row)
+def refuse(message: str) -> None:
+    print(f"bench_faults: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+def sweep(args: Args) -> list[dict]:
+    """The fault sweep: every row with the localiser on and off, its table printed row by row."""
     print(
         f"HOTSPOT, {args.episodes} episodes per row and mode, seed {args.seed}, cap {args.max_steps}; "
         f"localiser on = lidar MCL, off = wheel odometry alone; {args.workers} worker(s)\n"
@@ -352,12 +358,25 @@ def main() -> None:
         if pool is not None:
             pool.shutdown()
     print(f"\n{time.perf_counter() - started:.0f} s wall for the sweep")
-    if args.confusion_out:
-        write_confusion(Path(args.confusion_out), results, args)
+    return results
+
+
+def main() -> None:
+    args = parse_dataclass_args(Args, __doc__)
+    if args.episodes < 1 or args.workers < 1:
+        refuse("--episodes and --workers must be >= 1")
+    if args.no_sweep and (args.confusion_out or args.cost_seconds <= 0):
+        refuse("--no-sweep measures the cost only: give --cost-seconds N > 0 and no --confusion-out")
+    for row in args.rows:
+        parse_row(row)
+    if not args.no_sweep:
+        results = sweep(args)
+        if args.confusion_out:
+            write_confusion(Path(args.confusion_out), results, args)
     if args.cost_seconds > 0:
         cost = localiser_cost(args.cost_seconds)
         print(
-            f"\ncost per control step ({cost['control_steps']} steps of 20 ms, this process, wall clock): physics "
+            f"\ncost per control step ({cost['control_steps']} steps of 20 ms, this process, CPU time): physics "
             f"{cost['physics_ms']:.3f} ms (the same scene without the lidar's rangefinders: "
             f"{cost['physics_without_lidar_ms']:.3f} ms), localiser {cost['localiser_ms']:.3f} ms "
             f"({cost['localiser_ms'] / cost['physics_ms']:.2f}x the physics), odometry {cost['odometry_ms']:.3f} ms"
