@@ -14,10 +14,14 @@ physics three ways:
 "seconds" are simulated seconds until all balls are in the container (the time a participant would spend)::
 
     .venv/bin/python scripts/bench_realtime.py --episodes 8
+
+``--json`` prints the per-mode summaries as one JSON object instead of the table (what
+``scripts/render_results.py`` reads).
 """
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import dataclass
 
@@ -38,6 +42,9 @@ class BenchArgs:
     """simulated seconds per wall second of the paced real-time mode"""
     paced_episodes: int = 2
     """episodes of the paced mode (0: skip it)"""
+    json: bool = False
+    """print the summaries as one JSON object (mode -> success, n, and [mean, 95 % half-width] of steps, simulated
+    and wall seconds) instead of the table"""
 
 
 def run_mode(mode: str, args: BenchArgs, episodes: int) -> list[dict]:
@@ -85,6 +92,13 @@ def main() -> None:
     if args.paced_episodes > 0:
         modes.append((f"real-time, paced x{args.speed:g}", args.paced_episodes))
     results = {mode: summary(run_mode(mode, args, n)) for mode, n in modes}
+    if args.json:
+        print(
+            json.dumps(
+                {"agent": args.agent, "max_steps": args.max_steps, "speed": args.speed, "modes": results}
+            )
+        )
+        return
     reference = results["turn-based"]
     print(f"{args.agent}, scripted human, seeds 0..n-1 (95 % CI half-widths)")
     header = (
