@@ -876,6 +876,136 @@ def arena_speed_tables(data: dict) -> list[Table]:
     ]
 
 
+FIG5_9_HEADER = "library size"
+
+
+def fig5_9_extract(outputs: dict[str, str]) -> dict:
+    """The library-size table of ``reproduce_atpo.py``'s output (the gridworld Table 5.5 rows it normalises by are
+    Table 5.5's figure)."""
+    tables = [t for t in markdown_tables(outputs["reproduce"]) if t["headers"][:1] == [FIG5_9_HEADER]]
+    if len(tables) != 1:
+        sys.exit(f"fig5-9: reproduce_atpo.py printed {len(tables)} tables headed '{FIG5_9_HEADER}', not one")
+    return {"tables": [{**tables[0], "caption": ""}]}
+
+
+LOCALISER_COST_SECONDS = 300
+"""Simulated seconds of the cost figure's scripted drive (15,000 control steps: under a CPU minute)."""
+LOCALISER_COST = re.compile(
+    r"^cost per control step \((?P<control_steps>\d+) steps of 20 ms, this process, CPU time\): physics "
+    r"(?P<physics_ms>[\d.]+) ms \(the same scene without the lidar's rangefinders: (?P<physics_without_lidar_ms>"
+    r"[\d.]+) ms\), localiser (?P<localiser_ms>[\d.]+) ms \([\d.]+x the physics\), "
+    r"odometry (?P<odometry_ms>[\d.]+) ms$",
+    re.MULTILINE,
+)
+LOCALISER_COST_ROWS = (
+    ("physics (`mj_step`, the control step's substeps)", "physics_ms"),
+    ("physics of the scene without the lidar's rangefinders", "physics_without_lidar_ms"),
+    ("localiser (lidar scan and filter: `LabWorld.sense` less the odometry)", "localiser_ms"),
+    ("odometry (`LabWorld.sense` with the localiser detached)", "odometry_ms"),
+)
+
+
+def localiser_cost_extract(outputs: dict[str, str]) -> dict:
+    match = LOCALISER_COST.search(outputs["bench"])
+    if match is None:
+        sys.exit("localiser-cost: bench_faults.py printed no 'cost per control step (... CPU time)' line")
+    numbers = {key: float(value) for key, value in match.groupdict().items()}
+    return {"timing": {**numbers, "control_steps": int(numbers["control_steps"]), "stdout": outputs["bench"]}}
+
+
+def localiser_cost_tables(data: dict) -> list[Table]:
+    cost = data["timing"]
+    rows = [
+        [label, f"{cost[key]:.3f}", f"{cost[key] / cost['physics_ms']:.2f}x"]
+        for label, key in LOCALISER_COST_ROWS
+    ]
+    return [Table("cost", "", ["part of a control step", "CPU ms per step", "ratio to the physics"], rows)]
+
+
+REALTIME_EPISODES, REALTIME_PACED = 12, 4
+"""Episodes per mode of the real-time figure, and of its paced mode (each paced one takes minutes of wall clock at
+this load): about 10 min of wall clock in all."""
+REALTIME_REFERENCE = "turn-based"
+
+
+def realtime_extract(outputs: dict[str, str]) -> dict:
+    """The modes whose episodes do not depend on wall time (turn-based, unpaced: the same per seed on any host) apart
+    from the paced ones and every mode's wall seconds (timing)."""
+    result = json.loads(outputs["bench"])
+    modes = result["modes"]
+    if REALTIME_REFERENCE not in modes:
+        sys.exit(f"live-realtime: bench_realtime.py --json reports no '{REALTIME_REFERENCE}' mode")
+    paced = [mode for mode in modes if mode.startswith("real-time, paced")]
+    return {
+        "agent": result["agent"],
+        "modes": {
+            mode: {key: stats[key] for key in ("success", "n", "steps", "sim_s")}
+            for mode, stats in modes.items()
+            if mode not in paced
+        },
+        "timing": {
+            "paced": {mode: modes[mode] for mode in paced},
+            "modes": modes,
+            "stdout": outputs["bench"],
+        },
+    }
+
+
+def realtime_row(mode: str, stats: dict, reference: dict, wall: bool = False) -> list[str]:
+    def cell(pair: Sequence[float]) -> str:
+        return f"{pair[0]:.1f} ± {pair[1]:.1f}"
+
+    return [
+        mode,
+        f"{stats['success']}/{stats['n']}",
+        cell(stats["steps"]),
+        cell(stats["sim_s"]),
+        *([cell(stats["wall_s"])] if wall else []),
+        f"{stats['steps'][0] / reference['steps'][0]:.2f}",
+        f"{stats['sim_s'][0] / reference['sim_s'][0]:.2f}",
+    ]
+
+
+def realtime_tables(data: dict) -> list[Table]:
+    reference = data["modes"][REALTIME_REFERENCE]
+    headers = ["mode", "success", "steps", "simulated seconds to finish", "steps ratio", "seconds ratio"]
+    everything = data["timing"]["modes"]
+    return [
+        Table("modes", "", headers, [realtime_row(m, s, reference) for m, s in data["modes"].items()]),
+        Table(
+            "wall",
+            "Every mode with its wall seconds per episode (the paced mode's steps depend on them):",
+            [*headers[:4], "wall s / episode", *headers[4:]],
+            [realtime_row(m, s, everything[REALTIME_REFERENCE], wall=True) for m, s in everything.items()],
+        ),
+    ]
+
+
+def realtime_compare(published: dict, check: dict) -> list[str]:
+    """Each mode's second-kernel mean steps and simulated seconds lie inside the published mean ± half-width."""
+    failures = []
+    for mode, stats in published["modes"].items():
+        for key in ("steps", "sim_s"):
+            (mean, half), other = stats[key], check["modes"][mode][key][0]
+            if not mean - half <= other <= mean + half:
+                failures.append(f"{mode} {key}: {other:.1f} outside the published {mean:.1f} ± {half:.1f}")
+    return failures
+
+
+def budget_extract(outputs: dict[str, str]) -> dict:
+    """The values table (fixed by the models and settings) apart from the CPU seconds table (timing)."""
+    values, seconds = markdown_tables(outputs["budget"])[:2]
+    return {"tables": [values], "timing": {"seconds": seconds, "stdout": outputs["budget"]}}
+
+
+def budget_tables(data: dict) -> list[Table]:
+    values, seconds = data["tables"][0], data["timing"]["seconds"]
+    return [
+        Table("values", values["caption"], values["headers"], values["rows"]),
+        Table("seconds", seconds["caption"], seconds["headers"], seconds["rows"]),
+    ]
+
+
 def hotspot_prose(data: dict) -> dict[str, tuple[str | None, str]]:
     """The steps table's headline cells and the claims' verdicts in a sentence (the hotspot page's summary)."""
     steps, claims = data["tables"]
@@ -1364,6 +1494,89 @@ FIGURES = {
             markdown=True,
         ),
         Figure(
+            "fig5-9",
+            "ATPO: thesis Fig. 5.9, the normalised score on gridworld by library size (32 episodes per size, seed 0)",
+            {
+                "reproduce": [
+                    "{python}",
+                    "scripts/reproduce_atpo.py",
+                    "--out",
+                    "{out}",
+                    "--domains",
+                    "gridworld",
+                    "--markdown",
+                ]
+            },  # fmt: skip
+            fig5_9_extract,
+            markdown_figure_tables(("fig5_9",)),
+            compare_markdown_tables,
+            ("docs/atpo.md",),
+            notes="ATPO's score normalised between random (0 %) and value iteration (100 %) on the 4-model library "
+            "(Table 5.5's gridworld row of the same run); the libraries are nested, each size draws its own true "
+            "models; Perseus at most the domain's stage budget per model.",
+        ),
+        Figure(
+            "localiser-cost",
+            f"The localiser's cost per 20 ms control step ({LOCALISER_COST_SECONDS} s of scripted driving, this "
+            "process's CPU time)",
+            {
+                "bench": [
+                    "{python}",
+                    "scripts/bench_faults.py",
+                    "--no-sweep",
+                    "--cost-seconds",
+                    str(LOCALISER_COST_SECONDS),
+                ]
+            },  # fmt: skip
+            localiser_cost_extract,
+            localiser_cost_tables,
+            None,
+            ("docs/localisation.md",),
+            notes="One process on the machine named below, at its load then: CPU seconds of the process per control "
+            "step, the ratios to the physics step measured in the same run.",
+        ),
+        Figure(
+            "live-realtime",
+            f"HOTSPOT turn-based against real time, scripted human (physics lab, seeds 0-{REALTIME_EPISODES - 1}: "
+            f"{REALTIME_EPISODES} episodes per mode, the paced mode {REALTIME_PACED} at x20)",
+            {
+                "bench": [
+                    "{python}",
+                    "scripts/bench_realtime.py",
+                    "--episodes",
+                    str(REALTIME_EPISODES),
+                    "--paced-episodes",
+                    str(REALTIME_PACED),
+                    "--json",
+                ]
+            },
+            realtime_extract,
+            realtime_tables,
+            realtime_compare,
+            ("docs/live.md",),
+            timing_tables=("wall",),
+            checked="each mode's second-kernel mean steps and simulated seconds lie inside the published mean ± "
+            "95 % half-width",
+            notes="Means ± the 95 % normal-approximation half-width (1.96 sd / sqrt(n)) over the episodes; "
+            '"seconds" are simulated seconds until the three balls are in the container; ratios are to the '
+            "turn-based mode. The turn-based and unpaced episodes cost no simulated time to decide (the same per "
+            "seed on any host); the paced mode lets the agent's wall time to decide pass in the simulation, so its "
+            "steps and seconds depend on the host and its load (class timing, with the wall seconds).",
+        ),
+        Figure(
+            "chapter5-budget",
+            "Chapter 5's solve budget: Perseus' lower bound at b0 of each domain's first model at its stage budget "
+            "and 3 stages past it",
+            {"budget": ["{python}", "scripts/bench_chapter5.py", "--budget", "--past", "3", "--markdown"]},
+            budget_extract,
+            budget_tables,
+            compare_markdown_tables,
+            ("docs/atpo.md",),
+            timing_tables=("seconds",),
+            notes="One process; the trials' solver settings (Table 5.2's belief-set size, tolerance 0.01, seed 0) with "
+            "the stage limit raised by 3, no cache; the values are Perseus' progress reports after each stage.",
+        ),
+        Figure(
             "fault-table",
             "HOTSPOT under each fault option (physics lab, seeds 100-107: 8 episodes per setting, cap 100)",
             {key: fault_command(options) for key, options in FAULT_SETTINGS.items()},
@@ -1506,13 +1719,6 @@ UNRUN = {
             "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py",
             "physics episodes per fault setting with and without the localiser, and the scripted tours",
             STATISTICAL,
-        ),
-        Unrun(
-            "localiser-cost",
-            "The localiser's cost per control step",
-            "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py --cost-seconds N",
-            "N seconds of scripted driving",
-            TIMING,
         ),
         Unrun(
             "chapter5-budget",
@@ -1960,7 +2166,7 @@ def run_figure(
             f"{figure.name}: the run would import {numerics['package']}, not the frozen copy in {folder}"
         )
     outputs, commands = {}, {}
-    started = dt.datetime.now(dt.UTC)
+    started, load = dt.datetime.now(dt.UTC), os.getloadavg()[0]
     for key, argv in figure.commands.items():
         if keys and key not in keys:
             continue
@@ -1986,6 +2192,8 @@ def run_figure(
         "python": sys.version.split()[0],
         "started": started.isoformat(timespec="seconds"),
         "finished": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
+        # the host's 1-minute load average at the start and the end: what a timing figure's seconds ran beside
+        "load": [round(load, 2), round(os.getloadavg()[0], 2)],
         "data": figure.extract(outputs),
     }
 
@@ -2247,8 +2455,9 @@ def figure_page(figure: Figure, document: dict) -> str:
         "",
     ]
     lines += [
-        "| run | OpenBLAS kernel | commit | code (SHA-256 of its files) | versions | date (UTC) |",
-        "|---|---|---|---|---|---|",
+        "| run | OpenBLAS kernel | commit | code (SHA-256 of its files) | versions | date (UTC) | load (1 min, start "
+        "/ end) |",
+        "|---|---|---|---|---|---|---|",
     ]
     parts = [(f"published, the rows of `{p['extra']}`", p) for p in run.get("parts", [])]
     for label, each in [("published", run), *parts, *(("check", c) for c in document["checks"])]:
@@ -2257,7 +2466,8 @@ def figure_page(figure: Figure, document: dict) -> str:
         lines.append(
             f"| {label} | {each['kernel']}{coretype} | {each['commit'][:10]} | "
             f"{each.get('code_sha256', 'not recorded')[:16]} | "
-            f"python {each['python']}, {versions} | {each['started'].replace('T', ' ')[:16]} |"
+            f"python {each['python']}, {versions} | {each['started'].replace('T', ' ')[:16]} | "
+            f"{' / '.join(f'{value:g}' for value in each['load']) if 'load' in each else 'not recorded'} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -628,3 +628,129 @@ def test_the_mujoco_per_task_figure_runs_each_cell_on_physics_and_random_beside_
         ["LBF, MuJoCo", "tau1", "9.50 [8.75, 10.25] (100 % solved)"],
         ["pursuit, MuJoCo", "tau1", "9.50 [8.75, 10.25] (100 % solved)"],
     ]
+
+
+COST_LINE = (
+    "\ncost per control step (15000 steps of 20 ms, this process, CPU time): physics 0.300 ms (the same scene "
+    "without the lidar's rangefinders: 0.250 ms), localiser 0.150 ms (0.50x the physics), odometry 0.006 ms\n"
+)
+
+
+def test_the_localiser_cost_is_read_from_its_line_as_timing_and_a_run_without_it_is_refused():
+    module = load_script()
+    figure = module.FIGURES["localiser-cost"]
+    assert "--no-sweep" in figure.commands["bench"] and figure.compare is None
+    data = figure.extract({"bench": COST_LINE})
+    (table,) = figure.tables(data)
+    assert [row[1:] for row in table.rows] == [
+        ["0.300", "1.00x"],
+        ["0.250", "0.83x"],
+        ["0.150", "0.50x"],
+        ["0.006", "0.02x"],
+    ]
+    document = {"published": {"kernel": "Haswell", "data": data}, "checks": []}
+    assert module.reproducibility(figure, document)[0] == "timing"
+    # a wall-clock line (the script's output before it timed CPU seconds) is not this figure's measurement
+    with pytest.raises(SystemExit, match="localiser-cost: bench_faults.py printed no"):
+        figure.extract({"bench": COST_LINE.replace("CPU time", "wall clock")})
+
+
+def realtime_output(turn_steps: float = 12.0, paced_steps: float = 13.0) -> str:
+    def mode(steps: float, sim: float, wall: float) -> dict:
+        return {"success": 4, "n": 4, "steps": [steps, 1.0], "sim_s": [sim, 5.0], "wall_s": [wall, 2.0]}
+
+    modes = {
+        "turn-based": mode(turn_steps, 92.0, 19.0),
+        "real-time, unpaced": mode(17.0, 130.0, 18.0),
+        "real-time, paced x20": mode(paced_steps, 190.0, 32.0),
+    }
+    return json.dumps({"agent": "hotspot", "max_steps": 100, "speed": 20.0, "modes": modes})
+
+
+def test_the_real_time_figure_compares_the_modes_that_ignore_wall_time_and_times_the_paced_one():
+    module = load_script()
+    figure = module.FIGURES["live-realtime"]
+    data = figure.extract({"bench": realtime_output()})
+    modes, wall = figure.tables(data)
+    assert [row[0] for row in modes.rows] == ["turn-based", "real-time, unpaced"]
+    assert modes.rows[1] == ["real-time, unpaced", "4/4", "17.0 ± 1.0", "130.0 ± 5.0", "1.42", "1.41"]
+    assert wall.rows[2][:5] == ["real-time, paced x20", "4/4", "13.0 ± 1.0", "190.0 ± 5.0", "32.0 ± 2.0"]
+
+    def document(check_output: str) -> dict:
+        run = {"kernel": "Haswell", "code_sha256": "c0de", "data": data}
+        check = {
+            "kernel": "Sandybridge",
+            "code_sha256": "c0de",
+            "data": figure.extract({"bench": check_output}),
+        }
+        return {"published": run, "checks": [check]}
+
+    # the paced mode's steps (and every wall second) may move between runs: the compared table stays exact
+    assert module.reproducibility(figure, document(realtime_output(paced_steps=20.0)), "modes")[0] == (
+        "exact on any host"
+    )
+    assert module.reproducibility(figure, document(realtime_output()), "wall")[0] == "timing"
+    klass, how = module.reproducibility(figure, document(realtime_output(turn_steps=14.0)), "modes")
+    assert (
+        klass == "statistical, CHECK FAILED"
+        and "turn-based steps: 14.0 outside the published 12.0 ± 1.0" in how
+    )
+
+
+def test_fig5_9_keeps_the_library_size_table_of_reproduce_atpo_and_refuses_output_without_it():
+    module = load_script()
+    figure = module.FIGURES["fig5-9"]
+    table55 = (
+        "Table 5.5: 32 episodes\n\n| domain | agent | reward |\n|---|---|---|\n| gridworld | atpo | 86.53 |\n"
+    )
+    sizes = (
+        "| library size | ATPO normalised (thesis: > 70 %) |\n|---|---|\n| 2 | 93.4 % |\n| 32 | 80.1 % |\n"
+    )
+    (table,) = figure.tables(figure.extract({"reproduce": f"{table55}\n(thesis: ...)\n{sizes}"}))
+    assert table.rows == [["2", "93.4 %"], ["32", "80.1 %"]] and table.caption == ""
+    with pytest.raises(SystemExit, match="fig5-9: reproduce_atpo.py printed 0 tables"):
+        figure.extract({"reproduce": table55})
+
+
+def test_the_budget_figure_compares_the_values_and_times_the_seconds():
+    module = load_script()
+    figure = module.FIGURES["chapter5-budget"]
+
+    def output(value: str, seconds: str) -> str:
+        return (
+            "The lower bound at b0\n| domain | budget | V(b0) at the budget | stages done |\n|---|---|---|---|\n"
+            f"| gridworld | 14 | {value} | 17 |\n\nCPU seconds\n| domain | CPU s to the budget |\n|---|---|\n"
+            f"| gridworld | {seconds} |\n"
+        )
+
+    data = figure.extract({"budget": output("63.8100", "7.9")})
+    values, seconds = figure.tables(data)
+    assert values.rows == [["gridworld", "14", "63.8100", "17"]] and seconds.rows == [["gridworld", "7.9"]]
+
+    def document(check: str) -> dict:
+        runs = [(k, figure.extract({"budget": o})) for k, o in (("Haswell", output("63.8100", "7.9")), check)]
+        published, other = ({"kernel": k, "code_sha256": "c0de", "data": d} for k, d in runs)
+        return {"published": published, "checks": [other]}
+
+    slower = document(("Sandybridge", output("63.8100", "12.5")))
+    assert module.reproducibility(figure, slower, "values")[0] == "exact on any host"
+    assert module.reproducibility(figure, slower, "seconds")[0] == "timing"
+    moved = document(("Sandybridge", output("63.8000", "7.9")))
+    assert module.reproducibility(figure, moved, "values")[0].startswith("statistical")
+
+
+def test_a_figure_page_states_the_load_each_run_ran_beside():
+    module = load_script()
+    figure = module.FIGURES["localiser-cost"]
+    run = {"kernel": "Haswell", "openblas_coretype": None, "commit": "0" * 40, "code_sha256": "c0de" * 16}
+    run |= {
+        "commands": {"bench": "bench"},
+        "versions": {},
+        "python": "3.11",
+        "started": "2026-12-02T14:00:00",
+    }
+    run["data"] = figure.extract({"bench": COST_LINE})
+    check = {**run, "kernel": "Sandybridge", "load": [6.5, 7.25]}
+    page = module.figure_page(figure, {"published": run, "checks": [check]})
+    assert "| 2026-12-02 14:00 | not recorded |" in page
+    assert "| 2026-12-02 14:00 | 6.5 / 7.25 |" in page
