@@ -41,6 +41,7 @@ render, naming the page, the table and the command to re-run (fast: nothing is s
 from __future__ import annotations
 
 import argparse
+import ast
 import datetime as dt
 import hashlib
 import importlib.util
@@ -126,6 +127,9 @@ class Figure:
     """whether its one command prints Markdown tables (a check may then add arguments and print fewer rows)"""
     timing_tables: tuple[str, ...] = ()
     """keys of its tables that print seconds or rates (class *timing*, never compared; kept under ``"timing"``)"""
+    files: tuple[str, ...] = ()
+    """files outside ``CODE`` that its commands run (a test module): copied from the run's commit into each command's
+    ``{out}`` folder, their blob hashes recorded with the run"""
     prose: Callable[[dict], dict[str, tuple[str | None, str]]] | None = None
     """the data -> sentences that pages embed beside the tables (``results:NAME.KEY`` blocks), each with the key
     of the table whose numbers it reads (None: the figure's one table), so that a page types no measurement"""
@@ -1006,6 +1010,47 @@ def budget_tables(data: dict) -> list[Table]:
     ]
 
 
+LATENCY_PAGE = re.compile(
+    rf"^(?P<what>frame interval ms \(page\)|key press to motion on the page ms): mean (?P<mean>{NUMBER}), median "
+    rf"(?P<p50>{NUMBER}), p95 (?P<p95>{NUMBER}), max (?P<max>{NUMBER}) \(n=(?P<n>\d+)\)$",
+    re.MULTILINE,
+)
+LATENCY_ROWS = (
+    ("frame interval at the page", "frame interval ms (page)"),
+    ("frame interval at the server (sent)", "frame_interval_sent_ms"),
+    ("key press to motion on the page", "key press to motion on the page ms"),
+    ("key press to motion in the simulation", "key_to_motion_in_simulation_ms"),
+)
+
+
+def latency_extract(outputs: dict[str, str]) -> dict:
+    """The page's figures the browser test prints, and the server's from its ``session.json`` (printed as a dict)."""
+    text = outputs["browser"]
+    figures = {
+        match["what"]: {"n": int(match["n"]), **{k: float(match[k]) for k in ("mean", "p50", "p95", "max")}}
+        for match in LATENCY_PAGE.finditer(text)
+    }
+    server = re.search(r"^server side: (?P<latency>\{.*\})$", text, re.MULTILINE)
+    if server is None or len(figures) != 2:
+        sys.exit("live-latency: the browser test printed no page or server latency (run it with -s)")
+    figures |= ast.literal_eval(server["latency"])
+    return {"timing": {"latency_ms": figures, "stdout": text}}
+
+
+def latency_tables(data: dict) -> list[Table]:
+    figures = data["timing"]["latency_ms"]
+    rows = []
+    for label, key in LATENCY_ROWS:
+        stats = figures.get(key)
+        cells = (
+            ["-"] * 5
+            if stats is None
+            else [str(stats["n"])] + [f"{stats[k]:.0f}" for k in ("mean", "p50", "p95", "max")]
+        )
+        rows.append([label, *cells])
+    return [Table("latency", "", ["quantity", "n", "mean ms", "median ms", "p95 ms", "max ms"], rows)]
+
+
 def hotspot_prose(data: dict) -> dict[str, tuple[str | None, str]]:
     """The steps table's headline cells and the claims' verdicts in a sentence (the hotspot page's summary)."""
     steps, claims = data["tables"]
@@ -1575,6 +1620,34 @@ FIGURES = {
             timing_tables=("seconds",),
             notes="One process; the trials' solver settings (Table 5.2's belief-set size, tolerance 0.01, seed 0) with "
             "the stage limit raised by 3, no cache; the values are Perseus' progress reports after each stage.",
+        ),
+        Figure(
+            "live-latency",
+            "Latency of the live page: frame intervals and key press to motion (headless Chromium on loopback, real "
+            "time, 10 frames/s)",
+            {
+                "browser": [
+                    "{python}",
+                    "-m",
+                    "pytest",
+                    "-q",
+                    "-s",
+                    "-p",
+                    "no:cacheprovider",
+                    "{out}/test_live_browser.py",
+                    "-k",
+                    "typing",
+                ]
+            },
+            latency_extract,
+            latency_tables,
+            None,
+            ("docs/live.md",),
+            files=("tests/live/test_live_browser.py",),
+            notes="One session of `tests/live/test_live_browser.py`'s typing test (the run's commit's copy): the "
+            "page's figures from `performance.now` in the page, the server's from the run's `session.json`; wall "
+            "milliseconds on the machine named below, at its load then, with the browser, the server and the "
+            "simulation sharing its cores.",
         ),
         Figure(
             "fault-table",
@@ -2175,6 +2248,9 @@ def run_figure(
         commands[key] = shlex.join(command)
         print(f"[{figure.name} {label}] {commands[key]}", file=sys.stderr, flush=True)
         shutil.rmtree(folder / out, ignore_errors=True)
+        for path in figure.files:
+            (folder / out).mkdir(parents=True, exist_ok=True)
+            (folder / out / Path(path).name).write_text(git("show", f"{commit}:{path}") + "\n")
         executable = [str(ROOT / command[0]) if command[0].startswith(".venv/") else command[0], *command[1:]]
         done = subprocess.run(executable, cwd=folder, env=env, capture_output=True, text=True)
         if done.returncode != 0:
@@ -2188,6 +2264,11 @@ def run_figure(
         "commands": commands,
         "keys": list(keys),
         "extra": shlex.join(extra),
+        **(
+            {"files": {path: git("rev-parse", f"{commit}:{path}") for path in figure.files}}
+            if figure.files
+            else {}
+        ),
         "versions": {k: v for k, v in numerics["versions"].items() if k != "torch" or figure.torch},
         "python": sys.version.split()[0],
         "started": started.isoformat(timespec="seconds"),

@@ -754,3 +754,48 @@ def test_a_figure_page_states_the_load_each_run_ran_beside():
     page = module.figure_page(figure, {"published": run, "checks": [check]})
     assert "| 2026-12-02 14:00 | not recorded |" in page
     assert "| 2026-12-02 14:00 | 6.5 / 7.25 |" in page
+
+
+BROWSER_OUTPUT = (
+    ".\nframe interval ms (page): mean 101, median 100, p95 130, max 250 (n=310)\n"
+    "key press to motion on the page ms: mean 140, median 135, p95 210, max 230 (n=9)\n"
+    "server side: {'key_to_motion_in_simulation_ms': {'n': 9, 'mean': 21.5, 'p50': 20.0, 'p95': 40.0, 'max': 41.0}, "
+    "'frame_interval_sent_ms': {'n': 305, 'mean': 100.2, 'p50': 100.0, 'p95': 104.0, 'max': 180.0}}\n"
+)
+
+
+def test_the_live_latency_figure_reads_the_browser_tests_figures_and_runs_its_commits_copy_of_the_test():
+    module = load_script()
+    figure = module.FIGURES["live-latency"]
+    assert figure.files == ("tests/live/test_live_browser.py",) and figure.compare is None
+    assert "{out}/test_live_browser.py" in figure.commands["browser"]
+    (table,) = figure.tables(figure.extract({"browser": BROWSER_OUTPUT}))
+    assert table.rows == [
+        ["frame interval at the page", "310", "101", "100", "130", "250"],
+        ["frame interval at the server (sent)", "305", "100", "100", "104", "180"],
+        ["key press to motion on the page", "9", "140", "135", "210", "230"],
+        ["key press to motion in the simulation", "9", "22", "20", "40", "41"],
+    ]
+    # pytest without -s shows none of the figures: the run is refused, not published empty
+    with pytest.raises(SystemExit, match="live-latency: the browser test printed no page or server latency"):
+        figure.extract({"browser": ".\n1 passed in 60.00s\n"})
+
+
+def test_a_figures_files_outside_the_code_are_its_commits_copies_in_the_run_folder(tmp_path, monkeypatch):
+    module = load_script()
+    monkeypatch.setattr(module, "RUN_DIR", str(tmp_path))
+    path = "tests/live/test_live_browser.py"
+    figure = module.Figure(
+        "files",
+        "files",
+        {"show": ["cat", "{out}/test_live_browser.py"]},
+        lambda o: {"text": o["show"]},
+        None,
+        None,
+    )
+    run = module.run_figure(replace(figure, files=(path,)), None)
+    committed = module.git("show", f"{run['commit']}:{path}")
+    assert run["data"]["text"].strip() == committed.strip()
+    assert run["files"] == {path: module.git("rev-parse", f"{run['commit']}:{path}")}
+    plain = replace(figure, commands={"show": ["true"]})
+    assert "files" not in module.run_figure(plain, None)  # a figure without such files records none
