@@ -14,7 +14,7 @@ import argparse
 from embodied_adhoc.commands.arguments import output_folder
 from embodied_adhoc.errors import ConfigError
 
-RECURRENT_DOMAINS = ("foraging", "pursuit", "toxic-waste", "pursuit-task")
+RECURRENT_DOMAINS = ("foraging", "pursuit", "toxic-waste", "pursuit-task", "ntu")
 """``learning.generalist.DOMAINS``, spelled out so that building the parser imports no torch (a test checks they
 agree)."""
 

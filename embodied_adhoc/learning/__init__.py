@@ -7,4 +7,6 @@ Where this layer sits and what it may import: docs/layout.md."""
 
 LEARNED_AGENTS = ("ppo-generalist", "liam", "meliba")
 """The library-free agents that trials name directly where their weights ship (the grid arenas, the lab,
-pursuit-task); kept here, free of torch, so that listing a domain's agents imports no network code."""
+pursuit-task, ntu); kept here, free of torch, so that listing a domain's agents imports no network code."""
+LEARNED_CHAPTER5_DOMAINS = ("pursuit-task", "ntu")
+"""The chapter-5 domains whose trials name :data:`LEARNED_AGENTS` (their weights ship in ``assets/``)."""

@@ -30,6 +30,7 @@ from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.decision.agents.base import AgentBase
 from embodied_adhoc.decision.agents.selection import draw_action
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning import LEARNED_CHAPTER5_DOMAINS
 from embodied_adhoc.learning.recurrent_ppo import (
     CHECKPOINT,
     RecurrentActorCritic,
@@ -43,7 +44,7 @@ from embodied_adhoc.paths import assets_dir
 
 TRAIN_TEAMS = ("tau0", "tau1", "tau2")
 GRID_DOMAINS = ("foraging", "pursuit")
-DOMAINS = (*GRID_DOMAINS, "toxic-waste", "pursuit-task")
+DOMAINS = (*GRID_DOMAINS, "toxic-waste", *LEARNED_CHAPTER5_DOMAINS)
 """The grid arenas (teams tau0-tau2) and the benchmark's index domains (:mod:`~embodied_adhoc.learning.
 index_domains`, teammates from the benchmark's train split)."""
 SHIPPED_FOLDER = "generalist"

@@ -1,5 +1,6 @@
 """The library-free agents on the benchmark's domains with observation indices: the toxic-waste lab (the abstract
-env, ``EmbodiedAdhoc/ToxicWasteAbstract-v0``) and chapter 5's pursuit-task (the true model as a generative POMDP).
+env, ``EmbodiedAdhoc/ToxicWasteAbstract-v0``) and chapter 5's pursuit-task and ntu map (the true model as a
+generative POMDP).
 
 Both observe one flat index per step (the lab's ``[robot node, human node, rfid]`` encoded as the trials encode
 it; the chapter-5 model's observation, none at reset), so the recurrent agents read an embedding of the index
@@ -31,18 +32,21 @@ import torch
 from torch import nn
 
 from embodied_adhoc.errors import ConfigError
+from embodied_adhoc.learning import LEARNED_CHAPTER5_DOMAINS
 from embodied_adhoc.learning.generalist import _LOADED, GeneralistAgent, load_generalist, shipped_weights
 
 LAB = "toxic-waste"
-PURSUIT_TASK = "pursuit-task"
-INDEX_DOMAINS = (LAB, PURSUIT_TASK)
-REWARD_SCALE = {LAB: 6.0, PURSUIT_TASK: 100.0}
-"""The largest reward magnitude of each domain: the lab's -2 per held ball for its three balls, chapter 5's +100."""
-TEAMMATE_CLASSES = {LAB: (5 * 3**3, 5), PURSUIT_TASK: (626, 5)}
+PURSUIT_TASK, NTU = LEARNED_CHAPTER5_DOMAINS
+INDEX_DOMAINS = (LAB, *LEARNED_CHAPTER5_DOMAINS)
+REWARD_SCALE = {LAB: 6.0, PURSUIT_TASK: 100.0, NTU: 100.0}
+"""The largest reward magnitude of each domain: the lab's -2 per held ball for its three balls, chapter 5's +100
+(the capture, the goal)."""
+TEAMMATE_CLASSES = {LAB: (5 * 3**3, 5), PURSUIT_TASK: (626, 5), NTU: (241, 5)}
 """(classes of the teammate's view, of its action) in ``teammate_info``: the lab's human on 5 nodes with 3 balls of
-3 statuses, moving to one of the 5 nodes; pursuit-task's 626 states and 5 teammate moves."""
-EPISODE_CAP = {LAB: 100, PURSUIT_TASK: 75}
-"""The step caps of the trials (the lab's registered 100; pursuit-task's Table 5.2 horizon)."""
+3 statuses, moving to one of the 5 nodes; pursuit-task's 626 states, ntu's 241 (16 open cells, the two agents
+on distinct cells, and the absorbing state) and 5 teammate moves."""
+EPISODE_CAP = {LAB: 100, PURSUIT_TASK: 75, NTU: 75}
+"""The step caps of the trials (the lab's registered 100; pursuit-task's and ntu's Table 5.2 horizon)."""
 
 
 @dataclass(frozen=True)
@@ -106,7 +110,7 @@ def member_names(domain: str, teammates: int = 0) -> list[str]:
 
 class IndexVectorEnv:
     """``num_envs`` episodes of an index domain against train members (see the module docstring); the training
-    loop's vector env for ``toxic-waste`` and ``pursuit-task``. ``members`` names train members of ``domain``."""
+    loop's vector env for :data:`INDEX_DOMAINS`. ``members`` names train members of ``domain``."""
 
     def __init__(
         self,
@@ -137,7 +141,7 @@ class IndexVectorEnv:
         if domain == LAB:
             self.world = _LabWorld(self.specs, num_envs, self.max_episode_steps)
         else:
-            self.world = _Chapter5World(self.specs, num_envs)
+            self.world = _Chapter5World(domain, self.specs, num_envs)
         if self.world.teammate_classes != TEAMMATE_CLASSES[domain]:
             raise ConfigError(
                 f"{domain}: the teammate's view and action have {self.world.teammate_classes} classes, the "
@@ -272,12 +276,13 @@ class _LabWorld:
 
 
 class _Chapter5World:
-    """pursuit-task's joint model with each member's teammate policy (see the module docstring)."""
+    """A chapter-5 domain's joint model (pursuit-task, ntu: the trials' default library) with each member's
+    teammate policy (see the module docstring)."""
 
-    def __init__(self, specs, num_envs: int) -> None:
+    def __init__(self, domain: str, specs, num_envs: int) -> None:
         from embodied_adhoc.domains.chapter5 import build_library
 
-        self.library = library = build_library(PURSUIT_TASK)
+        self.library = library = build_library(domain)
         self.pomdps, self.mmdps = library.pomdps, library.mmdps
         self.n_models = len(self.pomdps)
         first = self.pomdps[0]
@@ -323,10 +328,11 @@ class _Chapter5World:
 
 def index_domain(library) -> str | None:
     """The index domain whose trials hand an agent plug-in ``library`` (the lab's ``LabLibrary``, a chapter-5
-    ``ModelLibrary`` of pursuit-task), or None."""
+    ``ModelLibrary`` of pursuit-task or ntu), or None."""
     if type(library).__name__ == "LabLibrary":
         return LAB
-    return PURSUIT_TASK if getattr(library, "domain", None) == PURSUIT_TASK else None
+    domain = getattr(library, "domain", None)
+    return domain if domain in LEARNED_CHAPTER5_DOMAINS else None
 
 
 def first_index(observation, nodes: int = 5) -> int:

@@ -44,7 +44,7 @@ from embodied_adhoc.domains.chapter5.teammates import (
     world_with_teammate,
 )
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.learning import LEARNED_AGENTS
+from embodied_adhoc.learning import LEARNED_AGENTS, LEARNED_CHAPTER5_DOMAINS
 
 __all__ = ["CHAPTER5_AGENTS", "Chapter5Domain", "return_table", "timing_line"]
 
@@ -171,7 +171,7 @@ class Chapter5Session:
             agent = BopaAgent(self.library.mdps, self.q_values(), name=name)
         elif name == "random":
             agent = RandomAgent(self.library.n_actions, name=name)
-        elif name in LEARNED_AGENTS and self.library.domain == "pursuit-task":
+        elif name in LEARNED_AGENTS and self.library.domain in LEARNED_CHAPTER5_DOMAINS:
             from embodied_adhoc.learning.index_domains import index_agent
 
             return index_agent(self.library, name, name=name)
@@ -200,7 +200,8 @@ class Chapter5Domain:
             self.default_agents = ("value-iteration", "bopa", "random")
         else:
             self.default_agents = self.agent_names
-        if name == "pursuit-task":  # where the library-free agents' weights ship; not among the defaults
+        # where the library-free agents' weights ship; not among the defaults
+        if name in LEARNED_CHAPTER5_DOMAINS:
             self.agent_names = (*self.agent_names, *LEARNED_AGENTS)
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
