@@ -2,10 +2,11 @@
 faults, with the lidar Monte Carlo localiser on and off (wheel odometry alone), same seeds; and the localiser's
 cost per control step against the physics step, measured in the same run (``--no-sweep``: the cost alone).
 
-Per row and mode it prints the success rate, the mean steps (capped episodes count the cap), the worst pose error
-(the pose the controller tracked vs the truth, over every step of every episode), blocked macro steps and the
-robot-node readings that were unknown or wrong. Episodes are those of ``trials toxic-waste --backend mujoco
---seed S`` (same episode draw and seeds), so a row can be replayed with ``run toxic-waste --seed ...``.
+Per row and mode it prints the success rate, the mean steps (capped episodes count the cap) with the 95 %
+percentile-bootstrap interval of the mean, the worst pose error (the pose the controller tracked vs the truth, over
+every step of every episode), blocked macro steps and the robot-node readings that were unknown or wrong.
+Episodes are those of ``trials toxic-waste --backend mujoco --seed S`` (same episode draw and seeds), so a row can
+be replayed with ``run toxic-waste --seed ...``.
 
 With ``--confusion-out PATH`` it also writes the localiser's measured robot-node confusion (true area x reported
 area + unknown, pooled over the rows with the localiser on, smoothed with ``--floor``) with its provenance (the
@@ -306,12 +307,15 @@ def write_confusion(path: Path, results: list[dict], args: Args) -> None:
 
 
 def table_line(row: str, localisation: bool, chosen: list[dict]) -> str:
+    from embodied_adhoc.experiments.stats import bootstrap_interval
+
     readings = [reading for r in chosen for reading in r["readings"]]
+    low, high = bootstrap_interval([r["steps"] for r in chosen], lambda block: block.mean(axis=1))
     unknown = sum(reading is None for _, reading in readings)
     wrong = sum(reading is not None and reading != true for true, reading in readings)
     return (
         f"| {row} | {'on' if localisation else 'off'} | {sum(r['success'] for r in chosen)}/{len(chosen)} "
-        f"| {np.mean([r['steps'] for r in chosen]):.1f} "
+        f"| {np.mean([r['steps'] for r in chosen]):.1f} | [{low:.1f}, {high:.1f}] "
         f"| {max(r['worst_pose_error'] for r in chosen):.2f} m "
         f"| {sum(r['blocked'] for r in chosen)} "
         f"| {sum(r['kidnaps'] for r in chosen)} "
@@ -332,11 +336,11 @@ def sweep(args: Args) -> list[dict]:
         f"localiser on = lidar MCL, off = wheel odometry alone; {args.workers} worker(s)\n"
     )
     header = (
-        "| fault | localiser | success | mean steps | worst pose error | blocked steps | re-localisations "
-        "| unknown / wrong readings | wall s/episode |"
+        "| fault | localiser | success | mean steps | steps 95% CI (bootstrap) | worst pose error | blocked steps "
+        "| re-localisations | unknown / wrong readings | wall s/episode |"
     )
     print(header)
-    print("|---|---|---|---|---|---|---|---|---|", flush=True)
+    print("|---|---|---|---|---|---|---|---|---|---|", flush=True)
     pool = ProcessPoolExecutor(args.workers) if args.workers > 1 else None
     results: list[dict] = []
     started = time.perf_counter()
