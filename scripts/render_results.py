@@ -1051,6 +1051,49 @@ def latency_tables(data: dict) -> list[Table]:
     return [Table("latency", "", ["quantity", "n", "mean ms", "median ms", "p95 ms", "max ms"], rows)]
 
 
+FAULT_SWEEP_EPISODES = 4
+"""Episodes per fault row and localiser mode of the sweep figure (8 rows x 2 modes: 64 physics episodes)."""
+FAULT_SWEEP_WALL = "wall s/episode"
+
+
+def fault_sweep_extract(outputs: dict[str, str]) -> dict:
+    """The sweep's table without its wall-seconds column (kept apart, as timing)."""
+    tables = markdown_tables(outputs["sweep"])
+    if not tables or FAULT_SWEEP_WALL not in tables[0]["headers"]:
+        sys.exit(f"fault-sweep: bench_faults.py printed no sweep table with a '{FAULT_SWEEP_WALL}' column")
+    table = tables[0]
+    wall = table["headers"].index(FAULT_SWEEP_WALL)
+    return {
+        "tables": [
+            {
+                "caption": table["caption"],
+                "headers": [h for i, h in enumerate(table["headers"]) if i != wall],
+                "rows": [[cell for i, cell in enumerate(row) if i != wall] for row in table["rows"]],
+            }
+        ],
+        "timing": {"wall_s_per_episode": [row[wall] for row in table["rows"]], "stdout": outputs["sweep"]},
+    }
+
+
+def fault_sweep_compare(published: dict, check: dict) -> list[str]:
+    """Each row's (fault, localiser) second-kernel mean steps lies inside the published bootstrap interval."""
+    ours, theirs = published["tables"][0], check["tables"][0]
+    mean, interval = ours["headers"].index("mean steps"), ours["headers"].index("steps 95% CI (bootstrap)")
+    others = {tuple(row[:2]): row for row in theirs["rows"]}
+    failures = []
+    for row in ours["rows"]:
+        other = others.get(tuple(row[:2]))
+        if other is None:
+            failures.append(f"{' '.join(row[:2])}: no such row in the check")
+            continue
+        low, high = ci_of(row[interval])
+        if not low <= float(other[mean]) <= high:
+            failures.append(
+                f"{' '.join(row[:2])}: mean steps {other[mean]} outside the published {row[interval]}"
+            )
+    return failures
+
+
 def hotspot_prose(data: dict) -> dict[str, tuple[str | None, str]]:
     """The steps table's headline cells and the claims' verdicts in a sentence (the hotspot page's summary)."""
     steps, claims = data["tables"]
@@ -1648,6 +1691,30 @@ FIGURES = {
             "page's figures from `performance.now` in the page, the server's from the run's `session.json`; wall "
             "milliseconds on the machine named below, at its load then, with the browser, the server and the "
             "simulation sharing its cores.",
+        ),
+        Figure(
+            "fault-sweep",
+            f"The fault sweep of bench_faults.py: HOTSPOT with and without the localiser under each fault (physics "
+            f"lab, {FAULT_SWEEP_EPISODES} episodes per row and mode, seed 0, cap 100)",
+            {
+                "sweep": [
+                    "{python}",
+                    "scripts/bench_faults.py",
+                    "--episodes",
+                    str(FAULT_SWEEP_EPISODES),
+                    "--cost-seconds",
+                    "0",
+                ]
+            },
+            fault_sweep_extract,
+            markdown_figure_tables(("sweep",)),
+            fault_sweep_compare,
+            ("docs/localisation.md",),
+            checked="every row's second-kernel mean steps lies inside the published 95 % bootstrap interval",
+            notes="Mean steps count a capped episode with its 100 steps; the 95 % interval is the percentile "
+            "bootstrap of the mean; the worst pose error is over every step of every episode of the row; the "
+            "agents' RFID model is a perfect reader in every row (the faults are not told to it). The wall seconds "
+            "per episode are in the result file (timing).",
         ),
         Figure(
             "fault-table",

@@ -799,3 +799,30 @@ def test_a_figures_files_outside_the_code_are_its_commits_copies_in_the_run_fold
     assert run["files"] == {path: module.git("rev-parse", f"{run['commit']}:{path}")}
     plain = replace(figure, commands={"show": ["true"]})
     assert "files" not in module.run_figure(plain, None)  # a figure without such files records none
+
+
+def fault_sweep_output(mean: str = "12.5") -> str:
+    header = (
+        "| fault | localiser | success | mean steps | steps 95% CI (bootstrap) | worst pose error | blocked steps "
+        "| re-localisations | unknown / wrong readings | wall s/episode |\n|---|---|---|---|---|---|---|---|---|---|\n"
+    )
+    rows = (
+        f"| defaults | on | 4/4 | {mean} | [11.0, 14.0] | 0.12 m | 0 | 0 | 0 / 0 of 60 | 20.1 |\n"
+        "| defaults | off | 3/4 | 35.0 | [12.0, 66.0] | 0.90 m | 5 | 0 | 0 / 3 of 90 | 30.5 |\n"
+    )
+    return f"HOTSPOT, 4 episodes per row and mode, seed 0, cap 100; ...\n\n{header}{rows}\n900 s wall for the sweep\n"
+
+
+def test_the_fault_sweep_keeps_its_wall_seconds_apart_and_holds_each_row_to_its_interval():
+    module = load_script()
+    figure = module.FIGURES["fault-sweep"]
+    assert figure.commands["sweep"][-2:] == ["--cost-seconds", "0"]
+    data = figure.extract({"sweep": fault_sweep_output()})
+    (table,) = figure.tables(data)
+    assert "wall s/episode" not in table.headers and data["timing"]["wall_s_per_episode"] == ["20.1", "30.5"]
+    assert table.rows[1][:5] == ["defaults", "off", "3/4", "35.0", "[12.0, 66.0]"]
+    assert figure.compare(data, figure.extract({"sweep": fault_sweep_output("13.0")})) == []
+    moved = figure.extract({"sweep": fault_sweep_output("15.5")})
+    assert figure.compare(data, moved) == ["defaults on: mean steps 15.5 outside the published [11.0, 14.0]"]
+    with pytest.raises(SystemExit, match="fault-sweep: bench_faults.py printed no sweep table"):
+        figure.extract({"sweep": "900 s wall for the sweep\n"})
