@@ -207,7 +207,8 @@ def train_teams(domain: str) -> tuple:
 def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
     """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.generalist:plugin``), for any
     command that takes plug-ins: built for the grid of the arena's ``library`` (its ``rules.config``), or for the
-    lab's or pursuit-task's library (:func:`~embodied_adhoc.learning.index_domains.index_agent`)."""
+    library of an index domain, the lab, pursuit-task or ntu
+    (:func:`~embodied_adhoc.learning.index_domains.index_agent`)."""
     from embodied_adhoc.learning.index_domains import index_agent, index_domain
 
     if index_domain(library) is not None:

@@ -234,7 +234,7 @@ def liam_agent(domain: str, path: str | Path | None, grid, name: str = KIND) -> 
 
 def plugin(library, rng_seed: int = 0) -> GeneralistAgent:
     """The shipped agent as an agent plug-in (``--agents embodied_adhoc.learning.liam:plugin``), on a grid arena,
-    the lab or pursuit-task."""
+    the lab, pursuit-task or ntu."""
     from embodied_adhoc.learning.index_domains import index_agent, index_domain
 
     if index_domain(library) is not None:
