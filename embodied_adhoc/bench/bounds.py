@@ -14,6 +14,14 @@ The normalised score of a return ``R`` is ``(R - random) / (best - random)``: 0 
 best response by construction; a score above 1 is reported as it is. Bounds (per state) are cached as ``.npz`` under
 ``$XDG_CACHE_HOME/embodied-adhoc/bench/``, keyed by the SHA-256 of the world's arrays, the start distribution, the
 horizon and this module's source, so a changed member, model or code never serves an old bound.
+
+The grid arenas (:data:`~embodied_adhoc.teammates.populations.GRID`) have no finite model: a team's state includes
+the prey's and the learned teammates' draws and memories. There a return is minus the episode's steps (the trial
+cap when the task is not finished: the thesis's steps to finish), and both bounds are estimated by simulation
+(:func:`simulated_bounds`): the mean return of the random ego and of the *original teammate* (the member's own
+policy in the ego's seat, as the ATLPO split normalises) over :data:`GRID_BOUND_EPISODES` episodes of their own
+seed (:data:`GRID_BOUND_SEED`), run through the trial runner. The upper bound is then the original team's, not a
+best response: an agent can score above it, and the score is reported as it is.
 """
 
 from __future__ import annotations
@@ -28,7 +36,25 @@ import scipy.sparse as sp
 
 from embodied_adhoc.errors import ConfigError
 
-__all__ = ["Bounds", "bounds_cache_dir", "member_bounds", "normalise", "start_state", "world_mdps"]
+__all__ = [
+    "GRID_BOUND_EPISODES",
+    "GRID_BOUND_SEED",
+    "Bounds",
+    "bounds_cache_dir",
+    "grid_return",
+    "member_bounds",
+    "normalise",
+    "simulated_bounds",
+    "start_state",
+    "world_mdps",
+]
+
+GRID_BOUND_EPISODES = 32
+GRID_BOUND_SEED = 7_919
+"""The grid bounds' episodes and seed: their own, not an evaluation's (``evaluate --seed 0`` scores other starts)."""
+GRID_UPPER = "original"
+EXACT = "exact best response"
+ORIGINAL = "original team (the member's policy in the ego's seat)"
 
 
 @dataclass(frozen=True)
@@ -42,6 +68,8 @@ class Bounds:
     horizon: int
     best_values: tuple = field(default=(), compare=False, repr=False)
     random_values: tuple = field(default=(), compare=False, repr=False)
+    upper: str = EXACT  # what ``best`` is: the exact best response, or the original team's estimated return
+    episodes: int | None = None  # the episodes each simulated bound is the mean of (None: exact)
 
     @property
     def span(self) -> float:
@@ -50,6 +78,10 @@ class Bounds:
     def on_starts(self, starts) -> tuple[float, float]:
         """``(best, random)`` expected returns averaged over the given ``(task, start state)`` pairs: the bounds on
         a run's own episodes, which an agent's mean over those episodes is compared with."""
+        if not self.best_values:
+            raise ConfigError(
+                "simulated bounds hold no per-state values: a run's own starts have no exact bound"
+            )
         best = float(np.mean([self.best_values[task][state] for task, state in starts]))
         random = float(np.mean([self.random_values[task][state] for task, state in starts]))
         return best, random
@@ -200,3 +232,40 @@ def member_bounds(member, library, horizon: int, cache: bool = True) -> Bounds:
     best = float(np.mean([start @ v for start, v in zip(starts, best_values, strict=True)]))
     random = float(np.mean([start @ v for start, v in zip(starts, random_values, strict=True)]))
     return Bounds(random, best, horizon, best_values, random_values)
+
+
+# ----------------------------------------------------------------------------------------------- grid arenas
+
+
+def grid_return(record) -> float:
+    """A grid arena trial's benchmark return: minus its steps (the trial cap when the task is not finished)."""
+    return -float(record.steps)
+
+
+def simulated_bounds(
+    domain: str,
+    options: dict,
+    max_steps: int,
+    out: str | Path,
+    episodes: int = GRID_BOUND_EPISODES,
+    seed: int = GRID_BOUND_SEED,
+    **sweep,
+) -> Bounds:
+    """A grid member's bounds (see the module docstring): the random ego's and the original team's mean
+    :func:`grid_return` over ``episodes`` episodes of ``seed`` with the trial ``options`` that put the member in
+    the teammate seats, on the abstract backend, stored (and resumed) under ``out``; ``sweep`` goes to the trial
+    runner (workers, executor, progress)."""
+    from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+
+    config = SweepConfig(domain, "abstract", options, ("random", GRID_UPPER), episodes, seed, max_steps)
+    result = run_sweep(config, out=out, **sweep)
+    returns: dict[str, list[float]] = {"random": [], GRID_UPPER: []}
+    for record in result.records:
+        returns[record.agent].append(grid_return(record))
+    return Bounds(
+        float(np.mean(returns["random"])),
+        float(np.mean(returns[GRID_UPPER])),
+        int(max_steps),
+        upper=ORIGINAL,
+        episodes=int(episodes),
+    )

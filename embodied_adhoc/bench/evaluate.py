@@ -20,7 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.teammates.populations import BENCH_DOMAINS, SUITE_VERSION, load_population, members
+from embodied_adhoc.teammates.populations import (
+    BENCH_DOMAINS,
+    GRID,
+    SUITE_VERSION,
+    load_population,
+    members,
+)
 
 __all__ = ["SUITES", "Suite", "backend_difference", "evaluate", "resolve_suite"]
 
@@ -122,15 +128,25 @@ def evaluate(
     reps: int | None = None,
     plots: bool = True,
     scores: dict | None = None,
+    bound_episodes: int | None = None,
 ) -> dict:
     """Run (or resume) the suite for ``agents`` and write ``OUT/summary.json`` (returned) and the plots.
 
     ``executor`` is the trial runner's (``local`` or ``ray``); the members of a population file given by
     ``params`` are known to this process and its forked workers only, so they need ``local``. ``scores``, if
     given, receives per domain ``{agent: normalised scores (episodes x members)}``, the per-episode data the
-    summary aggregates (e.g. for :func:`backend_difference`)."""
+    summary aggregates (e.g. for :func:`backend_difference`). On the grid arenas a return is minus the steps and
+    the bounds are simulated (``bench.bounds.simulated_bounds``, ``bound_episodes`` each, default
+    ``GRID_BOUND_EPISODES``), stored under ``OUT/<domain>/<member>/bounds/``."""
     from embodied_adhoc.atomic import atomic_write_text
-    from embodied_adhoc.bench.bounds import member_bounds, normalise, start_state
+    from embodied_adhoc.bench.bounds import (
+        GRID_BOUND_EPISODES,
+        grid_return,
+        member_bounds,
+        normalise,
+        simulated_bounds,
+        start_state,
+    )
     from embodied_adhoc.bench.scores import BENCH_REPS
     from embodied_adhoc.experiments.executors import close_sessions
     from embodied_adhoc.experiments.registry import get_trial_domain
@@ -163,9 +179,22 @@ def evaluate(
         library = get_trial_domain(domain_name).open_session(backend, options).library
         run_agents = per_domain[domain_name]
         rows, matrices = [], {a: [] for a in run_agents}
+        grid = domain_name in GRID
         for spec in specs:
-            bounds = member_bounds(spec, library, max_steps)
             member_options = {**spec.trial_options(options), "bench_member": spec.describe()}
+            if grid:
+                bounds = simulated_bounds(
+                    domain_name,
+                    member_options,
+                    max_steps,
+                    out / domain_name / spec.name / "bounds",
+                    episodes=bound_episodes or GRID_BOUND_EPISODES,
+                    workers=workers,
+                    executor=executor,
+                    progress=progress,
+                )
+            else:
+                bounds = member_bounds(spec, library, max_steps)
             config = SweepConfig(domain_name, backend, member_options, run_agents, episodes, seed, max_steps)
             result = run_sweep(
                 config,
@@ -179,17 +208,25 @@ def evaluate(
             belief = {a: np.full(episodes, np.nan) for a in run_agents}
             starts = {}
             for record in result.records:
-                returns[record.agent][record.episode] = record.total_reward
+                returns[record.agent][record.episode] = grid_return(record) if grid else record.total_reward
                 solved[record.agent][record.episode] = float(record.success)
                 belief[record.agent][record.episode] = record.true_task_probability
-                starts[record.episode] = start_state(domain_name, library, record.spec)
-            on_episodes, _ = bounds.on_starts(list(starts.values()))
+                if not grid:
+                    starts[record.episode] = start_state(domain_name, library, record.spec)
             row = {
                 **spec.describe(),
-                "bounds": {"random": bounds.random, "best": bounds.best, "horizon": max_steps},
+                "bounds": {
+                    "random": bounds.random,
+                    "best": bounds.best,
+                    "horizon": max_steps,
+                    "upper": bounds.upper,
+                    **({"episodes": bounds.episodes} if bounds.episodes else {}),
+                },
                 # the best response's expected return from these episodes' own starts, normalised: what no agent's
-                # mean over the same episodes exceeds in expectation
-                "best_on_episodes": float(normalise(on_episodes, bounds)),
+                # mean over the same episodes exceeds in expectation (none where the bounds are simulated)
+                "best_on_episodes": None
+                if grid
+                else float(normalise(bounds.on_starts(list(starts.values()))[0], bounds)),
             }
             row["agents"] = {}
             for agent in run_agents:

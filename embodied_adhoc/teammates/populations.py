@@ -36,13 +36,14 @@ __all__ = [
     "population",
 ]
 
-SUITE_VERSION = "2"
+SUITE_VERSION = "3"
 SPLITS = ("train", "validation", "held-out")
 LAB = "toxic-waste"
 CHAPTER5 = tuple(d for d in CHAPTER5_DOMAINS if d not in ("panic-buttons", "map"))
-BENCH_DOMAINS = (LAB, *CHAPTER5)
-"""The domains with a population: the toxic-waste lab and the chapter-5 domains of Table 5.5 (not panic buttons,
-whose library picks the teammate, nor a user's map file)."""
+GRID = ("foraging",)
+BENCH_DOMAINS = (LAB, *CHAPTER5, *GRID)
+"""The domains with a population: the toxic-waste lab, the chapter-5 domains of Table 5.5 (not panic buttons,
+whose library picks the teammate, nor a user's map file) and the grid arena of level-based foraging."""
 _THESIS_TEAMMATES = {
     # the teammates the domain's own library holds (its train split); the maps' and the power plant's is the MMDP's
     # optimal teammate
@@ -85,6 +86,8 @@ class TeammateSpec:
         where = self.name if self.split in SPLITS else f"{self.split}/{self.name}"  # a user's suite: its name
         if self.domain == LAB:
             return f"embodied_adhoc.teammates.lab_members:{where}"
+        if self.domain in GRID:
+            return f"embodied_adhoc.teammates.grid_members:{self.domain}/{where}"
         return f"embodied_adhoc.teammates.chapter5_members:{self.domain}/{where}"
 
     def factory(self):
@@ -98,12 +101,18 @@ class TeammateSpec:
             from embodied_adhoc.teammates.lab_members import LabMemberFactory
 
             return LabMemberFactory(self.name, self.params)
+        if self.domain in GRID:
+            from embodied_adhoc.teammates.grid_members import GridMemberFactory
+
+            return GridMemberFactory(self.name, self.params)
         from embodied_adhoc.teammates.chapter5_members import Chapter5MemberFactory
 
         return Chapter5MemberFactory(self.name, self.params)
 
     def trial_options(self, options: dict) -> dict:
         """The trial runner's ``options`` of the domain with this member as the world's teammate."""
+        if self.domain in GRID:  # the arena's team, drawn for every episode
+            return {**options, "teams": [self.plugin]}
         key = "human" if self.domain == LAB else "teammate"
         return {**options, key: self.plugin}
 
@@ -219,7 +228,123 @@ def _chapter5(domain: str) -> tuple[TeammateSpec, ...]:
     return tuple(specs)
 
 
-_POPULATIONS = {LAB: _lab, **{name: (lambda name=name: _chapter5(name)) for name in CHAPTER5}}
+_ATLPO_NOISE = 0.2
+_ATLPO_MIXED = (("tau1", "tau0", "tau1", "tau2"), ("tau2", "tau2", "tau0", "tau0"))
+"""The held-out teams of the ATLPO split (``learning.atlpo_heldout``: NOISE, MIXED; seat 0's type first)."""
+
+
+def _grid(domain: str) -> tuple[TeammateSpec, ...]:
+    """The arena's scripted members (``teammates.grid_members``) and its learned ones (:func:`_learned`)."""
+
+    def team(name, split, label, **params):
+        return TeammateSpec(name, domain, split, label, params)
+
+    def seats(types, noise=0.0):
+        name = "mixed-" + "-".join(types[1:]) if len(types) > 1 else types[0]
+        # no '.' in a name: a plug-in spec's attribute path splits there
+        return name + (f"-noise-p{round(100 * noise):02d}" if noise else "")
+
+    specs = [team(tau, "train", "thesis team", family="named", team=tau) for tau in ("tau0", "tau1", "tau2")]
+    specs += [
+        team(
+            seats(("tau1",), 0.1),
+            "validation",
+            "thesis team, actions noisy",
+            family="seats",
+            teams=["tau1"],
+            noise=0.1,
+        ),
+        team(
+            seats(("tau2", "tau0", "tau2", "tau1")),
+            "validation",
+            "mixed team of thesis types",
+            family="seats",
+            teams=["tau2", "tau0", "tau2", "tau1"],
+        ),
+        team(
+            "sticky-tau1-p30",
+            "validation",
+            "sticky: repeats its last action",
+            family="sticky",
+            team="tau1",
+            p=0.3,
+        ),
+        team(
+            "closest-path",
+            "validation",
+            "scripted: closest target, shortest paths",
+            family="spec",
+            target="closest",
+            slot="assigned",
+            goal="slot",
+            navigation="path",
+        ),
+    ]
+    specs += [
+        team(
+            seats((tau,), _ATLPO_NOISE),
+            "held-out",
+            "ATLPO split: thesis team, actions noisy",
+            family="seats",
+            teams=[tau],
+            noise=_ATLPO_NOISE,
+        )
+        for tau in ("tau0", "tau1", "tau2")
+    ]
+    specs += [
+        team(
+            seats(types),
+            "held-out",
+            "ATLPO split: mixed team of thesis types",
+            family="seats",
+            teams=list(types),
+        )
+        for types in _ATLPO_MIXED
+    ]
+    specs += [
+        team(
+            "sticky-tau2-p50",
+            "held-out",
+            "sticky: repeats its last action",
+            family="sticky",
+            team="tau2",
+            p=0.5,
+        ),
+        team(
+            "highest-greedy",
+            "held-out",
+            "scripted: highest-level target, greedy moves",
+            family="spec",
+            target="highest_level",
+            slot="closest",
+            goal="slot",
+            navigation="greedy",
+        ),
+    ]
+    return tuple(sorted((*specs, *_learned(domain)), key=lambda spec: SPLITS.index(spec.split)))
+
+
+def _learned(domain: str) -> tuple[TeammateSpec, ...]:
+    """The arena's learned members, listed with their weights in the package's data (``bench/<domain>/members.json``:
+    name, split, type, params with ``family: learned``, and the plug-in spec of the torch code that plays them, which
+    lives above this layer)."""
+    from embodied_adhoc.paths import assets_dir
+
+    path = assets_dir() / "bench" / domain / "members.json"
+    if not path.is_file():
+        return ()
+    entries = json.loads(path.read_text())["members"]
+    return tuple(
+        TeammateSpec(e["name"], domain, e["split"], e["type"], dict(e["params"]), plugin_spec=e["plugin"])
+        for e in entries
+    )
+
+
+_POPULATIONS = {
+    LAB: _lab,
+    **{name: (lambda name=name: _chapter5(name)) for name in CHAPTER5},
+    **{name: (lambda name=name: _grid(name)) for name in GRID},
+}
 
 
 def population(domain: str) -> tuple[TeammateSpec, ...]:
