@@ -451,6 +451,23 @@ def physics_table(physics: dict) -> list[str]:
     return lines
 
 
+def simulated_bounds_lines(held: dict) -> list[str]:
+    """A sentence per domain whose bounds are simulated (the grid arenas): what its return and upper bound are."""
+    lines = []
+    for domain, scope in held.items():
+        bounds = [row["bounds"] for row in scope["teammates"] if row.get("bounds", {}).get("episodes")]
+        if bounds:
+            first = bounds[0]
+            lines += [
+                "",
+                f"{domain}: a return is minus the steps to finish (the cap, {first['horizon']}, when unfinished), "
+                f"and the upper bound is the {first['upper']}, not a best response: the random ego's and its mean "
+                f"over {first['episodes']} episodes of their own seed, so an agent that beats the original team "
+                f"scores above 1 and `BR` is not known.",
+            ]
+    return lines
+
+
 def table(result: dict) -> str:
     """Per domain and agent: held-out IQM and mean (95 % stratified-bootstrap intervals), the validation IQM."""
     held, validation = result["suites"]["heldout"], result["suites"].get("validation", {})
@@ -465,6 +482,7 @@ def table(result: dict) -> str:
         "| domain | agent | held-out IQM [95% CI] | held-out mean [95% CI] | validation IQM [95% CI] |",
         "|---|---|---|---|---|",
     ]
+    lines[1:1] = simulated_bounds_lines(held)
     for domain, scope in held.items():
         for agent, values in scope["aggregate"].items():
             check = validation.get(domain, {}).get("aggregate", {}).get(agent)

@@ -134,7 +134,7 @@ def test_grid_return_is_minus_the_steps():
 
 
 def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_path):
-    specs = (find_member("foraging", "sticky-tau2-p50"), find_member("foraging", "ppo-s0"))
+    specs = (find_member("foraging", "sticky-tau2-p50"), find_member("foraging", "tau0-noise-p20"))
     suite = Suite("heldout", SUITE_VERSION, {"foraging": specs})
 
     def run(out):
@@ -148,7 +148,7 @@ def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
     assert json.dumps(first, sort_keys=True) == json.dumps(resumed, sort_keys=True)
     rows = first["domains"]["foraging"]["teammates"]
-    assert [row["name"] for row in rows] == ["sticky-tau2-p50", "ppo-s0"]
+    assert [row["name"] for row in rows] == ["sticky-tau2-p50", "tau0-noise-p20"]
     for row in rows:
         assert row["bounds"]["upper"] == ORIGINAL and row["best_on_episodes"] is None
         assert row["bounds"]["random"] < row["bounds"]["best"]

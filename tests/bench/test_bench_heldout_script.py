@@ -135,3 +135,24 @@ def test_the_file_command_reruns_the_whole_suite_and_a_partial_run_command_moves
     assert "ntu: openblas:Sandybridge, suite v2 (published openblas:Haswell" in "\n".join(
         script.kernel_check_lines(merged["kernel_checks"])
     )
+
+
+def test_simulated_bounds_skip_the_best_response_check_and_are_stated(script):
+    grid = _scope(
+        ("x", "y"), 1.4, commit="new", kernel="openblas:Haswell", version="3", seed=0, wall_s=1.0, members=1
+    )
+    grid["teammates"][0] |= {
+        "best_on_episodes": None,  # no exact best response: a mean above 1 is no error
+        "bounds": {"random": -90.0, "best": -12.0, "horizon": 100, "upper": "original team", "episodes": 32},
+        "params": {},
+    }
+    for cell in grid["aggregate"].values():
+        cell |= {"iqm_ci": [1.3, 1.5], "mean": 1.4, "mean_ci": [1.3, 1.5]}
+    merged = script.merge(
+        {}, {"commit": "new", "kernel": "openblas:Haswell", "suites": {"heldout": {"foraging": grid}}}
+    )
+    assert merged["best_response_check"]["checked"] == 0 and merged["best_response_check"]["above"] == []
+    text = script.table(merged)
+    assert "foraging: a return is minus the steps to finish (the cap, 100, when unfinished)" in text
+    assert "upper bound is the original team, not a best response" in text
+    assert "| m | t | - | 1.40 | 1.40 |" in text
