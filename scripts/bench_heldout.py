@@ -86,6 +86,7 @@ class Args:
     physics_episodes: int = 8  # per member and agent on each backend
     render_only: bool = False
     check: tuple[str, ...] = ()  # domains whose held-out suite runs as a second kernel's check
+    agents: tuple[str, ...] = ()  # a subset of each domain's AGENTS (none: all of them)
 
 
 SUITE_COMMAND = ".venv/bin/python scripts/bench_heldout.py"
@@ -110,6 +111,11 @@ def parse() -> Args:
         default="",
         help="domains whose held-out suite to run as a second kernel's check (kernel_checks)",
     )
+    parser.add_argument(
+        "--agents",
+        default="",
+        help="run only these of each domain's agents (a later run with more resumes the stored trials)",
+    )
     ns = parser.parse_args()
     domains = tuple(d for d in ns.domains.split(",") if d)
     check = tuple(d for d in ns.check.split(",") if d)
@@ -117,6 +123,9 @@ def parse() -> Args:
         unknown = [d for d in names if d not in AGENTS]
         if unknown:
             parser.error(f"{flag} {','.join(unknown)}: choose from {', '.join(AGENTS)}")
+    unknown = [a for a in ns.agents.split(",") if a and not any(a in names for names in AGENTS.values())]
+    if unknown:
+        parser.error(f"--agents {','.join(unknown)}: no domain runs it (see AGENTS)")
     if ns.episodes < 2 or ns.physics_episodes < 2:
         parser.error("--episodes and --physics-episodes: at least 2 (the intervals resample episodes)")
     return Args(
@@ -129,6 +138,7 @@ def parse() -> Args:
         ns.physics_episodes,
         ns.render_only,
         check,
+        tuple(a for a in ns.agents.split(",") if a),
     )
 
 
@@ -158,9 +168,8 @@ def run(args: Args) -> dict:
             suite = resolve_suite(suite_name, (domain,))
             out = Path(args.out) / f"{suite_name}-{domain}"
             clock = time.perf_counter()
-            summary = evaluate(
-                AGENTS[domain], suite, out, episodes=args.episodes, seed=args.seed, progress=True
-            )
+            agents = tuple(a for a in AGENTS[domain] if not args.agents or a in args.agents)
+            summary = evaluate(agents, suite, out, episodes=args.episodes, seed=args.seed, progress=True)
             results.setdefault(suite_name, {})[domain] = summary["domains"][domain] | {
                 "version": summary["version"],
                 "episodes": summary["episodes"],
