@@ -3,9 +3,12 @@
 A member is a :class:`TeammateSpec`: its name, domain, split, a type label (what kind of teammate it is), the
 parameters of its policy and the suite version it belongs to. ``spec.factory()`` builds the policy's factory
 (the domain's teammate plug-in interface: a lab human ``factory(library, task)``, a chapter-5 teammate
-``factory(library, m) -> pi``); a member's behaviour is a function of its parameters and of the generator the
-world hands it, so the same seed gives the same episode. ``spec.plugin`` is the plug-in spec string that names it
-on ``--human`` / ``--teammate``, and :meth:`TeammateSpec.trial_options` the trial runner's options for it.
+``factory(library, m) -> pi``, a grid arena's team ``factory(rules)``); a member's behaviour is a function of its
+parameters and of the generator the world hands it, so the same seed gives the same episode. ``spec.plugin`` is
+the plug-in spec string that names it on ``--human`` / ``--teammate`` / ``--team``, and
+:meth:`TeammateSpec.trial_options` the trial runner's options for it. A grid arena's learned members (recurrent
+agents in a teammate seat) are torch code, above this layer: they are listed with their weights in the package's
+data and named there by plug-in spec (:func:`_learned`).
 
 * *train*: what libraries and learners may see (the thesis's teammates are here);
 * *validation*: for tuning;
