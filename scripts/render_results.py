@@ -1841,9 +1841,11 @@ UNRUN = {
         Unrun(
             "live-latency",
             "Latency of the live page: frame intervals and key press to motion",
-            "LIVE_SCREENSHOTS=/tmp/shots MUJOCO_GL=egl .venv/bin/python -m pytest -q -s "
-            "tests/live/test_live_browser.py",
-            "the browser tests at real time with headless Chromium: several minutes of wall clock",
+            "MUJOCO_GL=egl .venv/bin/python -m pytest -q -s tests/live/test_live_browser.py -k typing (as "
+            "`render_results.py run live-latency` runs it)",
+            "the browser test's typing session at real time with headless Chromium (installed here): minutes of wall "
+            "clock on a machine that keeps the simulation at real time; at load 11-12 on the shared two cores the "
+            "human fell behind and the session timed out walking west (twice: 131 and 112 s wall)",
             TIMING,
         ),
         Unrun(
@@ -1872,7 +1874,10 @@ UNRUN = {
             "fig5-9",
             "Fig. 5.9: ATPO's normalised score on gridworld by library size",
             ".venv/bin/python scripts/reproduce_atpo.py --domains gridworld --markdown",
-            "about 4 min of CPU with the 4-model library's policies cached (28 more models solved)",
+            "the 32 models of the nested gridworld libraries (sizes 2-32) solved and 32 episodes per size: more "
+            "than 10.8 CPU min with a cold policy cache (a run stopped there while solving the 32-model library; the "
+            "cache is cold again after every edit of the solver's sources); a cold run here stopped after 124 CPU s "
+            "(14 min wall at load 10-13) with the 2- and 4-model sizes done",
             STATISTICAL,
         ),
         Unrun(
@@ -2315,7 +2320,9 @@ def run_figure(
         executable = [str(ROOT / command[0]) if command[0].startswith(".venv/") else command[0], *command[1:]]
         done = subprocess.run(executable, cwd=folder, env=env, capture_output=True, text=True)
         if done.returncode != 0:
-            sys.exit(f"{figure.name}: `{commands[key]}` exited {done.returncode}:\n{done.stderr[-2000:]}")
+            # a test runner reports its failures on stdout: show that where stderr says nothing
+            said = done.stderr.strip() or done.stdout
+            sys.exit(f"{figure.name}: `{commands[key]}` exited {done.returncode}:\n{said[-2000:]}")
         outputs[key] = done.stdout
     return {
         "kernel": numerics["kernel"],
