@@ -49,7 +49,7 @@ __all__ = [
     "world_mdps",
 ]
 
-GRID_BOUND_EPISODES = 32
+GRID_BOUND_EPISODES = 16
 GRID_BOUND_SEED = 7_919
 """The grid bounds' episodes and seed: their own, not an evaluation's (``evaluate --seed 0`` scores other starts)."""
 GRID_UPPER = "original"
