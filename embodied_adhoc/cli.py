@@ -43,14 +43,15 @@ def _raise_terminated(signum, frame):
     raise Terminated()
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(commands: tuple[str, ...] = COMMAND_MODULES) -> argparse.ArgumentParser:
+    """The parser with the sub-commands of ``commands`` (modules of :data:`COMMAND_MODULES`) registered."""
     parser = OneLineParser(
         prog="embodied-adhoc",
         description="Ad hoc teamwork testbed: embodied (MuJoCo) and abstract (POMDP) worlds, agents and trials.",
     )
     parser.add_argument("--version", action="version", version=f"embodied-adhoc {__version__}")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
+    for name in commands:
         try:
             module = importlib.import_module(f"embodied_adhoc.commands.{name}")
         except ModuleNotFoundError as error:
@@ -62,7 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    # A command line naming a command imports that command's module alone: the others' imports (and what they
+    # pull in) would be part of every command's memory, e.g. of a solver's peak that is compared with SARSOP's.
+    words = sys.argv[1:] if argv is None else argv
+    parser = build_parser((words[0],) if words and words[0] in COMMAND_MODULES else COMMAND_MODULES)
     args = parser.parse_args(argv)
     if not getattr(args, "func", None):
         # A command group without a subcommand (or no command at all): show its help.

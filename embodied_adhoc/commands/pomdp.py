@@ -283,7 +283,11 @@ def _solve(args: argparse.Namespace) -> int:
         )
     if args.solver != "auto":
         _check_hsvi_flags(args)
+    from embodied_adhoc.decision import memory
+
+    memory.return_freed_memory()
     pomdp = _load(args)
+    memory.trim()  # the reader's objects are gone: the solve starts from the model alone
     if args.solver == "auto":
         args.solver = auto_solver(pomdp.n_states, pomdp.n_observations, pomdp.discount, args.horizon)
         _check_hsvi_flags(args, chosen=True)

@@ -40,6 +40,7 @@ _DENSE_DENSITY = 0.1  # observation-matrix density from which scores use a dense
 _DENSE_MAX_ELEMENTS = 20_000_000
 _EPS = float(np.finfo(np.float64).eps)
 _SPLIT_MIN_WORK = 1 << 22  # multiply-adds (nnz x columns) from which a product is split over the threads
+_BLOCK_ENTRIES = 1 << 20  # entries of a reduced product formed at once (RowProducts: 8 MiB of float64)
 
 
 class RowProducts:
@@ -67,27 +68,41 @@ class RowProducts:
         dense: np.ndarray,
         reduce: Callable[[np.ndarray], np.ndarray] | None = None,
     ) -> np.ndarray:
-        """``reduce(matrix @ dense)`` for a ``reduce`` that works row by row (e.g. an argmax over axis 1)."""
-        reduce = reduce or _identity
+        """``reduce(matrix @ dense)`` for a ``reduce`` that works row by row (e.g. an argmax over axis 1).
+
+        With a ``reduce``, the product is formed ``_BLOCK_ENTRIES`` entries at a time (blocks of rows, each reduced
+        before the next): the solver's value products over the whole belief set (|B| x vectors) and the branch
+        scores of a batch would otherwise be its largest arrays, and a row's entries are the same in any block."""
         if not sp.issparse(
             matrix
         ):  # dense rows (beliefs) in CSR form: scipy's fixed summation order, never BLAS
             matrix = sp.csr_matrix(matrix)
+        dense = np.ascontiguousarray(dense)  # scipy copies a non-contiguous operand per product: once, here
+        columns = dense.shape[1] if dense.ndim == 2 else 1
+        n_rows = matrix.shape[0]
+        if reduce is None or n_rows * columns <= _BLOCK_ENTRIES:
+            return self._split(matrix, dense, reduce or _identity)
+        matrix = matrix.tocsr()
+        step = max(1, _BLOCK_ENTRIES // columns)
+        return np.concatenate(
+            [
+                self._split(_row_range(matrix, first, min(first + step, n_rows)), dense, reduce)
+                for first in range(0, n_rows, step)
+            ],
+            axis=0,
+        )
+
+    def _split(
+        self, matrix: sp.csr_matrix, dense: np.ndarray, reduce: Callable[[np.ndarray], np.ndarray]
+    ) -> np.ndarray:
+        """``reduce(matrix @ dense)``, split by rows over the threads when it is large enough."""
         if self._pool is None or matrix.nnz * dense.shape[-1] < _SPLIT_MIN_WORK:
             return reduce(dot(matrix, dense))
         matrix = matrix.tocsr()
-        dense = np.ascontiguousarray(dense)  # scipy copies a non-contiguous operand per product: once, here
         indptr = matrix.indptr
         bounds = np.searchsorted(indptr, np.linspace(0, matrix.nnz, self.threads + 1)[1:-1], side="left")
         bounds = np.unique(np.concatenate([[0], bounds, [matrix.shape[0]]]))
-        parts = [  # the rows [a, b), on views of the entries
-            sp.csr_matrix(
-                (matrix.data[start:end], matrix.indices[start:end], indptr[a : b + 1] - start),
-                shape=(b - a, matrix.shape[1]),
-            )
-            for a, b in zip(bounds[:-1], bounds[1:], strict=True)
-            for start, end in [(indptr[a], indptr[b])]
-        ]
+        parts = [_row_range(matrix, a, b) for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
         others = [self._pool.submit(lambda part: reduce(part @ dense), part) for part in parts[1:]]
         results = [reduce(parts[0] @ dense)] + [future.result() for future in others]
         return results[0] if len(results) == 1 else np.concatenate(results, axis=0)
@@ -101,6 +116,15 @@ class RowProducts:
 
 def _identity(array: np.ndarray) -> np.ndarray:
     return array
+
+
+def _row_range(matrix: sp.csr_matrix, first: int, last: int) -> sp.csr_matrix:
+    """Rows ``[first, last)`` of a CSR matrix, on views of its entries (no copy)."""
+    start, end = matrix.indptr[first], matrix.indptr[last]
+    return sp.csr_matrix(
+        (matrix.data[start:end], matrix.indices[start:end], matrix.indptr[first : last + 1] - start),
+        shape=(last - first, matrix.shape[1]),
+    )
 
 
 @dataclass(frozen=True)
@@ -269,7 +293,7 @@ class BackupOperator:
             weights = sp.csr_matrix(
                 (weights32, (rows, states)), shape=(len(branch_keys), self.pomdp.n_states)
             )
-            best = self.products(weights, prepared.alphas_t, _row_argmax)  # (branches,)
+            best = self.products(weights, prepared.alphas_t, row_argmax)  # (branches,)
         elif scored.any():
             product_rows = np.flatnonzero(scored)
             renumber = np.cumsum(scored) - 1
@@ -278,7 +302,7 @@ class BackupOperator:
                 (weights32[kept], (renumber[rows[kept]], states[kept])),
                 shape=(len(product_rows), self.pomdp.n_states),
             )
-            best[product_rows] = self.products(weights, prepared.alphas_t, _row_argmax)
+            best[product_rows] = self.products(weights, prepared.alphas_t, row_argmax)
         branch_beliefs = branch_keys // n_obs
         values = np.bincount(
             branch_beliefs[rows], entries * prepared.alphas[best[rows], states], minlength=predicted.shape[1]
@@ -289,16 +313,17 @@ class BackupOperator:
         self,
         belief: np.ndarray,
         alphas: np.ndarray,
-        alphas_t: np.ndarray,
+        alphas_t: np.ndarray | None,
         fallback_scores: tuple[np.ndarray, ...],
     ) -> tuple[np.ndarray, int, float, np.ndarray]:
         """The backup at one belief (S,): ``(vector (S,), action, value, children (Z,))``, the same bits as
         ``backup(belief[None, :], alphas, with_children=True, project=False)`` (row 0 of each).
 
         ``alphas`` (K, S) float64, ``alphas_t`` its (S, K) float32 transpose (a view into a wider buffer is read
-        without a copy of the whole) and ``fallback_scores`` its :meth:`fallback_scores`, as a caller growing its
-        set keeps them (the solver's trials back up one belief
-        at a time). Every action and observation is handled at once: one product predicts the belief under all
+        without a copy of the whole; None: the reached states' columns of ``alphas`` are cast to float32 here, the
+        same values, so a caller need not hold a float32 copy of its whole set) and ``fallback_scores`` its
+        :meth:`fallback_scores`, as a caller growing its set keeps them (the solver's trials back up one belief at a
+        time). Every action and observation is handled at once: one product predicts the belief under all
         actions, one sparse (branches x S) matrix holds the weights of every possible branch ``(a, z)`` and one
         product with ``alphas_t`` scores them all; the fallback of impossible branches is found for the best
         action alone. Each branch's scores, each action's continuation and the vector are computed from the same
@@ -331,7 +356,8 @@ class BackupOperator:
         weights = sp.csr_matrix(
             (entries.astype(np.float32), (rows, number[states])), shape=(len(branch_keys), reached.size)
         )
-        best = self.products(weights, alphas_t[reached], _row_argmax)  # (branches,)
+        scores_t = alphas_t[reached] if alphas_t is not None else alphas[:, reached].T.astype(np.float32)
+        best = self.products(weights, scores_t, row_argmax)  # (branches,)
         continuation = np.bincount(
             branch_keys[rows] // n_obs, entries * alphas[best[rows], states], minlength=self.pomdp.n_actions
         )
@@ -484,8 +510,14 @@ def _row_entries(matrix: sp.csr_matrix, rows: np.ndarray) -> tuple[np.ndarray, n
     return owner, matrix.indptr[rows][owner] + np.arange(int(counts.sum())) - first
 
 
-def _row_argmax(scores: np.ndarray) -> np.ndarray:
+def row_argmax(scores: np.ndarray) -> np.ndarray:
+    """The first best column of each row: a ``reduce`` of :class:`RowProducts`."""
     return np.argmax(scores, axis=1)
+
+
+def row_max(scores: np.ndarray) -> np.ndarray:
+    """The largest entry of each row: a ``reduce`` of :class:`RowProducts`."""
+    return scores.max(axis=1)
 
 
 def blind_policy_vectors(pomdp: POMDP, tolerance: float = 1e-13) -> np.ndarray:

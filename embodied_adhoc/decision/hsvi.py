@@ -83,17 +83,15 @@ class _LowerBound:
     """The plan graph's vectors with the parts the backups and value products read, grown in place.
 
     Every row of the graph is part of the bound (the blind policies, then each kept backup), so its vectors are a
-    contiguous view; their float32 transpose and the backups' fallback scores are kept in buffers that double when
-    full, so a backup costs no rebuild of them. The value products read the float64 vectors on a belief's support
-    alone, so no float64 transpose of the whole set is kept."""
+    contiguous view; the backups' fallback scores are kept in buffers that grow by half when full, so a backup
+    costs no rebuild of them. The backups' float32 scores and the value products read the float64 vectors on the
+    states a belief reaches (or covers) alone, so no transpose of the whole set is kept: on models with thousands
+    of states the vectors are most of a solve's memory, and a float32 copy of them would add half again."""
 
     def __init__(self, pomdp: POMDP, operator: BackupOperator) -> None:
         self.operator = operator
         self.graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
         vectors = self.graph.vectors
-        self._scores_t = np.ascontiguousarray(
-            vectors.T, dtype=np.float32
-        )  # (S, capacity): the backups' scores
         self._fallback = [np.array(scores) for scores in operator.fallback_scores(vectors)]  # (Z, capacity)
 
     def __len__(self) -> int:
@@ -113,23 +111,21 @@ class _LowerBound:
         vector, action, value, children = self.operator.backup_one(
             belief,
             self.graph.vectors,
-            self._scores_t[:, :count],
+            None,
             tuple(scores[:, :count] for scores in self._fallback),
         )
         if value <= float(self.values(belief)[0]) + _IMPROVES:
             return False
         self.graph.add(vector[None, :], action, children[None, :])
-        if count == self._scores_t.shape[1]:
-            self._scores_t = _wider(self._scores_t)
+        if count == self._fallback[0].shape[1]:
             self._fallback = [_wider(scores) for scores in self._fallback]
-        self._scores_t[:, count] = vector
         for buffer, scores in zip(self._fallback, self.operator.fallback_scores(vector), strict=True):
             buffer[:, count] = scores[:, 0]
         return True
 
 
 def _wider(buffer: np.ndarray) -> np.ndarray:
-    grown = np.empty((buffer.shape[0], 2 * buffer.shape[1]), dtype=buffer.dtype)
+    grown = np.empty((buffer.shape[0], buffer.shape[1] + max(1, buffer.shape[1] // 2)), dtype=buffer.dtype)
     grown[:, : buffer.shape[1]] = buffer
     return grown
 

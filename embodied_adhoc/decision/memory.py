@@ -8,6 +8,9 @@ the peak resident size (``getrusage``) stands in for the current one, which only
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
+import gc
 import resource
 import sys
 from pathlib import Path
@@ -56,3 +59,39 @@ def peak_mb(pid: int | str = "self") -> float | None:
     except (OSError, IndexError, ValueError):
         return None
     return None
+
+
+_MALLOC_THRESHOLD = 1 << 20  # bytes: blocks from this size are mapped on their own and unmapped when freed
+_M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
+
+
+def _glibc() -> ctypes.CDLL | None:
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        return libc if hasattr(libc, "mallopt") and hasattr(libc, "malloc_trim") else None
+    except OSError:
+        return None
+
+
+def return_freed_memory() -> None:
+    """Make freed memory go back to the system from now on (glibc; elsewhere nothing changes).
+
+    glibc raises its mapping threshold to the size of each large block freed, so later arrays of up to 32 MiB
+    come from the heap, where a block freed below a live one stays resident: a solver's transient products then
+    hold the process's resident size (and its peak, the figure compared with SARSOP's) at their high-water mark.
+    A fixed threshold of 1 MiB maps each large array on its own, returned when freed."""
+    libc = _glibc()
+    if libc is not None:
+        libc.mallopt(_M_MMAP_THRESHOLD, _MALLOC_THRESHOLD)
+        libc.mallopt(_M_TRIM_THRESHOLD, _MALLOC_THRESHOLD)
+
+
+def trim() -> None:
+    """Collect garbage and give the heap's free memory back to the system (glibc's ``malloc_trim``): after a
+    phase such as reading a model file, whose many small objects are gone, so the solve starts from what it holds."""
+    gc.collect()
+    libc = _glibc()
+    if libc is not None:
+        libc.malloc_trim(0)

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors
+from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors, row_max
 from embodied_adhoc.decision.belief_expansion import explore, max_depth, sample_path
 from embodied_adhoc.decision.beliefs import collect_belief_rows, collect_beliefs, digest
 from embodied_adhoc.decision.memory import MB, default_cap_mb, resident_mb
@@ -422,7 +422,7 @@ class _Anytime:
     def add_beliefs(self, new: sp.csr_matrix) -> None:
         self.rows = sp.vstack([self.rows, new], format="csr")
         self.beliefs = DenseRows(self.rows)
-        self.values = np.concatenate([self.values, dot(new, transposed(self.alphas)).max(axis=1)])
+        self.values = np.concatenate([self.values, self.operator.products(new, self.alphas.T, row_max)])
         self.on_beliefs, self.owner, self.old_rows = False, None, None
 
 
@@ -464,7 +464,7 @@ def _trial(state: _Anytime) -> bool:
         state.witness = np.concatenate([state.witness, np.full(len(grown) - len(state.current), -1)])
         state.use(grown)
         state.owner, state.old_rows = None, None
-        state.values = np.maximum(state.values, np.asarray(state.rows @ added.T).max(axis=1))
+        state.values = np.maximum(state.values, state.operator.products(state.rows, added.T, row_max))
     lower_b0 = state.lower_b0()
     gain = lower_b0 - state.bounds.lower
     helped = gain > config.tolerance and gain >= state.stage_gain
@@ -533,7 +533,7 @@ def _converged_on_beliefs(state: _Anytime) -> bool:
         )
         state.witness, state.owner, state.old_rows = np.full(len(current), -1), None, None
         state.use(current)
-        state.values = (state.rows @ state.alphas.T).max(axis=1)
+        state.values = state.operator.products(state.rows, state.alphas.T, row_max)
         return False
     state.improvement, state.on_beliefs = residual, True
     return True

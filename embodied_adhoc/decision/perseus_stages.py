@@ -10,16 +10,23 @@ adds a stage's vectors to the plan graph; :func:`full_backup_check` confirms con
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.backup import BackupOperator, PreparedAlphas, RowProducts
+from embodied_adhoc.decision.backup import BackupOperator, PreparedAlphas, RowProducts, row_argmax
 from embodied_adhoc.decision.plan_graph import PlanGraph
-from embodied_adhoc.decision.products import dot
+from embodied_adhoc.decision.products import dot, transposed
 
 _DOMINANCE_CANDIDATES = 4  # new vectors tested for dominating each vector a stage drops
+# A stage keeps its vectors' values on all of B (for the next Gauss-Seidel stage and record_stage) while they
+# stay within this many floats (8 MiB); beyond, it keeps only the first best vector and value per belief, and
+# those rows are products again where they are needed (the same CSR row products: the same bits).
+_STAGE_ROWS_MAX_ENTRIES = 1 << 20
+# Values of new vectors on all of B computed at once (a batch's columns by chunks of this many floats).
+_EVERYWHERE_BLOCK_ENTRIES = 1 << 20
 
 
 @dataclass
@@ -75,12 +82,12 @@ def record_stage(
         witnesses = np.full(dropped.size, -1) if witness is None else witness[dropped_mask]
         unknown = witnesses < 0
         if unknown.any():
-            witnesses[unknown] = np.asarray(np.argmax(rows @ old[unknown].T, axis=0)).ravel()
+            witnesses[unknown] = _column_argmax(rows, old[unknown])
         if stage.score_rows is not None:  # the same products, kept from the stage
             scores = np.stack([row[witnesses] for row in stage.score_rows], axis=1)  # (dropped, new)
-        else:
-            scores = np.asarray(rows[witnesses] @ stage.vectors.T)
-        candidates = np.argsort(-scores, axis=1)[:, :_DOMINANCE_CANDIDATES]
+            candidates = _best_candidates(scores)
+        else:  # by blocks of dropped vectors (RowProducts), the (dropped, new) scores being large
+            candidates = RowProducts()(rows[witnesses], transposed(stage.vectors), _best_candidates)
         dominates = np.all(stage.vectors[candidates] >= old[:, None, :], axis=2)  # (dropped, candidates)
         found = dominates.any(axis=1)
         if found.any():
@@ -89,6 +96,23 @@ def record_stage(
             replacement[dropped[found]] = new_rows[candidates[found, first]]
             graph.redirect(replacement)
     return graph.keep_closure(new_rows)
+
+
+def _best_candidates(scores: np.ndarray) -> np.ndarray:
+    """Per row of (dropped, new) scores, the new vectors that score highest: dominance candidates."""
+    return np.argsort(-scores, axis=1)[:, :_DOMINANCE_CANDIDATES]
+
+
+def _column_argmax(rows: sp.csr_matrix, vectors: np.ndarray) -> np.ndarray:
+    """``np.argmax(rows @ vectors.T, axis=0)``: per vector the first belief where it is largest, by blocks of
+    vectors (the whole product is |B| x vectors floats)."""
+    step = max(1, _EVERYWHERE_BLOCK_ENTRIES // max(rows.shape[0], 1))
+    return np.concatenate(
+        [
+            np.asarray(np.argmax(dot(rows, transposed(vectors[first : first + step])), axis=0)).ravel()
+            for first in range(0, len(vectors), step)
+        ]
+    )
 
 
 @dataclass
@@ -201,7 +225,12 @@ class _StageRun:
         self.no_children = np.zeros(operator.n_observations, dtype=np.int64)
         self.kept_old = np.zeros(alphas.shape[0], dtype=bool)
         self.everywhere = sp.issparse(rows)
-        self.score_rows: list[np.ndarray] = []  # with `everywhere`: per kept vector, its values on B
+        # With `everywhere`: per belief of B, the first kept vector best there and its value so far; and per kept
+        # vector its values on B while they fit in _STAGE_ROWS_MAX_ENTRIES (None: not kept).
+        self.best = np.zeros(beliefs.shape[0], dtype=np.int64)
+        self.best_values = np.full(beliefs.shape[0], -np.inf)
+        self.n_scored = 0
+        self.score_rows: list[np.ndarray] | None = [] if self.everywhere else None
         self.n_backups = 0
         if seidel is None:
             self.prepared = operator.prepare(alphas)
@@ -209,7 +238,7 @@ class _StageRun:
         self.scored = _ScoredSet(operator, alphas)
         self.owner = seidel.owner
         if self.owner is None:
-            self.owner = np.asarray(np.argmax(rows @ alphas.T, axis=1)).ravel()
+            self.owner = operator.products(rows, alphas.T, row_argmax)
         self.extended = seidel.current  # V_n's rows, then the stage's new ones as they enter the graph
         self.new_witness: list[np.ndarray] = []
 
@@ -240,11 +269,23 @@ class _StageRun:
             self.new_witness.append(batch[accepted])
             self.scored.add(vectors[accepted])
         if self.everywhere and kept_here:
-            self.score_rows.extend(
-                _values_everywhere(
-                    self.rows, vectors, kept_here, pending, candidate_values, operator.products
-                )
-            )
+            for row in _values_everywhere(
+                self.rows, vectors, kept_here, pending, candidate_values, operator.products
+            ):
+                self._score(row)
+
+    def _score(self, row: np.ndarray) -> None:
+        """Take the next kept vector's values on B into the running first maximum (the first vector of equal
+        values stays best, as an argmax over all rows would keep it) and, while they fit, keep them."""
+        better = row > self.best_values
+        self.best[better] = self.n_scored
+        self.best_values[better] = row[better]
+        self.n_scored += 1
+        if self.score_rows is not None:
+            if self.n_scored * row.shape[0] <= _STAGE_ROWS_MAX_ENTRIES:
+                self.score_rows.append(row)
+            else:
+                self.score_rows = None
 
     def _accept(self, batch, pending, pending_beliefs, vectors, vector_actions, children, candidate_values):
         """The Perseus rule over a batch, in its random order: keep a backup that improves its belief, else the
@@ -316,7 +357,7 @@ class _StageRun:
             self.new_values,
         )
         if self.everywhere:
-            best, values = _first_max_over_rows(self.score_rows, n)
+            best, values = self.best, self.best_values
         else:
             scores = self.rows @ stage.vectors.T
             best = np.argmax(scores, axis=1)
@@ -329,26 +370,10 @@ class _StageRun:
             stage.children[keep],
             values,
             witness=witness,
-            score_rows=[self.score_rows[k] for k in keep] if self.everywhere else None,
+            score_rows=None if self.score_rows is None else [self.score_rows[k] for k in keep],
             owner=np.searchsorted(keep, best),
             n_backups=self.n_backups,
         )
-
-
-def _first_max_over_rows(rows: list[np.ndarray], n: int, block: int = 64) -> tuple[np.ndarray, np.ndarray]:
-    """``np.argmax(np.stack(rows), axis=0)`` and the maxima, by blocks of rows (stacking them all, then an argmax
-    over the first axis, copies the (vectors x |B|) array twice). The first row of equal maxima wins, as with
-    argmax."""
-    best = np.zeros(n, dtype=np.int64)
-    values = np.full(n, -np.inf)
-    for first in range(0, len(rows), block):
-        part = np.stack(rows[first : first + block])
-        where = np.argmax(part, axis=0)
-        top = part[where, np.arange(part.shape[1])]
-        better = top > values
-        best[better] = first + where[better]
-        values[better] = top[better]
-    return best, values
 
 
 def _values_everywhere(
@@ -358,30 +383,41 @@ def _values_everywhere(
     pending: np.ndarray,
     candidate_values: np.ndarray,
     products: RowProducts,
-) -> list[np.ndarray]:
+) -> Iterator[np.ndarray]:
     """The values on all of B of the vectors a batch kept (``kept``: a column of ``vectors``, or an old vector's
     values already computed), in order. The pending beliefs' values are ``candidate_values``; the others are
     computed on their rows alone (gathered), unless recomputing the pending ones costs less than that gather (a
-    row gather costs about three products per entry)."""
+    row gather costs about three products per entry). New vectors are computed ``_EVERYWHERE_BLOCK_ENTRIES``
+    values at a time (a row's product is the same whichever columns go with it)."""
     n = rows.shape[0]
     new = [j for j in kept if isinstance(j, int)]
-    if not new:
-        return list(kept)
-    if len(new) * len(pending) < 3 * (n - len(pending)):
-        everywhere = np.ascontiguousarray(products(rows, vectors[new].T).T)  # (new, n)
-        by_column = dict(zip(new, everywhere, strict=True))
-    else:
-        others = np.ones(n, dtype=bool)
-        others[pending] = False
-        others = np.flatnonzero(others)
-        rest = products(rows[others], vectors[new].T)
-        by_column = {}
-        for k, j in enumerate(new):
-            row = np.empty(n)
-            row[pending] = candidate_values[:, j]
-            row[others] = rest[:, k]
-            by_column[j] = row
-    return [by_column[entry] if isinstance(entry, int) else entry for entry in kept]
+    whole = len(new) * len(pending) < 3 * (n - len(pending))
+    others = others_index = None
+    if new and not whole:
+        mask = np.ones(n, dtype=bool)
+        mask[pending] = False
+        others_index = np.flatnonzero(mask)
+        others = rows[others_index]
+    step = max(1, _EVERYWHERE_BLOCK_ENTRIES // max(n, 1))
+    by_column: dict[int, np.ndarray] = {}
+    for entry in kept:
+        if not isinstance(entry, int):
+            yield entry
+            continue
+        if entry not in by_column:  # the next chunk of new columns, from this one on
+            chunk = new[new.index(entry) : new.index(entry) + step]
+            by_column.clear()
+            if others is None:
+                values = np.ascontiguousarray(products(rows, transposed(vectors[chunk])).T)  # (chunk, n)
+                by_column.update(zip(chunk, values, strict=True))
+            else:
+                rest = products(others, transposed(vectors[chunk]))
+                for k, j in enumerate(chunk):
+                    row = np.empty(n)
+                    row[pending] = candidate_values[:, j]
+                    row[others_index] = rest[:, k]
+                    by_column[j] = row
+        yield by_column.pop(entry)
 
 
 def full_backup_check(
@@ -395,14 +431,17 @@ def full_backup_check(
 ) -> tuple[float, Stage]:
     """Max over B of ``backup(b) - V(b)``, and a greedy cover of the beliefs that gain more than the tolerance."""
     prepared = operator.prepare(alphas)
-    parts = [
-        operator.backup(beliefs[i : i + batch_size], prepared, with_children=True)
-        for i in range(0, len(beliefs), batch_size)
-    ]
-    vectors = np.vstack([part[0] for part in parts])
-    actions = np.concatenate([part[1] for part in parts])
-    children = np.vstack([part[3] for part in parts])
-    gains = np.concatenate([part[2] for part in parts]) - values
+    # Only the backups that gain more than the threshold can join the cover: the others' vectors are not kept
+    # (a backup of all of B would be |B| x |S| floats).
+    gains = np.empty(len(beliefs))
+    candidates: dict[int, tuple[np.ndarray, int, np.ndarray]] = {}
+    for first in range(0, len(beliefs), batch_size):
+        vectors, actions, backed_up, children = operator.backup(
+            beliefs[first : first + batch_size], prepared, with_children=True
+        )
+        gains[first : first + len(backed_up)] = backed_up - values[first : first + len(backed_up)]
+        for k in np.flatnonzero(gains[first : first + len(backed_up)] > threshold):
+            candidates[first + int(k)] = (vectors[k].copy(), int(actions[k]), children[k].copy())
     residual = float(gains.max())
     chosen = []
     current = values.copy()
@@ -410,10 +449,16 @@ def full_backup_check(
         if gains[index] <= threshold:
             break
         if current[index] + threshold < values[index] + gains[index]:
-            chosen.append(index)
-            np.maximum(current, (rows @ vectors[index][:, None]).ravel(), out=current)
-    chosen = np.asarray(chosen, dtype=np.int64)
-    fixes = Stage(vectors[chosen], actions[chosen], np.full(len(chosen), -1), children[chosen], current)
+            chosen.append(int(index))
+            np.maximum(current, (rows @ candidates[index][0][:, None]).ravel(), out=current)
+    n_states, n_obs = beliefs.shape[1], operator.n_observations
+    fixes = Stage(
+        np.asarray([candidates[i][0] for i in chosen]).reshape(len(chosen), n_states),
+        np.asarray([candidates[i][1] for i in chosen], dtype=np.int64),
+        np.full(len(chosen), -1),
+        np.asarray([candidates[i][2] for i in chosen], dtype=np.int64).reshape(len(chosen), n_obs),
+        current,
+    )
     return residual, fixes
 
 

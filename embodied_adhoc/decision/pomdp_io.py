@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import re
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -63,7 +63,7 @@ an error (default), a self-loop, or the start belief. Rows written but not summi
 _LONG = 1 << 21  # added to the code of a token's first character when the token is longer than one character
 
 
-def _tokenize(text: str) -> tuple[list[str], np.ndarray, Callable[[np.ndarray], np.ndarray]]:
+def _tokenize(text: str) -> tuple[Sequence[str], np.ndarray, Callable[[np.ndarray], np.ndarray]]:
     """Tokens (``:`` always a token of its own, ``#`` to the end of the line a comment), a code per token (its
     character if it has one, else the code of its first character plus ``_LONG``) and a function giving the
     1-based lines (as ``str.splitlines`` counts them) of an array of token indices."""
@@ -71,28 +71,49 @@ def _tokenize(text: str) -> tuple[list[str], np.ndarray, Callable[[np.ndarray], 
     if "#" in text:
         text = _COMMENT.sub("", text)
     text = text.replace(":", " : ")
-    tokens = text.split()
-    if text.isascii():  # one vectorised pass over the bytes finds where each token starts
+    if text.isascii():  # one vectorised pass over the bytes finds where each token starts and ends
         data = np.frombuffer(text.encode("ascii"), dtype=np.uint8)
-        space = _ASCII_SPACE[data]
+        space = _ASCII_SPACE[data]  # str.split()'s whitespace, so the tokens are text.split()'s
         after_space = np.empty(len(data), dtype=bool)
         after_space[:1] = True
         after_space[1:] = space[:-1]
         offsets = np.flatnonzero(~space & after_space)
-        if len(offsets) == len(tokens):
-            longer = np.zeros(len(offsets), dtype=bool)  # the character after the first is not a space
-            inside = offsets + 1 < len(data)
-            longer[inside] = ~space[offsets[inside] + 1]
-            newlines = np.flatnonzero(data == 10)
-            return (
-                tokens,
-                data[offsets].astype(np.int64) + _LONG * longer,
-                (lambda indices: np.searchsorted(newlines, offsets[indices]) + 1),
-            )
+        before_space = np.empty(len(data), dtype=bool)
+        before_space[-1:] = True
+        before_space[:-1] = space[1:]
+        ends = np.flatnonzero(~space & before_space) + 1
+        longer = ends - offsets > 1
+        newlines = np.flatnonzero(data == 10)
+        return (
+            _TokenTexts(text, offsets, ends),
+            data[offsets].astype(np.int64) + _LONG * longer,
+            (lambda indices: np.searchsorted(newlines, offsets[indices]) + 1),
+        )
+    tokens = text.split()
     counts = [len(line.split()) for line in text.split("\n")]
     lines = np.repeat(np.arange(1, len(counts) + 1), counts)
     codes = [ord(token[0]) + (_LONG if len(token) > 1 else 0) for token in tokens]
     return tokens, np.array(codes, dtype=np.int64), lines.__getitem__
+
+
+class _TokenTexts(Sequence[str]):
+    """The tokens of an ASCII text as slices of it, made when read: a list of every token as a string holds about
+    60 bytes a token, most of what reading a large file takes."""
+
+    def __init__(self, text: str, starts: np.ndarray, ends: np.ndarray) -> None:
+        self.text, self.starts, self.ends = text, starts, ends
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def __getitem__(self, index):
+        text = self.text
+        if isinstance(index, slice):
+            return [
+                text[start:end]
+                for start, end in zip(self.starts[index].tolist(), self.ends[index].tolist(), strict=True)
+            ]
+        return text[int(self.starts[index]) : int(self.ends[index])]
 
 
 def _gather(texts: list[str], positions: np.ndarray, stride: int) -> list[str]:

@@ -339,8 +339,56 @@ def test_single_belief_backup_is_the_batched_backup_bit_for_bit(name):
         vectors, actions, values, children = operator.backup(
             belief[None, :], alphas, with_children=True, project=False
         )
-        vector, action, value, plan = operator.backup_one(belief, alphas, alphas_t, fallback_scores)
-        np.testing.assert_array_equal(vector, vectors[0])
-        assert action == actions[0]
-        assert value == values[0]  # the same float, not a close one
-        np.testing.assert_array_equal(plan, children[0])
+        for scores_t in (alphas_t, None):  # None: the float32 scores cast from the reached states' columns
+            vector, action, value, plan = operator.backup_one(belief, alphas, scores_t, fallback_scores)
+            np.testing.assert_array_equal(vector, vectors[0])
+            assert action == actions[0]
+            assert value == values[0]  # the same float, not a close one
+            np.testing.assert_array_equal(plan, children[0])
+
+
+def test_reduced_row_products_by_blocks_are_the_whole_product(monkeypatch):
+    """A reduced product formed a few rows at a time (the solver's value products over all of B) gives the same
+    bits as the whole product reduced at once, with and without threads."""
+    import scipy.sparse as sp
+
+    from embodied_adhoc.decision import backup as backup_module
+    from embodied_adhoc.decision.backup import RowProducts, row_argmax, row_max
+
+    rng = np.random.default_rng(5)
+    matrix = sp.random(301, 40, density=0.2, random_state=7, format="csr")
+    dense = rng.normal(size=(40, 37))
+    whole = np.asarray(matrix @ dense)
+    monkeypatch.setattr(backup_module, "_BLOCK_ENTRIES", 37 * 16 + 5)  # blocks of 16 rows, the last shorter
+    monkeypatch.setattr(backup_module, "_SPLIT_MIN_WORK", 1)
+    for threads in (1, 3):
+        products = RowProducts(threads)
+        try:
+            np.testing.assert_array_equal(products(matrix, dense, row_max), whole.max(axis=1))
+            np.testing.assert_array_equal(
+                products(matrix, dense.T.copy().T, row_argmax), np.argmax(whole, axis=1)
+            )
+        finally:
+            products.close()
+
+
+@pytest.mark.parametrize("update", ["gauss-seidel", "perseus"])
+@pytest.mark.parametrize("name", ["tiger.95.POMDP", "single-state"])
+def test_stage_products_by_chunks_change_nothing(name, update, monkeypatch):
+    """The stage's values on B computed a vector at a time, its rows not kept between stages (as beyond
+    _STAGE_ROWS_MAX_ENTRIES), and the value products over B by blocks of a few beliefs give the same solve to the
+    bit as the defaults."""
+    from embodied_adhoc.decision import backup as backup_module
+    from embodied_adhoc.decision import perseus_stages
+
+    pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
+    config = PerseusConfig(n_beliefs=30, expand=True, max_iterations=12, seed=3, update=update)
+    reference = perseus(pomdp, config)
+    monkeypatch.setattr(perseus_stages, "_EVERYWHERE_BLOCK_ENTRIES", 1)
+    monkeypatch.setattr(perseus_stages, "_STAGE_ROWS_MAX_ENTRIES", 0)
+    monkeypatch.setattr(backup_module, "_BLOCK_ENTRIES", 7)
+    chunked = perseus(pomdp, config)
+    np.testing.assert_array_equal(chunked.alphas, reference.alphas)
+    np.testing.assert_array_equal(chunked.actions, reference.actions)
+    assert [value for _, value in chunked.stats.trace] == [value for _, value in reference.stats.trace]
+    assert chunked.stats.upper == reference.stats.upper
