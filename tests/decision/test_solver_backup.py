@@ -174,7 +174,7 @@ def test_stage_values_on_the_belief_set_are_the_products_over_the_whole_stage():
 def test_batch_size_does_not_change_the_solve(name):
     """Batches only group backups against the same V_n; the Perseus rule runs in the stage's random order, so
     any batch size gives the sequential algorithm's stages, bit for bit (sparse belief rows included)."""
-    pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
+    pomdp = _single_state_observation_pomdp()
     solves = [
         perseus(
             pomdp, PerseusConfig(n_beliefs=300, max_iterations=12, seed=1, batch_size=size, update="perseus")
@@ -194,7 +194,7 @@ def test_threads_do_not_change_the_solve(name, update, monkeypatch):
     threshold is lowered so that the small test products are split too."""
     from embodied_adhoc.decision import backup as backup_module
 
-    pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
+    pomdp = _single_state_observation_pomdp()
     monkeypatch.setattr(backup_module, "_SPLIT_MIN_WORK", 1)
     traces = {1: [], 2: []}
     split = []
@@ -235,7 +235,7 @@ def test_gauss_seidel_stages_keep_plans_exact_and_values_monotone(name):
     from embodied_adhoc.decision.backup import blind_policy_vectors
     from embodied_adhoc.decision.plan_graph import PlanGraph
 
-    pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
+    pomdp = _single_state_observation_pomdp()
     operator = BackupOperator(pomdp)
     # A belief set whose first stages already improve several beliefs with different vectors (with seed 2 or 4 Tag's
     # first six stages keep only 1-3 new vectors each, one of which covers every belief, so none continues another)
@@ -373,15 +373,14 @@ def test_reduced_row_products_by_blocks_are_the_whole_product(monkeypatch):
 
 
 @pytest.mark.parametrize("update", ["gauss-seidel", "perseus"])
-@pytest.mark.parametrize("name", ["tiger.95.POMDP", "single-state"])
-def test_stage_products_by_chunks_change_nothing(name, update, monkeypatch):
+def test_stage_products_by_chunks_change_nothing(update, monkeypatch):
     """The stage's values on B computed a vector at a time, its rows not kept between stages (as beyond
     _STAGE_ROWS_MAX_ENTRIES), and the value products over B by blocks of a few beliefs give the same solve to the
     bit as the defaults."""
     from embodied_adhoc.decision import backup as backup_module
     from embodied_adhoc.decision import perseus_stages
 
-    pomdp = _single_state_observation_pomdp() if name == "single-state" else _model(name)
+    pomdp = _single_state_observation_pomdp()
     config = PerseusConfig(n_beliefs=30, expand=True, max_iterations=12, seed=3, update=update)
     reference = perseus(pomdp, config)
     monkeypatch.setattr(perseus_stages, "_EVERYWHERE_BLOCK_ENTRIES", 1)
