@@ -123,9 +123,7 @@ class GridWorldCore:
         options = dict(options or {})
         checks.refuse_unknown("reset options", options, RESET_OPTIONS, what="option")
         self.rng = rng
-        task = self.task_set[int(rng.integers(len(self.task_set)))]
-        team = self.team_set[int(rng.integers(len(self.team_set)))]
-        state = self.rules.sample_state(rng)
+        task, team, state = self.draw_episode(rng)
         if "task" in options:
             task = checks.integer("reset option task", options["task"], 1, len(self.tasks))
         if "team" in options:
@@ -133,6 +131,13 @@ class GridWorldCore:
         if "state" in options:
             state = state_from_dict(options["state"], self.rules)
         self.episode = Episode(int(task), str(team), self.backend.reset(state))
+
+    def draw_episode(self, rng: np.random.Generator) -> tuple[int, str, GridState]:
+        """The draws of :meth:`reset`, in its order: task number, team name and start state (the vector env
+        calls it for its resetting sub-envs without building an :class:`Episode` each)."""
+        task = self.task_set[int(rng.integers(len(self.task_set)))]
+        team = self.team_set[int(rng.integers(len(self.team_set)))]
+        return task, team, self.rules.sample_state(rng)
 
     @property
     def task(self) -> Task:

@@ -276,15 +276,16 @@ def _start(domain: str, vector_kwargs: dict, config: RecurrentPpoConfig):
     return rng, device, env, observation, IndexNetworkConfig(env.n_observations, env.n_actions, **sizes)
 
 
-@torch.no_grad()
+@torch.inference_mode()
 def rollout_step(model: RecurrentActorCritic, observation, previous, hidden, starts):
-    """One rollout step of every sub-env: (sampled actions, their log-probabilities, values, new GRU state). The
-    logits are the network's own, so the distribution skips its per-call argument checks; its draws are the
-    checked distribution's."""
+    """One rollout step of every sub-env: (sampled actions, their log-probabilities, values, new GRU state),
+    without autograd. The draw is ``Categorical(logits=logits).sample()``'s own computation (normalised logits,
+    their softmax, one multinomial draw per row) without building the distribution each step, so the actions
+    are the distribution's for the same torch seed."""
     logits, value, hidden = model.step(observation, previous, hidden, starts)
-    distribution = torch.distributions.Categorical(logits=logits, validate_args=False)
-    action = distribution.sample()
-    return action, distribution.log_prob(action), value, hidden
+    logits = logits - logits.logsumexp(-1, keepdim=True)
+    action = torch.multinomial(torch.softmax(logits, -1), 1, True)
+    return action.squeeze(-1), logits.gather(-1, action).squeeze(-1), value, hidden
 
 
 def segment_loss(model: RecurrentActorCritic, segment: dict, index: torch.Tensor, config: RecurrentPpoConfig):

@@ -4,17 +4,19 @@
 ``EmbodiedAdhoc/ForagingGrid-v0`` or ``EmbodiedAdhoc/PursuitGrid-v0`` (abstract backend, grid observations),
 step for step and draw for draw: each sub-env keeps its own seeded ``numpy.random.Generator`` and consumes it
 exactly as the single env does (the episode draw at reset through the env's own
-:meth:`~embodied_adhoc.envs.grid_world_env.GridWorldCore.reset`; per step ``TEAM_DRAWS`` uniforms per member for
-the scripted team, then two per prey in pursuit). The rules, the scripted teams (tau0-tau2 and the others) and
-the observations are the single env's own batched implementation (:meth:`GridRules.plan_batch`,
-:class:`TeamPlanner`, :func:`egocentric_batch`), called once for all sub-envs instead of once per env.
+:meth:`~embodied_adhoc.envs.grid_world_env.GridWorldCore.draw_episode`, the draws of its ``reset``; per
+step ``TEAM_DRAWS`` uniforms per member for the scripted team, then two per prey in pursuit). The rules, the
+scripted teams (tau0-tau2 and the others) and the observations are the single env's own batched implementation
+(:meth:`GridRules.plan_batch`, :class:`TeamPlanner`, :func:`egocentric_batch`), called once for all sub-envs
+instead of once per env.
 
 Speed: a sub-env's step uniforms are drawn ``DRAW_BLOCK`` steps at a time (one ``random`` call per sub-env every
 ``DRAW_BLOCK`` steps instead of every step; a Generator's doubles come out the same however the calls split
 them). When a sub-env resets with part of its block unused, its Generator is put back where the single env's
 would be (the state before the block, then the used draws drawn again), so the reset draws what the single env
 draws. Every step plans all sub-envs at once, the resetting ones included (their results are discarded), which
-avoids gathering a sub-batch.
+avoids gathering a sub-batch. The sub-envs that reset at a step draw their episodes one by one (each from its
+own Generator, as the single env) and their state, task, team and step count are written at once.
 
 Autoreset: gymnasium's default ``AutoresetMode.NEXT_STEP``. The step that ends an episode returns its last
 observation with ``terminated``/``truncated`` set; the next ``step`` ignores that sub-env's action, resets it and
@@ -84,6 +86,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.offsets = np.array([task.offsets for task in self.core.tasks], dtype=np.int64)  # (T, N, 2)
         self.interchangeable = self.core.tasks[0].interchangeable
         self.team_names = tuple(self.core.teams)
+        self.team_number = {name: i for i, name in enumerate(self.team_names)}
         self.team_table = TeamTable.of([self.core.teams[name] for name in self.team_names])
         cfg = self.rules.config
         self.draws = TEAM_DRAWS * cfg.n_agents + self.rules.prey_draws()
@@ -151,16 +154,31 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.used += stepping
         return uniforms
 
-    def _reset_one(self, index: int, options: dict | None) -> None:
-        self._rewind(index)
-        if self.environments is not None:
-            task, team = self.environments[int(self.rngs[index].integers(len(self.environments)))]
-            options = {"task": task, "team": team, **(options or {})}
-        self.core.reset(self.rngs[index], options)
-        episode = self.core.episode
-        self.batch.put(index, episode.state)
-        self.task_index[index] = episode.task_number - 1
-        self.team_index[index] = self.team_names.index(episode.team)
+    def _reset_rows(self, rows: list[int], options: dict | None) -> None:
+        """Reset the sub-envs ``rows``: each Generator draws what the single env's reset draws, in row order;
+        the episodes' bookkeeping is then written for all of them at once."""
+        tasks, teams, states = [], [], []
+        for index in rows:
+            self._rewind(index)
+            rng, chosen = self.rngs[index], options
+            if self.environments is not None:
+                task, team = self.environments[int(rng.integers(len(self.environments)))]
+                chosen = {"task": task, "team": team, **(options or {})}
+            if chosen:
+                self.core.reset(rng, chosen)
+                episode = self.core.episode
+                task, team, state = episode.task_number, episode.team, episode.state
+            else:  # the same draws without the option checks and the Episode
+                task, team, state = self.core.draw_episode(rng)
+            tasks.append(task)
+            teams.append(self.team_number[team])
+            states.append(state)
+        index = np.asarray(rows, dtype=np.int64)
+        b = self.batch
+        for name in ("agents", "agent_levels", "targets", "target_levels", "alive"):
+            getattr(b, name)[index] = np.stack([getattr(state, name) for state in states])
+        self.task_index[index] = np.asarray(tasks, dtype=np.int64) - 1
+        self.team_index[index] = teams
         self.steps[index] = 0
         self.needs_reset[index] = False
         self.episode_offsets[index] = self.offsets[self.task_index[index]]
@@ -188,8 +206,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         if not self.rngs or seed is not None:
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
             self.used[:], self.block_states = DRAW_BLOCK, [None] * self.num_envs
-        for index in range(self.num_envs):
-            self._reset_one(index, options)
+        self._reset_rows(list(range(self.num_envs)), options)
         return self._observations(), self._infos()
 
     def step(self, actions):
@@ -210,8 +227,8 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         terminated, truncated = np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool)
         if stepping.any():
             self._step_batch(stepping, actions.astype(np.int64), terminated, truncated)
-        for index in np.flatnonzero(resetting).tolist():
-            self._reset_one(index, None)
+        if resetting.any():
+            self._reset_rows(np.flatnonzero(resetting).tolist(), None)
         infos = self._infos()
         if self.teammate_info:
             if not stepping.any():  # every sub-env reset: nobody acted, the (masked) arrays are zeros
