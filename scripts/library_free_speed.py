@@ -4,10 +4,12 @@ the vector env), with the ratio of each to a reference measured in the same run:
 grid with the same settings. ``--batches`` adds the foraging grid's collection per CPU second at each number of
 sub-envs: the vector env alone under random actions, and the training loop's rollout (the shipped ppo-generalist
 sampling every sub-env's action, then the vector env's step; its short episodes reset sub-envs often), each
-with its ratio to the first batch size.
+with its ratio to the first batch size. ``--baseline REF`` also times the reference training row and every
+batch of the sweep with the code of the git commit ``REF`` (exported to a temporary folder and run there in a
+subprocess, row by row in turn with the current code's), and prints the current code's ratio to it.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/library_free_speed.py [--updates 4] [--envs 16]
-        [--batches 16,256,1024] [--json F]
+        [--batches 16,256,1024] [--baseline REF] [--json F]
 
 Timings depend on the machine and its load; on a busy host so do the ratios, as each row is timed once, in turn.
 """
@@ -42,6 +44,10 @@ def parse() -> argparse.Namespace:
         default="",
         help="comma-separated sub-env counts of the foraging collection sweep (empty: no sweep)",
     )
+    parser.add_argument(
+        "--baseline",
+        help="a git commit whose code is timed too, row by row, for the ratio to the previous version",
+    )
     parser.add_argument("--json", help="also write the figures to this file")
     args = parser.parse_args()
     try:
@@ -50,6 +56,17 @@ def parse() -> argparse.Namespace:
         parser.error(f"--batches {args.batches}: give comma-separated positive integers")
     if any(b < 1 for b in args.batches):
         parser.error(f"--batches {args.batches}: give comma-separated positive integers")
+    if args.baseline is not None:
+        import subprocess
+
+        found = subprocess.run(
+            ["git", "rev-parse", "--verify", "--quiet", f"{args.baseline}^{{commit}}"],
+            capture_output=True,
+            text=True,
+        )
+        if found.returncode:
+            parser.error(f"--baseline {args.baseline}: not a commit of this repository; give a hash or tag")
+        args.baseline = found.stdout.strip()
     for name in ("updates", "envs", "rollout", "collect_steps"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} {getattr(args, name)}: give a positive integer")
@@ -80,6 +97,13 @@ def training_rate(agent: str, domain: str, args) -> float:
         auxiliary = Belief(config, teammate_count(domain, env_kwargs))
     result = train_recurrent_ppo(domain, env_kwargs, config, auxiliary=auxiliary)
     return result.steps_per_second
+
+
+def timed_training(agent: str, domain: str, args) -> tuple[float, float]:
+    """:func:`training_rate` and the env steps per CPU second of the same call (env set-up included)."""
+    began = time.process_time()
+    wall = training_rate(agent, domain, args)
+    return wall, args.updates * args.envs * args.rollout / (time.process_time() - began)
 
 
 def collection_rate(domain: str, args) -> float:
@@ -143,41 +167,98 @@ def batch_rates(envs: int, steps: int) -> dict:
     }
 
 
+def export_commit(commit: str, folder: str) -> str:
+    """The tree of ``commit`` written under ``folder`` (its package, scripts and shipped weights)."""
+    import subprocess
+
+    archive = subprocess.run(["git", "archive", commit], capture_output=True, check=True).stdout
+    subprocess.run(["tar", "-x", "-C", folder], input=archive, check=True)
+    return folder
+
+
+def baseline_call(tree: str, call: str) -> dict:
+    """``call`` (an expression over this script's functions, e.g. ``batch_rates(256, 64)``) evaluated with the
+    code of the exported ``tree`` in a fresh interpreter: its package, its copy of this script."""
+    import subprocess
+
+    code = (
+        "import json, sys, time, torch; torch.set_num_threads(1); sys.path.insert(0, 'scripts'); "
+        f"from library_free_speed import *; print(json.dumps({call}))"
+    )
+    env = {
+        **os.environ,
+        "PYTHONPATH": tree,
+        "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1"),
+    }
+    done = subprocess.run([sys.executable, "-c", code], cwd=tree, env=env, capture_output=True, text=True)
+    if done.returncode:
+        raise SystemExit(f"--baseline: the baseline's {call} failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
 def main() -> int:
+    args = parse()
     import torch
 
     from embodied_adhoc.experiments.identity import blas_kernel
 
-    args = parse()
     torch.set_num_threads(1)
     agents, domains = args.agents.split(","), args.domains.split(",")
     # a first run pays torch's one-off set-up (lazy imports, first backward); timed after it, the reference is not
     training_rate(*REFERENCE, argparse.Namespace(**{**vars(args), "updates": 1}))
-    reference = training_rate(*REFERENCE, args)
+    reference, reference_cpu = timed_training(*REFERENCE, args)
     collect_reference = collection_rate(REFERENCE[1], args)
+    tree = None
+    if args.baseline:
+        import tempfile
+
+        tree = export_commit(args.baseline, tempfile.mkdtemp(prefix="library-free-speed-"))
+        sizes = f"envs={args.envs}, rollout={args.rollout}"
+        timed = [f"argparse.Namespace(updates={n}, {sizes})" for n in (1, args.updates)]
+        # the same warm-up first, in the baseline's interpreter; then its wall rate and CPU seconds
+        timing = f"(lambda b: (training_rate(*REFERENCE, {timed[1]}), time.process_time() - b))"
+        baseline_reference, cpu_seconds = baseline_call(
+            tree, f"[training_rate(*REFERENCE, {timed[0]}), {timing}(time.process_time())][1]"
+        )
+        baseline_cpu = args.updates * args.envs * args.rollout / cpu_seconds
     rows = []
     for domain in domains:
         collected = collection_rate(domain, args)
         for agent in agents:
-            rate = reference if (agent, domain) == REFERENCE else training_rate(agent, domain, args)
+            if (agent, domain) == REFERENCE:
+                rate, cpu_rate = reference, reference_cpu
+            else:
+                rate, cpu_rate = timed_training(agent, domain, args)
             rows.append(
                 {
                     "agent": agent,
                     "domain": domain,
                     "train_steps_per_s": rate,
+                    "train_steps_per_cpu_s": cpu_rate,
                     "collect_steps_per_s": collected,
                 }
             )
     print(
-        f"reference: {REFERENCE[0]} on {REFERENCE[1]}, {reference:.0f} env steps/s end to end, "
+        f"reference: {REFERENCE[0]} on {REFERENCE[1]}, {reference:.0f} env steps/s end to end "
+        f"({reference_cpu:.0f} per CPU s), "
         f"{collect_reference:.0f} collecting (envs {args.envs}, rollout {args.rollout}, {blas_kernel()})"
     )
-    print("| agent | domain | end to end (steps/s) | x reference | collection (steps/s) | x reference |")
-    print("|---|---|---|---|---|---|")
+    if tree:
+        print(
+            f"baseline {args.baseline[:12]}: the reference {baseline_reference:.0f} env steps/s end to end, "
+            f"{baseline_cpu:.0f} per CPU s; the current code {reference / baseline_reference:.2f} x and "
+            f"{reference_cpu / baseline_cpu:.2f} x"
+        )
+    print(
+        "| agent | domain | end to end (steps/s) | x reference | end to end (steps/CPU s) | "
+        "collection (steps/s) | x reference |"
+    )
+    print("|---|---|---|---|---|---|---|")
     for row in rows:
         print(
             f"| {row['agent']} | {row['domain']} | {row['train_steps_per_s']:.0f} | "
-            f"{row['train_steps_per_s'] / reference:.2f} | {row['collect_steps_per_s']:.0f} | "
+            f"{row['train_steps_per_s'] / reference:.2f} | {row['train_steps_per_cpu_s']:.0f} | "
+            f"{row['collect_steps_per_s']:.0f} | "
             f"{row['collect_steps_per_s'] / collect_reference:.2f} |"
         )
     batches = []
@@ -185,21 +266,36 @@ def main() -> int:
         print(
             f"uptime: {os.getloadavg()[0]:.2f} {os.getloadavg()[1]:.2f} {os.getloadavg()[2]:.2f} (load 1/5/15 min)"
         )
+        than = " baseline rollout (steps/CPU s) | x baseline |" if tree else ""
         print(
-            "| sub-envs | random actions (steps/CPU s) | x first | rollout (steps/CPU s) | x first | env share |"
+            "| sub-envs | random actions (steps/CPU s) | x first | rollout (steps/CPU s) | x first | env share "
+            f"|{than}"
         )
-        print("|---|---|---|---|---|---|")
+        print("|---|---|---|---|---|---|" + ("---|---|" if tree else ""))
         for envs in args.batches:
-            batches.append(batch_rates(envs, max(20, 16_384 // envs)))
+            steps = max(20, 16_384 // envs)
+            if tree:
+                previous = baseline_call(tree, f"batch_rates({envs}, {steps})")
+            batches.append(batch_rates(envs, steps))
             first, row = batches[0], batches[-1]
+            versus = ""
+            if tree:
+                row["baseline_rollout_steps_per_cpu_s"] = previous["rollout_steps_per_cpu_s"]
+                row["baseline_random_env_steps_per_cpu_s"] = previous["random_env_steps_per_cpu_s"]
+                ratio = row["rollout_steps_per_cpu_s"] / previous["rollout_steps_per_cpu_s"]
+                versus = f" {previous['rollout_steps_per_cpu_s']:.0f} | {ratio:.2f} |"
             print(
                 f"| {envs} | {row['random_env_steps_per_cpu_s']:.0f} | "
                 f"{row['random_env_steps_per_cpu_s'] / first['random_env_steps_per_cpu_s']:.2f} | "
                 f"{row['rollout_steps_per_cpu_s']:.0f} | "
                 f"{row['rollout_steps_per_cpu_s'] / first['rollout_steps_per_cpu_s']:.2f} | "
-                f"{row['rollout_env_share']:.2f} |",
+                f"{row['rollout_env_share']:.2f} |{versus}",
                 flush=True,
             )
+    if tree:
+        import shutil
+
+        shutil.rmtree(tree)
     if args.json:
         import platform
         import subprocess
@@ -214,7 +310,22 @@ def main() -> int:
             "versions": {"numpy": np.__version__, "torch": torch.__version__},
             "reference_agent": REFERENCE[0],
             "reference_domain": REFERENCE[1],
-            "reference": {"train_steps_per_s": reference, "collect_steps_per_s": collect_reference},
+            "reference": {
+                "train_steps_per_s": reference,
+                "train_steps_per_cpu_s": reference_cpu,
+                "collect_steps_per_s": collect_reference,
+            },
+            **(
+                {
+                    "baseline": {
+                        "commit": args.baseline,
+                        "train_steps_per_s": baseline_reference,
+                        "train_steps_per_cpu_s": baseline_cpu,
+                    }
+                }
+                if tree
+                else {}
+            ),
             "rows": rows,
             "load_average": list(os.getloadavg()),
         }
