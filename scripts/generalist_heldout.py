@@ -7,16 +7,42 @@ IQM and mean with percentile-bootstrap intervals.
 
     .venv/bin/python scripts/generalist_heldout.py --domain foraging --episodes 16 --out runs/generalist-heldout
 
-Writes ``results.json`` (per team and agent: steps, finished flags, normalised scores) and ``table.md``; uses the
-shipped weights and library unless ``--weights FILE`` / ``--library DIR`` are given.
+Writes ``results.json`` (per team and agent: steps, finished flags, normalised scores; each scored agent's
+weights and training budget; the command with ``--out DIR``) and ``table.md``; uses the shipped weights and
+library unless ``--weights FILE`` / ``--library DIR`` are given. ``scripts/library_free_bench.py`` renders the
+held-out tables of ``results/library_free/<domain>-heldout/results.json`` on docs/library_free.md.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def shown(path) -> str:
+    """``path`` relative to the repository when it lies inside it (result files name no machine's folders)."""
+    path = Path(path).resolve()
+    return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+
+
+def command(argv: list[str]) -> str:
+    """The command line of this run with its output folder written ``DIR``."""
+    words = [".venv/bin/python", "scripts/generalist_heldout.py"]
+    rest = iter(argv)
+    for word in rest:
+        if word == "--out":
+            next(rest, None)
+            words += ["--out", "DIR"]
+        elif word.startswith("--out="):
+            words.append("--out=DIR")
+        else:
+            words.append(word)
+    return " ".join(words)
 
 
 def main() -> None:
@@ -56,8 +82,10 @@ def main() -> None:
 
     torch.set_num_threads(1)
     library, classifier = load_library(args.library or shipped_library(args.domain))
-    model, metadata = load_generalist(args.weights or shipped_weights(args.domain))
+    weights_path = args.weights or shipped_weights(args.domain)
+    model, metadata = load_generalist(weights_path)
     extra_agents = {"ppo-generalist": lambda: GeneralistAgent(model)}
+    training = {"ppo-generalist": (weights_path, metadata)}
     liam_path = args.liam
     if liam_path is None:
         from embodied_adhoc.errors import ConfigError
@@ -70,6 +98,7 @@ def main() -> None:
     if liam_path is not None:
         liam_model, liam_metadata = load_generalist(liam_path, kind="liam")
         extra_agents["liam"] = lambda: GeneralistAgent(liam_model, name="liam")
+        training["liam"] = (liam_path, liam_metadata)
     meliba_path = args.meliba
     if meliba_path is None:
         from embodied_adhoc.errors import ConfigError
@@ -84,6 +113,7 @@ def main() -> None:
 
         meliba_model, meliba_metadata = load_meliba(meliba_path)
         extra_agents["meliba"] = lambda: GeneralistAgent(meliba_model, name="meliba")
+        training["meliba"] = (meliba_path, meliba_metadata)
     started = time.perf_counter()
     results, scores = {}, {}
     for split, teams in (("train", train_teams(args.domain)), ("held-out", held_out_teams(args.domain))):
@@ -127,20 +157,35 @@ def main() -> None:
     if "liam" in extra_agents:
         lines.insert(
             -1,
-            f"liam ({liam_path}): {liam_metadata['env_steps']} training env steps, "
+            f"liam ({shown(liam_path)}): {liam_metadata['env_steps']} training env steps, "
             f"{liam_metadata['seconds']} s of training",
         )
     if "meliba" in extra_agents:
         lines.insert(
             -1,
-            f"meliba ({meliba_path}): {meliba_metadata['env_steps']} training env steps, "
+            f"meliba ({shown(meliba_path)}): {meliba_metadata['env_steps']} training env steps, "
             f"{meliba_metadata['seconds']} s of training",
         )
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "results.json").write_text(
-        json.dumps({"settings": vars(args) | {"out": str(args.out)}, "results": results, "scores": scores})
-        + "\n"
-    )
+    paths = ("weights", "library", "liam", "meliba")
+    settings = {
+        key: shown(value) if key in paths and value is not None else value
+        for key, value in vars(args).items()
+        if key != "out"
+    }
+    budgets = {
+        agent: {"weights": shown(path), "env_steps": meta["env_steps"], "train_seconds": meta["seconds"]}
+        for agent, (path, meta) in training.items()
+    }
+    record = {
+        "command": command(sys.argv[1:]),
+        "settings": settings,
+        "training": budgets,
+        "evaluation_seconds": round(seconds, 1),
+        "results": results,
+        "scores": scores,
+    }
+    (args.out / "results.json").write_text(json.dumps(record) + "\n")
     (args.out / "table.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
