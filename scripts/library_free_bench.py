@@ -1,7 +1,9 @@
 """The library-free agents (ppo-generalist, liam, meliba) against the benchmark's held-out teammates, beside the
 library-based agents, and the score-vs-number-of-training-teammates curve; writes results/library-free.json and
 renders its tables into docs/library_free.md (between the ``<!-- library-free start/end -->`` markers) and the
-curve to docs/library_free_curve.png.
+curve to docs/library_free_curve.png. The block also renders the grid arenas' train/held-out tables of
+``scripts/generalist_heldout.py`` (results/library_free/<grid>-heldout/results.json) and the throughput tables of
+``scripts/library_free_speed.py``, from their own result files.
 
     .venv/bin/python scripts/library_free_bench.py [--episodes 32] [--seed 0] [--out runs/library-free]
     .venv/bin/python scripts/library_free_bench.py --render-only
@@ -32,10 +34,16 @@ PLOT = ROOT / "docs" / "library_free_curve.png"
 SPEED = ROOT / "results" / "library-free-speed.json"
 BATCHES = ROOT / "results" / "library_free" / "collection-batches.json"
 START, END = "<!-- library-free start -->", "<!-- library-free end -->"
-DOMAINS = ("toxic-waste", "pursuit-task")
+DOMAINS = ("toxic-waste", "pursuit-task", "ntu")
+GRID_HELDOUT = {grid: ROOT / "results" / "library_free" / f"{grid}-heldout" / "results.json" for grid in (
+    "foraging", "pursuit")}  # fmt: skip
+GRID_NAMES = {"foraging": "level-based foraging", "pursuit": "predator-prey (the pursuit grid)"}
 KINDS = {"ppo-generalist": "generalist", "liam": "liam", "meliba": "meliba"}
 PLUGINS = {kind: f"embodied_adhoc.learning.{module}:plugin" for kind, module in (
     ("ppo-generalist", "generalist"), ("liam", "liam"), ("meliba", "meliba"))}  # fmt: skip
+SEED_RUNS = "results/library_free/seeds"
+"""Folders ``<domain>-seed-<n>`` of further ppo-generalist training seeds (the shipped agent's command with
+``--seed n``), scored beside the shipped one and pooled with it."""
 CURVE_DOMAIN = "toxic-waste"
 CURVE_COUNTS = (1, 2, 4)  # and the shipped agent's, all of the train split
 PLUGIN_FILE = """from embodied_adhoc.learning.index_domains import index_agent
@@ -53,6 +61,11 @@ def parse() -> argparse.Namespace:
     parser.add_argument("--out", default="runs/library-free", help="evaluate's trial folders (resumable)")
     parser.add_argument(
         "--curve-runs", default="results/library_free/curve", help="folders teammates-N of the curve's runs"
+    )
+    parser.add_argument(
+        "--seed-runs",
+        default=SEED_RUNS,
+        help="folders <domain>-seed-N of further ppo-generalist training seeds",
     )
     parser.add_argument("--render-only", action="store_true")
     parser.add_argument(
@@ -98,6 +111,54 @@ def _training(folder: Path) -> dict:
     return {"env_steps": report["env_steps"], "train_seconds": report["train_seconds"]}
 
 
+def _weights_agent(out: Path, stem: str, weights: Path, label) -> str:
+    """The plug-in spec of a plug-in file ``OUT/STEM.py`` that runs the ppo-generalist ``weights`` as
+    ``ppo-generalist-LABEL``."""
+    plugin = out / f"{stem}.py"
+    plugin.parent.mkdir(parents=True, exist_ok=True)
+    plugin.write_text(PLUGIN_FILE.format(weights=str(weights.resolve()), count=label))
+    return f"{plugin}:make"
+
+
+def _seeds(args, domain: str, out: Path, shipped: dict, shipped_scores) -> dict | None:
+    """The shipped ppo-generalist beside its further training seeds (``--seed-runs``) on ``domain``, and the
+    seeds pooled: every seed's episodes per member, one stratified bootstrap."""
+    import numpy as np
+
+    from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
+    from embodied_adhoc.bench.scores import BENCH_REPS, aggregate
+
+    folders = sorted(
+        Path(args.seed_runs).glob(f"{domain}-seed-*"), key=lambda f: int(f.name.rsplit("-", 1)[1])
+    )
+    if not folders:
+        return None
+    folder = ROOT / "assets" / "generalist" / domain
+    seed = json.loads((folder / "training.json").read_text())["settings"]["seed"]
+    runs = [{"seed": seed, **shipped, **_training(folder)}]
+    matrices = [shipped_scores]
+    for folder in folders:
+        n = int(folder.name.rsplit("-", 1)[1])
+        spec = _weights_agent(
+            out, f"seed_agent_{n}", folder / f"{domain}-ppo-generalist.safetensors", f"seed-{n}"
+        )
+        scores: dict = {}
+        summary = evaluate(
+            (spec,), resolve_suite("heldout", (domain,)), out / f"{domain}-seed-{n}",
+            episodes=args.episodes, seed=args.seed, progress=True, plots=False, scores=scores,
+        )  # fmt: skip
+        used = json.loads((folder / "training.json").read_text())["settings"]["seed"]
+        runs.append({"seed": used, **_aggregate(summary, domain)[spec], **_training(folder)})
+        matrices.append(scores[domain][spec])
+    return {
+        "agent": "ppo-generalist",
+        "runs": runs,
+        "pooled": aggregate(np.concatenate(matrices, axis=0), BENCH_REPS),
+        "pooling": "every seed's episodes per held-out member in one (episodes x members) matrix; IQM with its "
+        "stratified percentile bootstrap over members (bench.scores.aggregate)",
+    }
+
+
 def run(args: argparse.Namespace) -> dict:
     from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
     from embodied_adhoc.learning.index_domains import member_names
@@ -108,9 +169,10 @@ def run(args: argparse.Namespace) -> dict:
     side: dict = {}
     for domain in DOMAINS if args.only is None else [d for d in DOMAINS if d == args.only]:
         clock = time.perf_counter()
+        matrices: dict = {}
         summary = evaluate(
             tuple(PLUGINS.values()), resolve_suite("heldout", (domain,)), out / domain,
-            episodes=args.episodes, seed=args.seed, progress=True, plots=False,
+            episodes=args.episodes, seed=args.seed, progress=True, plots=False, scores=matrices,
         )  # fmt: skip
         scores = _aggregate(summary, domain)
         side[domain] = {
@@ -118,16 +180,17 @@ def run(args: argparse.Namespace) -> dict:
             "training": {
                 kind: _training(ROOT / "assets" / folder / domain) for kind, folder in KINDS.items()
             },
-            "wall_s": round(time.perf_counter() - clock, 1),
         }
+        generalist = PLUGINS["ppo-generalist"]
+        seeds = _seeds(args, domain, out, scores[generalist], matrices[domain][generalist])
+        if seeds is not None:
+            side[domain]["seeds"] = seeds
+        side[domain]["wall_s"] = round(time.perf_counter() - clock, 1)
     curve = []
     for count in CURVE_COUNTS if args.only in (None, "curve") else ():
         folder = Path(args.curve_runs) / f"teammates-{count}"
-        plugin = out / f"curve_agent_{count}.py"
-        weights = str((folder / f"{CURVE_DOMAIN}-ppo-generalist.safetensors").resolve())
-        plugin.parent.mkdir(parents=True, exist_ok=True)
-        plugin.write_text(PLUGIN_FILE.format(weights=weights, count=count))
-        spec = f"{plugin}:make"
+        weights = folder / f"{CURVE_DOMAIN}-ppo-generalist.safetensors"
+        spec = _weights_agent(out, f"curve_agent_{count}", weights, count)
         summary = evaluate(
             (spec,), resolve_suite("heldout", (CURVE_DOMAIN,)), out / f"curve-{count}",
             episodes=args.episodes, seed=args.seed, progress=True, plots=False,
@@ -166,7 +229,7 @@ def table(result: dict) -> str:
         "95 % stratified-bootstrap interval (0: the random ego, 1: the exact best response). Library-free rows: "
         f"this file's run (`{result['command']}`, commit {result['commit'][:7]}, {result['kernel']}); "
         "library-based rows: results/benchmark-heldout.json (same suite, episodes and seed). Statistical "
-        "(one training seed per agent, one evaluation run).",
+        f"({_seed_count(result)}, one evaluation run).",
         "",
         "| domain | agent | family | held-out IQM [95 % CI] | training env steps | training loop s (wall) |",
         "|---|---|---|---|---|---|",
@@ -183,6 +246,9 @@ def table(result: dict) -> str:
         for agent, entry in others.items():
             family = "library-based, sees the state" if agent in privileged else "library-based"
             lines.append(f"| {domain} | {agent} | {family} | {_interval(entry)} | - | - |")
+    for domain, part in result["domains"].items():
+        if "seeds" in part:
+            lines += ["", *seed_table(domain, part["seeds"])]
     curve = result["curve"]
     lines += [
         "",
@@ -194,11 +260,68 @@ def table(result: dict) -> str:
     ]
     for point in curve["points"]:
         lines.append(f"| {point['teammates']} | {_interval(point)} | {point['env_steps']:,} |")
+    for grid, path in GRID_HELDOUT.items():
+        if path.is_file():
+            lines += ["", *grid_table(grid, json.loads(path.read_text()))]
     if SPEED.is_file():
         lines += ["", *speed_table(json.loads(SPEED.read_text()))]
     if BATCHES.is_file():
         lines += ["", *batch_table(json.loads(BATCHES.read_text()))]
     return "\n".join(lines)
+
+
+def _seed_count(result: dict) -> str:
+    more = [
+        f"{len(part['seeds']['runs'])} for {part['seeds']['agent']} on {domain}"
+        for domain, part in result["domains"].items()
+        if "seeds" in part
+    ]
+    return "one training seed per agent" + (f" ({'; '.join(more)})" if more else "")
+
+
+def seed_table(domain: str, seeds: dict) -> list[str]:
+    """The shipped agent's training seed beside the further ones, and the seeds pooled."""
+    lines = [
+        f"Training seeds ({seeds['agent']}, {domain}, the shipped agent's command with `--seed N`; further seeds' "
+        f"weights in `{SEED_RUNS}/`): held-out IQM per seed and pooled ({seeds['pooling']}).",
+        "",
+        "| training seed | held-out IQM [95 % CI] | training env steps | training loop s (wall) |",
+        "|---|---|---|---|",
+    ]
+    for entry in seeds["runs"]:
+        lines.append(
+            f"| {entry['seed']} | {_interval(entry)} | {entry['env_steps']:,} | {entry['train_seconds']:.0f} |"
+        )
+    runs = seeds["runs"]
+    steps = sum(entry["env_steps"] for entry in runs)
+    lines.append(f"| pooled ({len(runs)} seeds) | {_interval(seeds['pooled'])} | {steps:,} in all | - |")
+    return lines
+
+
+def grid_table(grid: str, record: dict) -> list[str]:
+    """``scripts/generalist_heldout.py``'s run on a grid arena: per team of the ATLPO split (train, then held-out),
+    each agent's normalised IQM, and each library-free agent's training budget."""
+    settings, training = record["settings"], record["training"]
+    agents = (*training, "atlpo-mf", "known-task")
+    budgets = "; ".join(
+        f"{agent} {cost['env_steps']:,} env steps ({cost['train_seconds']:.0f} s)"
+        for agent, cost in training.items()
+    )
+    lines = [
+        f"{GRID_NAMES[grid]}, teams of the ATLPO split (`{record['command']}`, "
+        f"`results/library_free/{grid}-heldout/`): normalised score (0: random, 1: the original teammate), IQM "
+        f"with 95 % percentile-bootstrap interval over {settings['episodes']} episodes per team (tasks cycling "
+        f"1..4, cap {settings['max_steps']}, seed {settings['seed']}); training budgets: {budgets}; atlpo-mf and "
+        "known-task are the library-based agents.",
+        "",
+        "| split | team | " + " | ".join(agents) + " |",
+        "|---|---|" + "---|" * len(agents),
+    ]
+    for split, teams in record["scores"].items():
+        for team, row in teams.items():
+            cells = (f"{row[a]['iqm']:.2f} [{row[a]['ci'][0]:.2f}, {row[a]['ci'][1]:.2f}]" for a in agents)
+            lines.append(f"| {split} | {team} | " + " | ".join(cells) + " |")
+    return lines
 
 
 def speed_table(speed: dict) -> list[str]:
@@ -287,10 +410,7 @@ def score_weights(args: argparse.Namespace) -> dict:
     if not weights.is_file():
         raise SystemExit(f"--weights {args.weights}: no such file; give a ppo-generalist .safetensors")
     out = Path(args.out) / f"weights-{weights.stem}"
-    plugin = out / "agent.py"
-    out.mkdir(parents=True, exist_ok=True)
-    plugin.write_text(PLUGIN_FILE.format(weights=str(weights), count=weights.stem))
-    spec = f"{plugin}:make"
+    spec = _weights_agent(out, "agent", weights, weights.stem)
     summary = evaluate(
         (spec,), resolve_suite("heldout", (args.domain,)), out / "eval",
         episodes=args.episodes, seed=args.seed, progress=False, plots=False,
