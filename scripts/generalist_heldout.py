@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -31,8 +32,11 @@ def shown(path) -> str:
 
 
 def command(argv: list[str]) -> str:
-    """The command line of this run with its output folder written ``DIR``."""
-    words = [".venv/bin/python", "scripts/generalist_heldout.py"]
+    """The command line of this run with its output folder written ``DIR`` (and the BLAS thread count it ran
+    with, where one was set)."""
+    threads = os.environ.get("OPENBLAS_NUM_THREADS")
+    words = [*([f"OPENBLAS_NUM_THREADS={threads}"] if threads else []), ".venv/bin/python"]
+    words.append("scripts/generalist_heldout.py")
     rest = iter(argv)
     for word in rest:
         if word == "--out":

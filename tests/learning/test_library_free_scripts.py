@@ -43,12 +43,15 @@ def test_the_grid_tables_are_the_result_files_own_numbers():
             assert f"{agent} {cost['env_steps']:,} env steps" in lines[0]
 
 
-def test_the_result_files_name_the_users_command_not_a_machines_folders():
+def test_the_result_files_name_the_users_command_not_a_machines_folders(monkeypatch):
     heldout = _script("generalist_heldout")
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
     assert heldout.command(["--domain", "pursuit", "--out", "/tmp/x", "--episodes", "8"]) == (
         ".venv/bin/python scripts/generalist_heldout.py --domain pursuit --out DIR --episodes 8"
     )
     assert heldout.command(["--out=/tmp/x"]).endswith(" --out=DIR")
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "1")
+    assert heldout.command([]).startswith("OPENBLAS_NUM_THREADS=1 .venv/bin/python ")
     assert heldout.shown(ROOT / "assets" / "x.safetensors") == "assets/x.safetensors"
     for path in (ROOT / "results" / "library_free").rglob("*"):
         if path.suffix in (".json", ".md", ".txt", ".csv"):
