@@ -125,10 +125,16 @@ class RecurrentActorCritic(nn.Module):
     def initial_state(self, batch: int, device=None) -> torch.Tensor:
         return torch.zeros(batch, self.recurrent, device=device)
 
-    def _cell(self, latent, previous, hidden, starts):
+    def _inputs(self, latent, previous, starts):
+        """The GRU's inputs (encoding, one-hot previous action, "none" at ``starts``) and the masks (1 where the
+        state carries over, 0 at ``starts``) for steps of any leading shape."""
         previous = torch.where(starts, torch.full_like(previous, self.no_action), previous)
         inputs = torch.cat([latent, nn.functional.one_hot(previous, self.no_action + 1).to(latent.dtype)], -1)
-        return self.gru(inputs, hidden * (~starts).unsqueeze(-1).to(hidden.dtype))
+        return inputs, (~starts).unsqueeze(-1).to(latent.dtype)
+
+    def _cell(self, latent, previous, hidden, starts):
+        inputs, keep = self._inputs(latent, previous, starts)
+        return self.gru(inputs, hidden * keep)
 
     def step(self, observations, previous, hidden, starts):
         """One step of B sequences: (logits (B, A), values (B,), new state (B, H)); ``starts`` (B,) bool marks an
@@ -145,10 +151,11 @@ class RecurrentActorCritic(nn.Module):
         """T steps of B sequences from state ``hidden``: the GRU states (T, B, H)."""
         steps, batch = starts.shape
         latent = self.encoder(observations.reshape(steps * batch, *observations.shape[2:]))
-        latent = latent.reshape(steps, batch, -1)
+        # everything but the recurrence is prepared for the whole segment at once (the same values per step)
+        inputs, keep = self._inputs(latent.reshape(steps, batch, -1), previous, starts)
         states = []
         for t in range(steps):
-            hidden = self._cell(latent[t], previous[t], hidden, starts[t])
+            hidden = self.gru(inputs[t], hidden * keep[t])
             states.append(hidden)
         return torch.stack(states)
 
