@@ -1849,13 +1849,6 @@ UNRUN = {
             TIMING,
         ),
         Unrun(
-            "fault-sweep",
-            "The fault sweep of bench_faults.py: HOTSPOT with and without the localiser under each fault",
-            "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py",
-            "physics episodes per fault setting with and without the localiser, and the scripted tours",
-            STATISTICAL,
-        ),
-        Unrun(
             "chapter5-budget",
             "Chapter 5's solve budget: Perseus' lower bound at b0 of each domain's first model, stage by stage",
             "Perseus without a stage limit on model 0 of each domain (SolverProgress per stage, CPU seconds)",
