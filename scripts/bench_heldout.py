@@ -481,8 +481,12 @@ def table(result: dict) -> str:
     """Per domain and agent: held-out IQM and mean (95 % stratified-bootstrap intervals), the validation IQM."""
     held, validation = result["suites"]["heldout"], result["suites"].get("validation", {})
     first = next(iter(held.values()))
+    fewer = ", ".join(
+        f"{d} {scope['episodes']}" for d, scope in held.items() if scope["episodes"] != first["episodes"]
+    )
     lines = [
-        f"{first['episodes']} episodes per teammate and agent, seed {first.get('seed', 0)}, abstract backends; "
+        f"{first['episodes']} episodes per teammate and agent{f' ({fewer})' if fewer else ''}, seed "
+        f"{first.get('seed', 0)}, abstract backends; "
         "scores normalised per teammate (0 random ego, 1 exact best response); agents marked * observe the true "
         f"state. The whole suite: `{result['command']}` (each part was run on its own with `--domains`; the file "
         f"keeps each part's command); the last part merged at commit {result['commit'][:10]} (BLAS "
