@@ -7,6 +7,8 @@ curve to docs/library_free_curve.png. The block also renders the grid arenas' tr
 
     .venv/bin/python scripts/library_free_bench.py [--episodes 32] [--seed 0] [--out runs/library-free]
     .venv/bin/python scripts/library_free_bench.py --render-only
+    OPENBLAS_CORETYPE=Sandybridge XDG_CACHE_HOME=DIR .venv/bin/python scripts/library_free_bench.py \
+        --check toxic-waste,pursuit-task,ntu,curve
 
 Every agent runs through ``embodied_adhoc.bench.evaluate`` (the ``evaluate`` command's function) on the same
 suite, episodes and seed as ``scripts/bench_heldout.py``, whose result file (results/benchmark-heldout.json) gives
@@ -14,6 +16,12 @@ the library-based agents' scores: the same episodes and the same member bounds, 
 by side. The shipped agents are the plug-ins ``embodied_adhoc.learning.<kind>:plugin``; the curve's agents are
 ppo-generalist on the lab trained with the first 1, 2 and 4 train members (``train ppo-generalist --teammates N``,
 the folders of ``--curve-runs``) and the shipped one with all 6, each at the shipped agents' env steps.
+
+``--check PART,...`` runs those parts (domains, or ``curve``) again in this process's environment (another BLAS
+kernel: ``OPENBLAS_CORETYPE``, with a policy cache of that kernel's own: ``XDG_CACHE_HOME`` pointing at a fresh
+folder) and keeps the run in the file's ``kernel_checks``, beside the published run it never replaces, compared with
+``scripts/bench_heldout.py``'s rule: every agent's IQM and mean inside the published 95 % interval, on the same
+episodes, seed and members.
 """
 
 from __future__ import annotations
@@ -28,6 +36,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(
+    0, str(ROOT / "scripts")
+)  # bench_heldout's check comparison, shared with the library-based runs
 RESULT = ROOT / "results" / "library-free.json"
 PAGE = ROOT / "docs" / "library_free.md"
 PLOT = ROOT / "docs" / "library_free_curve.png"
@@ -46,6 +57,7 @@ SEED_RUNS = "results/library_free/seeds"
 ``--seed n``), scored beside the shipped one and pooled with it."""
 CURVE_DOMAIN = "toxic-waste"
 CURVE_COUNTS = (1, 2, 4)  # and the shipped agent's, all of the train split
+PARTS = (*DOMAINS, "curve")
 PLUGIN_FILE = """from embodied_adhoc.learning.index_domains import index_agent
 
 
@@ -76,12 +88,22 @@ def parse() -> argparse.Namespace:
     parser.add_argument("--domain", choices=DOMAINS, default="pursuit-task", help="the domain of --weights")
     parser.add_argument(
         "--only",
-        choices=(*DOMAINS, "curve"),
+        choices=PARTS,
         help="run one part's trials and write nothing (parts run side by side; a full run then resumes them)",
+    )
+    parser.add_argument(
+        "--check",
+        default="",
+        help="comma-separated parts (" + ", ".join(PARTS) + ") to run again as a second kernel's check "
+        "(kept in the file's kernel_checks, compared with the published intervals)",
     )
     args = parser.parse_args()
     if args.episodes < 2:
         parser.error(f"--episodes {args.episodes}: at least 2 (the intervals resample episodes)")
+    args.check = tuple(part for part in args.check.split(",") if part)
+    unknown = [part for part in args.check if part not in PARTS]
+    if unknown:
+        parser.error(f"--check {','.join(unknown)}: no such part; give some of {','.join(PARTS)}")
     return args
 
 
@@ -104,6 +126,12 @@ def _provenance() -> dict:
 def _aggregate(summary: dict, domain: str) -> dict:
     part = summary["domains"][domain]
     return {agent: part["aggregate"][agent] for agent in part["agents"]}
+
+
+def _suite(summary: dict, domain: str) -> dict:
+    """The suite version and members (name and parameters) a run scored against: what a check must share."""
+    rows = summary["domains"][domain]["teammates"]
+    return {"version": summary["version"], "members": [[row["name"], row.get("params")] for row in rows]}
 
 
 def _training(folder: Path) -> dict:
@@ -159,15 +187,16 @@ def _seeds(args, domain: str, out: Path, shipped: dict, shipped_scores) -> dict 
     }
 
 
-def run(args: argparse.Namespace) -> dict:
+def run(args: argparse.Namespace, parts=PARTS, out: Path | None = None) -> dict:
+    """The result file's fields for ``parts`` (domains and the curve), their trials under ``out`` (resumable)."""
     from embodied_adhoc.bench.evaluate import evaluate, resolve_suite
     from embodied_adhoc.learning.index_domains import member_names
 
     started = dt.datetime.now(dt.UTC).isoformat(timespec="seconds")
     provenance = _provenance()
-    out = Path(args.out)
+    out = Path(args.out) if out is None else out
     side: dict = {}
-    for domain in DOMAINS if args.only is None else [d for d in DOMAINS if d == args.only]:
+    for domain in (d for d in DOMAINS if d in parts):
         clock = time.perf_counter()
         matrices: dict = {}
         summary = evaluate(
@@ -176,6 +205,7 @@ def run(args: argparse.Namespace) -> dict:
         )  # fmt: skip
         scores = _aggregate(summary, domain)
         side[domain] = {
+            **_suite(summary, domain),
             "agents": {kind: scores[PLUGINS[kind]] for kind in KINDS},
             "training": {
                 kind: _training(ROOT / "assets" / folder / domain) for kind, folder in KINDS.items()
@@ -186,8 +216,10 @@ def run(args: argparse.Namespace) -> dict:
         if seeds is not None:
             side[domain]["seeds"] = seeds
         side[domain]["wall_s"] = round(time.perf_counter() - clock, 1)
-    curve = []
-    for count in CURVE_COUNTS if args.only in (None, "curve") else ():
+    curve: list = []
+    suite: dict = {}
+    clock = time.perf_counter()
+    for count in CURVE_COUNTS if "curve" in parts else ():
         folder = Path(args.curve_runs) / f"teammates-{count}"
         weights = folder / f"{CURVE_DOMAIN}-ppo-generalist.safetensors"
         spec = _weights_agent(out, f"curve_agent_{count}", weights, count)
@@ -196,6 +228,9 @@ def run(args: argparse.Namespace) -> dict:
             episodes=args.episodes, seed=args.seed, progress=True, plots=False,
         )  # fmt: skip
         curve.append({"teammates": count, **_aggregate(summary, CURVE_DOMAIN)[spec], **_training(folder)})
+        suite = _suite(summary, CURVE_DOMAIN)
+    if curve:
+        suite["wall_s"] = round(time.perf_counter() - clock, 1)
     if CURVE_DOMAIN in side:  # the shipped agent, trained with every train member, is the curve's last point
         folder = ROOT / "assets" / "generalist" / CURVE_DOMAIN
         used = json.loads((folder / "training.json").read_text())["settings"]["teammates"]
@@ -210,8 +245,86 @@ def run(args: argparse.Namespace) -> dict:
         "episodes": args.episodes,
         "seed": args.seed,
         "domains": side,
-        "curve": {"domain": CURVE_DOMAIN, "agent": "ppo-generalist", "points": curve},
+        "curve": {"domain": CURVE_DOMAIN, "agent": "ppo-generalist", **suite, "points": curve},
     }
+
+
+def _part(result: dict, part: str) -> dict:
+    """A part's scored agents (name: IQM and mean with intervals) and the suite it ran on; the curve's agents are
+    its trained-with-N runs (its last point is the shipped agent, the lab part's), a domain's are the shipped agents
+    and the further training seeds."""
+    if part == "curve":
+        scope = result["curve"]
+        scores = {
+            f"{scope['agent']}-{point['teammates']}": point
+            for point in scope["points"]
+            if point["teammates"] in CURVE_COUNTS
+        }
+    else:
+        scope = result["domains"][part]
+        seeds = scope.get("seeds", {"runs": []})
+        further = {f"{seeds['agent']}-seed-{entry['seed']}": entry for entry in seeds["runs"][1:]}
+        scores = scope["agents"] | further
+    keys = ("iqm", "iqm_ci", "mean", "mean_ci")
+    return {
+        "version": scope.get("version"),
+        "members": scope.get("members", []),
+        "wall_s": scope.get("wall_s"),
+        "aggregate": {agent: {key: entry[key] for key in keys} for agent, entry in scores.items()},
+    }
+
+
+def run_check(args: argparse.Namespace) -> dict:
+    """``args.check``'s parts run again (resumable under ``--out``/check-<kernel>): the file's ``kernel_checks``
+    entries for them, in the shape ``bench_heldout.compare_check`` reads."""
+    from embodied_adhoc.experiments.identity import blas_kernel
+
+    kernel = blas_kernel().split(":")[-1]
+    clock = time.process_time()
+    fresh = run(args, args.check, Path(args.out) / f"check-{kernel}")
+    cpu = round(time.process_time() - clock, 1)
+    checks = {}
+    for name in args.check:
+        part = _part(fresh, name)
+        checks[name] = {
+            "kernel": fresh["kernel"],
+            "commit": fresh["commit"],
+            "command": f"OPENBLAS_CORETYPE={kernel} {fresh['command']}",
+            "wall_s": part["wall_s"],
+            "cpu_s_all_checked_parts": cpu,
+            "episodes": fresh["episodes"],
+            "seed": fresh["seed"],
+            "version": part["version"],
+            "members": part["members"],
+            "aggregate": {
+                agent: {key: values[key] for key in ("iqm", "mean")}
+                for agent, values in part["aggregate"].items()
+            },
+        }
+    return checks
+
+
+def merge(previous: dict, fresh: dict | None = None, checks: dict | None = None) -> dict:
+    """The result file: ``fresh``'s run (or else ``previous``'s) as the published one, with the second-kernel
+    checks of both files (``checks`` replacing a part's earlier one), each compared with the published run."""
+    from bench_heldout import compare_check
+
+    published = fresh or previous
+    kept = previous.get("kernel_checks", {}) | (checks or {})
+    kernel_checks = {}
+    for name, check in kept.items():
+        part = _part(published, name)
+        view = {
+            "episodes": published["episodes"],
+            "seed": published["seed"],
+            "kernel": published["kernel"],
+            "version": part["version"],
+            "teammates": [{"name": member, "params": params} for member, params in part["members"]],
+            "aggregate": part["aggregate"],
+        }
+        entry = {key: value for key, value in check.items() if key != "comparison"}
+        kernel_checks[name] = entry | {"comparison": compare_check(entry, view)}
+    return published | ({"kernel_checks": kernel_checks} if kernel_checks else {})
 
 
 def _interval(entry: dict) -> str:
@@ -260,6 +373,10 @@ def table(result: dict) -> str:
     ]
     for point in curve["points"]:
         lines.append(f"| {point['teammates']} | {_interval(point)} | {point['env_steps']:,} |")
+    if result.get("kernel_checks"):
+        from bench_heldout import kernel_check_lines
+
+        lines += kernel_check_lines(result["kernel_checks"])
     for grid, path in GRID_HELDOUT.items():
         if path.is_file():
             lines += ["", *grid_table(grid, json.loads(path.read_text()))]
@@ -424,12 +541,15 @@ def main() -> int:
         print(json.dumps(score_weights(args)))
         return 0
     if args.only:
-        run(args)
+        run(args, (args.only,))
         return 0
     if not args.render_only:
         from embodied_adhoc.atomic import atomic_write_text
 
-        atomic_write_text(RESULT, json.dumps(run(args), indent=1) + "\n")
+        checks = run_check(args) if args.check else None
+        fresh = None if args.check else run(args)
+        previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}  # read now: runs may overlap
+        atomic_write_text(RESULT, json.dumps(merge(previous, fresh, checks), indent=1) + "\n")
     result = json.loads(RESULT.read_text())
     render(result)
     plot(result)
