@@ -1849,13 +1849,6 @@ UNRUN = {
             TIMING,
         ),
         Unrun(
-            "chapter5-budget",
-            "Chapter 5's solve budget: Perseus' lower bound at b0 of each domain's first model, stage by stage",
-            "Perseus without a stage limit on model 0 of each domain (SolverProgress per stage, CPU seconds)",
-            "one unlimited solve per domain: minutes each, gridworld's stages the costliest",
-            TIMING,
-        ),
-        Unrun(
             "chapter5-bugs",
             "Tables 5.5/5.6 with the original's model bugs (ntu, mit, overcooked)",
             ".venv/bin/python scripts/reproduce_atpo.py --with-bugs --skip-fig59 --markdown",
