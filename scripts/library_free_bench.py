@@ -7,8 +7,8 @@ curve to docs/library_free_curve.png. The block also renders the grid arenas' tr
 
     .venv/bin/python scripts/library_free_bench.py [--episodes 32] [--seed 0] [--out runs/library-free]
     .venv/bin/python scripts/library_free_bench.py --render-only
-    OPENBLAS_CORETYPE=Sandybridge XDG_CACHE_HOME=DIR .venv/bin/python scripts/library_free_bench.py \
-        --check toxic-waste,pursuit-task,ntu,curve
+    OPENBLAS_CORETYPE=Sandybridge ATEN_CPU_CAPABILITY=default XDG_CACHE_HOME=DIR \
+        .venv/bin/python scripts/library_free_bench.py --check toxic-waste,pursuit-task,ntu,curve
 
 Every agent runs through ``embodied_adhoc.bench.evaluate`` (the ``evaluate`` command's function) on the same
 suite, episodes and seed as ``scripts/bench_heldout.py``, whose result file (results/benchmark-heldout.json) gives
@@ -18,10 +18,10 @@ ppo-generalist on the lab trained with the first 1, 2 and 4 train members (``tra
 the folders of ``--curve-runs``) and the shipped one with all 6, each at the shipped agents' env steps.
 
 ``--check PART,...`` runs those parts (domains, or ``curve``) again in this process's environment (another BLAS
-kernel: ``OPENBLAS_CORETYPE``, with a policy cache of that kernel's own: ``XDG_CACHE_HOME`` pointing at a fresh
-folder) and keeps the run in the file's ``kernel_checks``, beside the published run it never replaces, compared with
-``scripts/bench_heldout.py``'s rule: every agent's IQM and mean inside the published 95 % interval, on the same
-episodes, seed and members.
+kernel: ``OPENBLAS_CORETYPE`` for numpy's OpenBLAS and ``ATEN_CPU_CAPABILITY`` for the networks' torch, with a
+policy cache of that kernel's own: ``XDG_CACHE_HOME`` pointing at a fresh folder) and keeps the run in the file's
+``kernel_checks``, beside the published run it never replaces, compared with ``scripts/bench_heldout.py``'s rule:
+every agent's IQM and mean inside the published 95 % interval, on the same episodes, seed and members.
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
+import os
 import platform
 import subprocess
 import sys
@@ -58,6 +59,8 @@ SEED_RUNS = "results/library_free/seeds"
 CURVE_DOMAIN = "toxic-waste"
 CURVE_COUNTS = (1, 2, 4)  # and the shipped agent's, all of the train split
 PARTS = (*DOMAINS, "curve")
+TORCH_KERNEL = ("ATEN_CPU_CAPABILITY", "MKL_ENABLE_INSTRUCTIONS")
+"""The variables that choose torch's CPU kernels, named in a check's command where set."""
 PLUGIN_FILE = """from embodied_adhoc.learning.index_domains import index_agent
 
 
@@ -118,6 +121,8 @@ def _provenance() -> dict:
         "command": " ".join([".venv/bin/python", "scripts/library_free_bench.py", *sys.argv[1:]]),
         "commit": commit.strip(),
         "kernel": blas_kernel(),
+        # the networks' kernels are torch's own (its vectorised ops and MKL), which OPENBLAS_CORETYPE leaves as is
+        "torch_cpu_capability": torch.backends.cpu.get_cpu_capability(),
         "python": platform.python_version(),
         "versions": {"numpy": numpy.__version__, "torch": torch.__version__},
     }
@@ -274,22 +279,31 @@ def _part(result: dict, part: str) -> dict:
     }
 
 
+def kernel_prefix(kernel: str) -> str:
+    """The environment a check's command names: the OpenBLAS kernel threadpoolctl reports, and torch's kernel
+    variables where set."""
+    torch = (f"{name}={os.environ[name]}" for name in TORCH_KERNEL if name in os.environ)
+    return " ".join([f"OPENBLAS_CORETYPE={kernel}", *torch])
+
+
 def run_check(args: argparse.Namespace) -> dict:
-    """``args.check``'s parts run again (resumable under ``--out``/check-<kernel>): the file's ``kernel_checks``
+    """``args.check``'s parts run again (resumable under ``--out``/check-<kernels>): the file's ``kernel_checks``
     entries for them, in the shape ``bench_heldout.compare_check`` reads."""
     from embodied_adhoc.experiments.identity import blas_kernel
 
     kernel = blas_kernel().split(":")[-1]
     clock = time.process_time()
-    fresh = run(args, args.check, Path(args.out) / f"check-{kernel}")
+    provenance = _provenance()
+    fresh = run(args, args.check, Path(args.out) / f"check-{kernel}-{provenance['torch_cpu_capability']}")
     cpu = round(time.process_time() - clock, 1)
     checks = {}
     for name in args.check:
         part = _part(fresh, name)
         checks[name] = {
             "kernel": fresh["kernel"],
+            "torch_cpu_capability": fresh["torch_cpu_capability"],
             "commit": fresh["commit"],
-            "command": f"OPENBLAS_CORETYPE={kernel} {fresh['command']}",
+            "command": f"{kernel_prefix(kernel)} {fresh['command']}",
             "wall_s": part["wall_s"],
             "cpu_s_all_checked_parts": cpu,
             "episodes": fresh["episodes"],

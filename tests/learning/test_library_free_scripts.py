@@ -141,3 +141,12 @@ def test_a_check_of_an_unknown_part_is_refused_before_work_starts(monkeypatch, c
         bench.parse()
     assert stop.value.code == 2
     assert "--check lab: no such part" in capsys.readouterr().err
+
+
+def test_a_checks_command_names_the_kernels_it_ran_under(monkeypatch):
+    bench = _script("library_free_bench")
+    for name in bench.TORCH_KERNEL:
+        monkeypatch.delenv(name, raising=False)
+    assert bench.kernel_prefix("Sandybridge") == "OPENBLAS_CORETYPE=Sandybridge"
+    monkeypatch.setenv("ATEN_CPU_CAPABILITY", "default")
+    assert bench.kernel_prefix("Sandybridge") == "OPENBLAS_CORETYPE=Sandybridge ATEN_CPU_CAPABILITY=default"
