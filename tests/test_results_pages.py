@@ -416,6 +416,10 @@ def test_a_self_rendered_table_is_checked_and_its_class_and_headline_come_from_i
         fair = {a: v["iqm"] for a, v in scope["aggregate"].items() if a not in privileged}
         best = max(fair, key=fair.get)
         assert f"{domain} {best} {fair[best]:.2f} [" in row[1]
+        # a domain normalised by simulated bounds (no exact best response) says what its 1 is
+        simulated = any(t.get("bounds", {}).get("episodes") for t in scope["teammates"])
+        cell = next(c for c in row[1].split("; ") if c.startswith(f"{domain} "))
+        assert cell.endswith("(1: the original team)") == simulated, cell
     short = klass.split(" (")[0] + (" (the part checked)" if "(the part checked" in klass else "")
     assert row[3] == f"[{short}]({entry.page})"
 
@@ -442,6 +446,17 @@ def test_a_self_rendered_class_counts_only_the_parts_a_second_kernel_re_ran_insi
     assert module.self_rendered_class(entry, both) == entry.klass
     failed = {**data, "kernel_checks": {"lab": check(True), "gridworld": check(False)}}
     assert module.self_rendered_class(entry, failed).startswith("check failed (gridworld:")
+
+    # a file whose parts are its domains and its curve (library-free): an unchecked curve is named
+    free = module.SELF_RENDERED["library-free"]
+    domains = {"domains": {"lab": {}, "ntu": {}}, "curve": {"points": [1, 2]}, "kernel": "openblas:Haswell"}
+    checked = {**domains, "kernel_checks": {"lab": check(True), "ntu": check(True)}}
+    assert module.self_rendered_class(free, checked) == (
+        f"{free.klass} (the part checked: lab, ntu re-ran under a second kernel inside the published intervals; "
+        "curve one kernel's run only)"
+    )
+    checked["kernel_checks"]["curve"] = check(True)
+    assert module.self_rendered_class(free, checked) == free.klass
 
 
 def test_the_ablation_check_holds_each_mean_to_the_published_t_interval():
