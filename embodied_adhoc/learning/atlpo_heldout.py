@@ -27,11 +27,11 @@ from dataclasses import dataclass
 import gymnasium
 import numpy as np
 
-from embodied_adhoc.domains.grid_rules_team import team_actions
 from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.learning.atlpo import AtlpoAgent, LibraryEnvironment, PolicyLibrary
 from embodied_adhoc.learning.classifier import RecurrentBayesianClassifier
 from embodied_adhoc.learning.vector_grid import GRID_IDS
+from embodied_adhoc.teammates.grid_members import SeatTeam
 
 AGENTS = ("original", "known-task", "atlpo-mf", "random")
 NOISE = 0.2
@@ -51,18 +51,14 @@ class HeldOutTeam:
 
 def thesis_team(specs: dict, types: tuple[str, ...], noise: float = 0.0) -> Team:
     """Agent ``i`` plays thesis team ``types[i]`` (one type: an ordinary team); with ``noise`` each listed
-    agent's action is replaced by a uniform one with that probability (both draws made every call)."""
+    agent's action is replaced by a uniform one with that probability (both draws made every call): the
+    benchmark's :class:`~embodied_adhoc.teammates.grid_members.SeatTeam`, called as a held-out team is."""
     if not 0.0 <= noise <= 1.0:
         raise ConfigError(f"noise={noise}: a probability in [0, 1]")
+    seats = tuple(specs[name] for name in types)
 
     def act(rules, state, task, rng, members) -> np.ndarray:
-        members = list(members)
-        actions = np.array(
-            [team_actions(rules, state, task, specs[types[i % len(types)]], rng, [i])[0] for i in members],
-            dtype=np.int64,
-        )
-        random_actions = rng.integers(5, size=len(members))
-        return np.where(rng.random(len(members)) < noise, random_actions, actions)
+        return SeatTeam(rules, seats, noise).actions(state, task, rng, members)
 
     return act
 
