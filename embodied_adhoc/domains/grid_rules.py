@@ -21,7 +21,7 @@ Conventions
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -182,6 +182,12 @@ class GridBatch:
             state.target_levels,
             state.alive,
         )
+
+    def put_rows(self, rows: np.ndarray, states: list[GridState]) -> None:
+        """``states[k]`` into row ``rows[k]`` for every ``k``, one assignment per field."""
+        stacked = GridBatch.stack(states)
+        for name in (f.name for f in fields(self)):
+            getattr(self, name)[rows] = getattr(stacked, name)
 
 
 @dataclass(frozen=True)

@@ -174,9 +174,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
             teams.append(self.team_number[team])
             states.append(state)
         index = np.asarray(rows, dtype=np.int64)
-        b = self.batch
-        for name in ("agents", "agent_levels", "targets", "target_levels", "alive"):
-            getattr(b, name)[index] = np.stack([getattr(state, name) for state in states])
+        self.batch.put_rows(index, states)
         self.task_index[index] = np.asarray(tasks, dtype=np.int64) - 1
         self.team_index[index] = teams
         self.steps[index] = 0
