@@ -36,8 +36,6 @@ from embodied_adhoc.teammates.populations import CHAPTER5, GRID
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / "results" / "benchmark-heldout.json"
-PAGE = ROOT / "docs" / "benchmark.md"
-START, END = "<!-- bench:heldout start -->", "<!-- bench:heldout end -->"
 CHAPTER5_AGENTS = ("atpo", "bopa", "perseus", "value-iteration", "random-picker", "random")
 GRID_AGENTS = ("atlpo-mf", "ppo-generalist", "liam", "meliba", "random")
 """The agents that run on the grid arenas (``original``, the member's own policy, is the upper bound)."""
@@ -543,13 +541,13 @@ def table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def render(result: dict) -> None:
-    text = PAGE.read_text()
-    if START not in text or END not in text:
-        raise SystemExit(f"{PAGE}: the markers {START} and {END} are missing")
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    PAGE.write_text(f"{head}{START}\n{table(result)}\n{END}{tail}")
+def render() -> None:
+    """Every generated page, this script's block among them, so the block, its class line, the results index and
+    the README's headline change together (``render_results.py`` renders the block with this script's ``table``)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import render_results
+
+    render_results.render()
 
 
 def dumps(value, indent: int = 0) -> str:
@@ -580,7 +578,7 @@ def main() -> int:
         fresh = run_physics(args) if args.physics else run_check(args) if args.check else run(args)
         previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}  # read now: runs may overlap
         atomic_write_text(RESULT, dumps(merge(previous, fresh)) + "\n")
-    render(json.loads(RESULT.read_text()))
+    render()
     print(table(json.loads(RESULT.read_text())))
     return 0
 

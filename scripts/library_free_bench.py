@@ -37,15 +37,11 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(
-    0, str(ROOT / "scripts")
-)  # bench_heldout's check comparison, shared with the library-based runs
+sys.path.insert(0, str(ROOT / "scripts"))  # bench_heldout's check comparison and render_results' pages
 RESULT = ROOT / "results" / "library-free.json"
-PAGE = ROOT / "docs" / "library_free.md"
 PLOT = ROOT / "docs" / "library_free_curve.png"
 SPEED = ROOT / "results" / "library-free-speed.json"
 BATCHES = ROOT / "results" / "library_free" / "collection-batches.json"
-START, END = "<!-- library-free start -->", "<!-- library-free end -->"
 DOMAINS = ("toxic-waste", "pursuit-task", "ntu")
 GRID_HELDOUT = {grid: ROOT / "results" / "library_free" / f"{grid}-heldout" / "results.json" for grid in (
     "foraging", "pursuit")}  # fmt: skip
@@ -524,12 +520,12 @@ def plot(result: dict) -> None:
     plt.close(figure)
 
 
-def render(result: dict) -> None:
-    text = PAGE.read_text()
-    if START not in text or END not in text:
-        raise SystemExit(f"{PAGE}: the markers {START} and {END} are missing")
-    head, rest = text.split(START, 1)
-    PAGE.write_text(f"{head}{START}\n{table(result)}\n{END}{rest.split(END, 1)[1]}")
+def render() -> None:
+    """Every generated page, this script's block among them, so the block, its class line, the results index and
+    the README's headline change together (``render_results.py`` renders the block with this script's ``table``)."""
+    import render_results
+
+    render_results.render()
 
 
 def score_weights(args: argparse.Namespace) -> dict:
@@ -565,7 +561,7 @@ def main() -> int:
         previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}  # read now: runs may overlap
         atomic_write_text(RESULT, json.dumps(merge(previous, fresh, checks), indent=1) + "\n")
     result = json.loads(RESULT.read_text())
-    render(result)
+    render()
     plot(result)
     print(table(result))
     return 0
