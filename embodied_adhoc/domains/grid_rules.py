@@ -185,9 +185,12 @@ class GridBatch:
 
     def put_rows(self, rows: np.ndarray, states: list[GridState]) -> None:
         """``states[k]`` into row ``rows[k]`` for every ``k``, one assignment per field."""
-        stacked = GridBatch.stack(states)
+        self.put_batch(rows, GridBatch.stack(states))
+
+    def put_batch(self, rows: np.ndarray, batch: GridBatch) -> None:
+        """Row ``k`` of ``batch`` into row ``rows[k]`` for every ``k``, one assignment per field."""
         for name in (f.name for f in fields(self)):
-            getattr(self, name)[rows] = getattr(stacked, name)
+            getattr(self, name)[rows] = getattr(batch, name)
 
 
 @dataclass(frozen=True)
@@ -249,22 +252,47 @@ class GridRules:
     # -- spawning ---------------------------------------------------------------------------------------------
     def sample_state(self, rng: np.random.Generator) -> GridState:
         """A random initial state: targets on valid cells, agents on the remaining free cells."""
-        cfg, all_cells = self.config, self.all_cells
-        target_idx = rng.choice(self.valid_target_cells, size=cfg.n_targets, replace=False)
-        free = np.delete(self.flat_cells, target_idx)  # the cells without a target, ascending
-        agent_idx = rng.choice(free, size=cfg.n_agents, replace=False)
-        if cfg.domain == "foraging":
-            agent_levels = rng.integers(1, cfg.max_agent_level + 1, size=cfg.n_agents)
-            target_levels = rng.integers(1, int(agent_levels.sum()) + 1, size=cfg.n_targets)
-        else:
-            agent_levels = np.ones(cfg.n_agents, dtype=np.int64)
-            target_levels = np.ones(cfg.n_targets, dtype=np.int64)
-        return GridState(
-            all_cells[agent_idx].copy(),
-            agent_levels.astype(np.int64),
-            all_cells[target_idx].copy(),
-            target_levels.astype(np.int64),
+        return self.sample_states([rng]).state(0)
+
+    def sample_states(
+        self, rngs: list[np.random.Generator], first=None
+    ) -> tuple[GridBatch, list] | GridBatch:
+        """One initial state per Generator, stacked (row ``k`` from ``rngs[k]``). Each Generator draws the
+        numbers :meth:`sample_state` always drew, in the same order (target cells, then agents among the
+        remaining cells, then levels): only the integers are drawn per Generator, and turning them into cells
+        is done for the whole batch. ``first(rng)``, if given, runs on each Generator before its state draws
+        (the episode's task and team draws); the batch then comes with the list of its results."""
+        cfg, cells = self.config, self.config.rows * self.config.cols
+        n_valid, n_free = len(self.valid_target_cells), cells - cfg.n_targets
+        b = len(rngs)
+        target_pick = np.empty((b, cfg.n_targets), np.int64)
+        agent_pick = np.empty((b, cfg.n_agents), np.int64)
+        agent_levels = np.ones((b, cfg.n_agents), np.int64)
+        target_levels = np.ones((b, cfg.n_targets), np.int64)
+        foraging, extras = cfg.domain == "foraging", []
+        for k, rng in enumerate(rngs):
+            if first is not None:
+                extras.append(first(rng))
+            # choice over a count draws the same indices as choice over an array of that length
+            target_pick[k] = rng.choice(n_valid, size=cfg.n_targets, replace=False)
+            agent_pick[k] = rng.choice(n_free, size=cfg.n_agents, replace=False)
+            if foraging:
+                agent_levels[k] = rng.integers(1, cfg.max_agent_level + 1, size=cfg.n_agents)
+                target_levels[k] = rng.integers(1, int(agent_levels[k].sum()) + 1, size=cfg.n_targets)
+        targets = self.valid_target_cells[target_pick]
+        taken = np.zeros((b, cells), bool)
+        taken[np.arange(b)[:, None], targets] = True
+        # the cells without a target in ascending order (a stable sort puts the False entries first)
+        free = np.argsort(taken, axis=1, kind="stable")[:, :n_free]
+        agents = np.take_along_axis(free, agent_pick, axis=1)
+        batch = GridBatch(
+            self.all_cells[agents],
+            agent_levels,
+            self.all_cells[targets],
+            target_levels,
+            np.ones((b, cfg.n_targets), bool),
         )
+        return batch if first is None else (batch, extras)
 
     # -- one step (batched: one implementation for the single envs, B=1, and the vector env) ---------------
     def flat(self, cells: np.ndarray) -> np.ndarray:

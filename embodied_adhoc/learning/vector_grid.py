@@ -15,8 +15,10 @@ Speed: a sub-env's step uniforms are drawn ``DRAW_BLOCK`` steps at a time (one `
 them). When a sub-env resets with part of its block unused, its Generator is put back where the single env's
 would be (the state before the block, then the used draws drawn again), so the reset draws what the single env
 draws. Every step plans all sub-envs at once, the resetting ones included (their results are discarded), which
-avoids gathering a sub-batch. The sub-envs that reset at a step draw their episodes one by one (each from its
-own Generator, as the single env) and their state, task, team and step count are written at once.
+avoids gathering a sub-batch. The sub-envs that reset at a step draw their episodes' numbers one by one (each
+from its own Generator, the same numbers in the same order as the single env); their start states are built from
+those numbers at once (:meth:`GridRules.sample_states`) and their state, task, team and step count written at
+once.
 
 Autoreset: gymnasium's default ``AutoresetMode.NEXT_STEP``. The step that ends an episode returns its last
 observation with ``terminated``/``truncated`` set; the next ``step`` ignores that sub-env's action, resets it and
@@ -157,6 +159,9 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
     def _reset_rows(self, rows: list[int], options: dict | None) -> None:
         """Reset the sub-envs ``rows``: each Generator draws what the single env's reset draws, in row order;
         the episodes' bookkeeping is then written for all of them at once."""
+        if options is None and self.environments is None:
+            self._reset_rows_batched(rows)
+            return
         tasks, teams, states = [], [], []
         for index in rows:
             self._rewind(index)
@@ -175,6 +180,28 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
             states.append(state)
         index = np.asarray(rows, dtype=np.int64)
         self.batch.put_rows(index, states)
+        self._write_episodes(index, tasks, teams)
+
+    def _reset_rows_batched(self, rows: list[int]) -> None:
+        """:meth:`_reset_rows` without options or listed environments: every Generator draws what the single
+        env's ``draw_episode`` draws (task, team, then the state's integers), and the states are built at once
+        by :meth:`GridRules.sample_states`."""
+        for index in rows:
+            self._rewind(index)
+        task_set, team_set = self.core.task_set, self.core.team_set
+        states, drawn = self.rules.sample_states(
+            [self.rngs[index] for index in rows],
+            first=lambda rng: (
+                task_set[int(rng.integers(len(task_set)))],
+                team_set[int(rng.integers(len(team_set)))],
+            ),
+        )
+        index = np.asarray(rows, dtype=np.int64)
+        self.batch.put_batch(index, states)
+        self._write_episodes(index, [task for task, _ in drawn], [self.team_number[t] for _, t in drawn])
+
+    def _write_episodes(self, index: np.ndarray, tasks: list[int], teams: list[int]) -> None:
+        """The reset rows' task, team, step count and episode parameters."""
         self.task_index[index] = np.asarray(tasks, dtype=np.int64) - 1
         self.team_index[index] = teams
         self.steps[index] = 0
