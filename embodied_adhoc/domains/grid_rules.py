@@ -252,16 +252,14 @@ class GridRules:
     # -- spawning ---------------------------------------------------------------------------------------------
     def sample_state(self, rng: np.random.Generator) -> GridState:
         """A random initial state: targets on valid cells, agents on the remaining free cells."""
-        return self.sample_states([rng]).state(0)
+        return self.sample_states([rng])[0].state(0)
 
-    def sample_states(
-        self, rngs: list[np.random.Generator], first=None
-    ) -> tuple[GridBatch, list] | GridBatch:
+    def sample_states(self, rngs: list[np.random.Generator], first=None) -> tuple[GridBatch, list]:
         """One initial state per Generator, stacked (row ``k`` from ``rngs[k]``). Each Generator draws the
         numbers :meth:`sample_state` always drew, in the same order (target cells, then agents among the
         remaining cells, then levels): only the integers are drawn per Generator, and turning them into cells
         is done for the whole batch. ``first(rng)``, if given, runs on each Generator before its state draws
-        (the episode's task and team draws); the batch then comes with the list of its results."""
+        (the episode's task and team draws); the batch comes with the list of its results (empty without it)."""
         cfg, cells = self.config, self.config.rows * self.config.cols
         n_valid, n_free = len(self.valid_target_cells), cells - cfg.n_targets
         b = len(rngs)
@@ -292,7 +290,7 @@ class GridRules:
             target_levels,
             np.ones((b, cfg.n_targets), bool),
         )
-        return batch if first is None else (batch, extras)
+        return batch, extras
 
     # -- one step (batched: one implementation for the single envs, B=1, and the vector env) ---------------
     def flat(self, cells: np.ndarray) -> np.ndarray:

@@ -135,9 +135,14 @@ class GridWorldCore:
     def draw_episode(self, rng: np.random.Generator) -> tuple[int, str, GridState]:
         """The draws of :meth:`reset`, in its order: task number, team name and start state (the vector env
         calls it for its resetting sub-envs without building an :class:`Episode` each)."""
+        task, team = self.draw_task_team(rng)
+        return task, team, self.rules.sample_state(rng)
+
+    def draw_task_team(self, rng: np.random.Generator) -> tuple[int, str]:
+        """The episode's task number and team name, the first draws of :meth:`draw_episode`."""
         task = self.task_set[int(rng.integers(len(self.task_set)))]
         team = self.team_set[int(rng.integers(len(self.team_set)))]
-        return task, team, self.rules.sample_state(rng)
+        return task, team
 
     @property
     def task(self) -> Task:

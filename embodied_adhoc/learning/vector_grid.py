@@ -188,13 +188,8 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         by :meth:`GridRules.sample_states`."""
         for index in rows:
             self._rewind(index)
-        task_set, team_set = self.core.task_set, self.core.team_set
         states, drawn = self.rules.sample_states(
-            [self.rngs[index] for index in rows],
-            first=lambda rng: (
-                task_set[int(rng.integers(len(task_set)))],
-                team_set[int(rng.integers(len(team_set)))],
-            ),
+            [self.rngs[index] for index in rows], first=self.core.draw_task_team
         )
         index = np.asarray(rows, dtype=np.int64)
         self.batch.put_batch(index, states)

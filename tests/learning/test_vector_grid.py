@@ -156,7 +156,7 @@ def test_batched_reset_states_draw_what_each_generator_draws_alone(config):
     rules = GridRules(GridConfig(**config))
     batched = [np.random.default_rng(seed) for seed in range(40)]
     alone = [np.random.default_rng(seed) for seed in range(40)]
-    batch = rules.sample_states(batched)
+    batch, _ = rules.sample_states(batched)
     for k, rng in enumerate(alone):
         state, row = rules.sample_state(rng), batch.state(k)
         for name in ("agents", "agent_levels", "targets", "target_levels", "alive"):
