@@ -8,64 +8,33 @@ Seed 4: task [1, 2, 3], the human starts at the double workbench (area 4), ball 
 then asks. Being at the single workbench then is likelier under task [1, 2, 3] (its nearest ball) than under
 [0, 1, 2], so the answer moves the task posterior. ``LIVE_SCREENSHOTS=DIR`` keeps the page's
 screenshots (docs/live.md's come from there), ``LIVE_STREAM_FPS`` changes ``--stream-fps`` (10). The page's
-latency figures are printed (``-s`` shows them).
+latency figures are printed (``-s`` shows them). Deadlines count the page's simulated seconds (``live_harness.py``).
 """
 
 from __future__ import annotations
 
 import json
 import os
-import re
 import shutil
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
+from live_harness import LiveServer, SimClock
 
 pytestmark = pytest.mark.slow
 
 CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 
 
-def _wait(condition, seconds: float, what: str):
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.05)
-    raise AssertionError(f"timed out after {seconds:g} s waiting for {what}")
-
-
 @pytest.fixture
 def live_server(tmp_path):
-    environment = {**os.environ, "MUJOCO_GL": "egl", "PYTHONUNBUFFERED": "1"}
-    command = [sys.executable, "-m", "embodied_adhoc.cli", "live", "toxic-waste", "--port", "0"]
-    command += ["--seed", "4", "--out", str(tmp_path), "--reply-timeout", "40"]
-    command += ["--stream-fps", os.environ.get("LIVE_STREAM_FPS", "10")]  # docs/live.md's latency at 20 fps
-    process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=environment
+    server = LiveServer(
+        ["--seed", "4", "--out", str(tmp_path), "--reply-timeout", "40"]
+        + ["--stream-fps", os.environ.get("LIVE_STREAM_FPS", "10")]  # docs/live.md's latency at 20 fps
     )
-    lines = []
-    deadline = time.monotonic() + 45
-    url = None
-    while url is None and time.monotonic() < deadline:
-        line = process.stdout.readline()
-        if not line:
-            break
-        lines.append(line)
-        found = re.search(r"live: open (http://127\.0\.0\.1:\d+/)", line)
-        url = found.group(1) if found else None
-    if url is None:
-        process.kill()
-        raise AssertionError("the server did not announce its URL:\n" + "".join(lines))
-    process.study = tmp_path
-    yield process, url, tmp_path
-    if process.poll() is None:
-        process.kill()
+    yield server, server.url, tmp_path
+    server.kill()
 
 
 SPOKEN = "I am at the double workbench"
@@ -107,11 +76,11 @@ def _spoken_reply(folder: Path) -> Path:
     return path
 
 
-def _stop(process) -> Path:
+def _stop(server, study: Path) -> Path:
     """Stop the server as Ctrl-C does; the one run folder it wrote."""
-    process.send_signal(signal.SIGINT)
-    process.wait(40)
-    folders = list(process.study.glob("P001_*"))
+    output = server.interrupt()
+    assert "Traceback" not in output, output
+    folders = list(study.glob("P001_*"))
     assert len(folders) == 1
     return folders[0]
 
@@ -129,11 +98,13 @@ def test_a_participant_walks_picks_a_ball_and_answers_by_typing(live_server, bro
     from selenium.webdriver.common.by import By
     from selenium.webdriver.common.keys import Keys
 
-    process, url, study = live_server
+    server, url, study = live_server
     shots = Path(os.environ["LIVE_SCREENSHOTS"]) if os.environ.get("LIVE_SCREENSHOTS") else None
 
     def stats(expression: str):
         return browser.execute_script(f"return window.liveStats.{expression};")
+
+    _wait = SimClock(browser, server.tail).wait  # deadlines in simulated seconds (live_harness.py)
 
     browser.get(url)
     _wait(lambda: "P001" in browser.find_element(By.ID, "participant").text, 20, "the hello message")
@@ -196,7 +167,7 @@ def test_a_participant_walks_picks_a_ball_and_answers_by_typing(live_server, bro
     print(f"key press to motion on the page ms: {_summary(key_to_motion)}")
 
     # stop the server: the episode ends as interrupted and its files are written
-    folder = _stop(process)
+    folder = _stop(server, study)
     metrics = json.loads((folder / "metrics.json").read_text())
     assert metrics["outcome"] == "interrupted" and metrics["steps"] >= 2
     assert any(
@@ -221,10 +192,12 @@ def test_a_participant_answers_by_speaking_into_the_microphone(live_server, brow
     and the node heard are shown, the audio is kept in the run folder and the robot observes the node."""
     from selenium.webdriver.common.by import By
 
-    process, url, _ = live_server
+    server, url, study = live_server
 
     def stats(expression: str):
         return browser.execute_script(f"return window.liveStats.{expression};")
+
+    _wait = SimClock(browser, server.tail).wait  # deadlines in simulated seconds (live_harness.py)
 
     browser.get(url)
     _wait(lambda: "P001" in browser.find_element(By.ID, "participant").text, 20, "the hello message")
@@ -250,7 +223,7 @@ def test_a_participant_answers_by_speaking_into_the_microphone(live_server, brow
         "the step that observed the spoken answer",
     )[0]
     assert "human at 4 double workbench" in answered["observation"]
-    folder = _stop(process)
+    folder = _stop(server, study)
     assert (folder / heard["file"]).stat().st_size > 16_000 * 2 * 3  # > 3 s of 16 kHz 16-bit audio
     metrics = json.loads((folder / "metrics.json").read_text())
     lines = [u for step in metrics["per_step"] for u in step.get("utterances", [])]

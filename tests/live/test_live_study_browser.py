@@ -6,6 +6,7 @@ you?" by typing the name of its area, and fills in the questionnaire after each 
 is checked: six rows of ``study.csv``, all successes, every drop's outcome logged, questions paced.
 
 ``LIVE_SCREENSHOTS=DIR`` keeps screenshots of the labelled map, a question and the end screen (docs/live.md's).
+Deadlines count the page's simulated seconds (``live_harness.py``; at ``--speed 3``, three per wall second).
 """
 
 from __future__ import annotations
@@ -13,8 +14,6 @@ from __future__ import annotations
 import csv
 import json
 import os
-import re
-import signal
 import subprocess
 import sys
 import time
@@ -22,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from live_harness import LiveServer, SimClock
 
 from embodied_adhoc.comms.vocabulary import NODE_NAMES
 from embodied_adhoc.live.humans import walkable
@@ -46,26 +46,9 @@ KEYS = {"up": "\ue013", "down": "\ue015", "left": "\ue012", "right": "\ue014"}  
 def study_server(tmp_path):
     plan = tmp_path / "plan.json"
     plan.write_text(json.dumps(PLAN))
-    environment = {**os.environ, "MUJOCO_GL": "egl", "PYTHONUNBUFFERED": "1"}
-    command = [sys.executable, "-m", "embodied_adhoc.cli", "live", "toxic-waste", "--port", "0"]
-    command += ["--study", str(plan), "--out", str(tmp_path / "study"), "--speed", str(SPEED)]
-    process = subprocess.Popen(
-        command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=environment
-    )
-    url, lines, deadline = None, [], time.monotonic() + 60
-    while url is None and time.monotonic() < deadline:
-        line = process.stdout.readline()
-        if not line:
-            break
-        lines.append(line)
-        found = re.search(r"live: open (http://127\.0\.0\.1:\d+/)", line)
-        url = found.group(1) if found else None
-    if url is None:
-        process.kill()
-        raise AssertionError("the server did not announce its URL:\n" + "".join(lines))
-    yield process, url, tmp_path / "study"
-    if process.poll() is None:
-        process.kill()
+    server = LiveServer(["--study", str(plan), "--out", str(tmp_path / "study"), "--speed", str(SPEED)])
+    yield server, server.url, tmp_path / "study"
+    server.kill()
 
 
 @pytest.fixture
@@ -108,12 +91,16 @@ class ScriptedParticipant:
         self.held: set[str] = set()
         self.answers = 0
         self.shot_question = False
+        self.clock = SimClock(driver)
 
     def stats(self, expression: str):
         return self.driver.execute_script(f"return window.liveStats.{expression};")
 
     def state(self) -> dict:
-        return self.stats("lastState")
+        state = self.stats("lastState")
+        if state:
+            self.clock.observe(state["sim_time"])
+        return state
 
     def hold(self, keys: set[str]) -> None:
         if keys == self.held:
@@ -146,16 +133,18 @@ class ScriptedParticipant:
         self.answers += 1
         time.sleep(0.2)
 
-    def walk_to(self, point, area: int, close: float, give_up: float = 120.0) -> None:
-        """Follow the human route to ``area``, then walk straight towards ``point`` until within ``close`` m."""
-        deadline = time.monotonic() + give_up
+    def walk_to(self, point, area: int, close: float, give_up: float = 360.0) -> None:
+        """Follow the human route to ``area``, then walk straight towards ``point`` until within ``close`` m
+        (``give_up``: simulated seconds)."""
+        deadline = self.clock.deadline(give_up, f"the walker to reach {point} in area {area}")
         lead = 1.2 * SPEED * 0.15 + 0.1  # m the walker still moves after a key is released (page latency)
         waypoints: list = []
         planned_from = None
-        stuck_since, last = time.monotonic(), None
-        while time.monotonic() < deadline:
+        stuck_since, last = self.clock.elapsed, None
+        while True:
             self.answer_if_asked()
             state = self.state()
+            deadline.check(f": state {state}", read=False)
             here = np.array(state["human"])
             if state["human_node"] != planned_from:  # (re)plan from the area the walker is in
                 planned_from = state["human_node"]
@@ -180,14 +169,13 @@ class ScriptedParticipant:
             elif offset[1] < -lead / 2:
                 keys.add("down")
             if last is None or np.hypot(*(here - last)) > 0.05:
-                stuck_since, last = time.monotonic(), here
-            elif time.monotonic() - stuck_since > 1.0:  # blocked (the robot in the way): walk round it
+                stuck_since, last = self.clock.elapsed, here
+            elif self.clock.elapsed - stuck_since > SPEED:  # blocked (the robot in the way): walk round it
                 waypoints[:0] = self._round_the_robot(here, target, np.array(state["robot"]))
-                stuck_since = time.monotonic()
+                stuck_since = self.clock.elapsed
                 continue
             self.hold(keys)
             time.sleep(0.03)
-        raise AssertionError(f"did not reach {point} in area {area}: state {self.state()}")
 
     @staticmethod
     def _round_the_robot(here, target, robot) -> list:
@@ -209,9 +197,9 @@ class ScriptedParticipant:
         """The act key, once the walker's previous motion has finished (keys wait for it: a press during it
         is refused with a notice)."""
         self.hold(set())
-        deadline = time.monotonic() + 20
+        deadline = self.clock.deadline(60, "the walker's motion to finish")
         while self.state()["busy"]:
-            assert time.monotonic() < deadline, "the walker stayed busy"
+            deadline.check(read=False)
             self.answer_if_asked()
             time.sleep(0.05)
         self.chains(self.driver).send_keys("e").perform()
@@ -225,28 +213,30 @@ class ScriptedParticipant:
         again."""
         before = len(self.outcomes(kind))
         self.act()
-        started, deadline = time.monotonic(), time.monotonic() + 40
-        while time.monotonic() < deadline:
+        deadline = self.clock.deadline(120, f"a {kind} outcome")
+        while True:
             self.answer_if_asked()
             outcomes, state = self.outcomes(kind), self.state()
+            if self.stats("done") is not None:
+                return None  # the episode ended (play_episode reads how)
+            deadline.check(f": state {state}", read=False)
             if len(outcomes) > before and (
                 not outcomes[-1]["succeeded"]
                 or state["holding"] == (outcomes[-1]["ball"] if kind == "pick" else None)
             ):  # (the event comes before the next frame's state shows it)
                 return outcomes[-1]
-            if len(outcomes) == before and not state["busy"] and time.monotonic() - started > 3:
+            if len(outcomes) == before and not state["busy"] and deadline.passed(read=False) > 3 * SPEED:
                 return None  # no motion started
             time.sleep(0.05)
-        raise AssertionError(f"no {kind} outcome: notice {self.state()['notice']!r}")
 
     def play_episode(self) -> dict:
         """Collect every ball on the floor into the container; the episode's done event."""
         picks = drops = refused = 0
-        deadline = time.monotonic() + 240
+        deadline = self.clock.deadline(720, "the episode to finish")
         while self.stats("done") is None:
-            assert time.monotonic() < deadline, f"episode not finished: {self.state()}"
             self.answer_if_asked()
             state = self.state()
+            deadline.check(f": state {state}", read=False)
             if state["holding"] is None:
                 floor = [i for i, s in enumerate(state["balls"]) if s == 0]
                 if not floor:
@@ -284,27 +274,28 @@ class ScriptedParticipant:
 
 
 def test_a_scripted_participant_finishes_a_study_of_three_seeds_and_two_agents(study_server, browser):
-    process, url, study = study_server
+    server, url, study = study_server
     shots = Path(os.environ["LIVE_SCREENSHOTS"]) if os.environ.get("LIVE_SCREENSHOTS") else None
     if shots:
         shots.mkdir(parents=True, exist_ok=True)
     person = ScriptedParticipant(browser, shots)
+    person.clock.context = server.tail
     by = person.by
     browser.get(url)
     seen = []
     for position in range(1, 7):
-        deadline = time.monotonic() + 60
-        while browser.execute_script("return window.liveStats.studyPosition") != position:
-            assert time.monotonic() < deadline, f"episode {position} not offered"
-            time.sleep(0.1)
+        person.clock.wait(
+            lambda position=position: (
+                browser.execute_script("return window.liveStats.studyPosition") == position
+            ),
+            60,
+            f"episode {position} to be offered",
+        )
         assert "Walk with the arrow keys" in browser.find_element(by.ID, "instructions").text
         places = [b.text for b in browser.find_elements(by.CSS_SELECTOR, "#place-buttons button")]
         assert places == list(NODE_NAMES)
         browser.find_element(by.ID, "start").click()
-        deadline = time.monotonic() + 30
-        while not person.stats("lastState"):
-            assert time.monotonic() < deadline, "no frames"
-            time.sleep(0.1)
+        person.clock.wait(lambda: person.stats("lastState"), 30, "frames")
         if shots and position == 1:
             time.sleep(0.5)
             browser.save_screenshot(str(shots / "live_map.png"))
@@ -314,13 +305,13 @@ def test_a_scripted_participant_finishes_a_study_of_three_seeds_and_two_agents(s
         if shots and position == 1:
             browser.save_screenshot(str(shots / "live_end.png"))
         person.questionnaire()
-    deadline = time.monotonic() + 30
-    while not browser.execute_script("return window.liveStats.studyComplete === true"):
-        assert time.monotonic() < deadline, "the study did not complete"
-        time.sleep(0.1)
+    person.clock.wait(
+        lambda: browser.execute_script("return window.liveStats.studyComplete === true"),
+        30,
+        "the study to complete",
+    )
     assert person.answers >= 1
-    process.send_signal(signal.SIGINT)
-    output = process.communicate(timeout=60)[0]
+    output = server.interrupt()
     assert "Traceback" not in output, output
 
     folder = study / "P001"
