@@ -1686,7 +1686,7 @@ FIGURES = {
             latency_tables,
             None,
             ("docs/live.md",),
-            files=("tests/live/test_live_browser.py",),
+            files=("tests/live/test_live_browser.py", "tests/live/live_harness.py"),
             notes="One session of `tests/live/test_live_browser.py`'s typing test (the run's commit's copy): the "
             "page's figures from `performance.now` in the page, the server's from the run's `session.json`; wall "
             "milliseconds on the machine named below, at its load then, with the browser, the server and the "
