@@ -782,7 +782,8 @@ BROWSER_OUTPUT = (
 def test_the_live_latency_figure_reads_the_browser_tests_figures_and_runs_its_commits_copy_of_the_test():
     module = load_script()
     figure = module.FIGURES["live-latency"]
-    assert figure.files == ("tests/live/test_live_browser.py",) and figure.compare is None
+    assert figure.files == ("tests/live/test_live_browser.py", "tests/live/live_harness.py")
+    assert figure.compare is None
     assert "{out}/test_live_browser.py" in figure.commands["browser"]
     (table,) = figure.tables(figure.extract({"browser": BROWSER_OUTPUT}))
     assert table.rows == [
@@ -841,3 +842,46 @@ def test_the_fault_sweep_keeps_its_wall_seconds_apart_and_holds_each_row_to_its_
     assert figure.compare(data, moved) == ["defaults on: mean steps 15.5 outside the published [11.0, 14.0]"]
     with pytest.raises(SystemExit, match="fault-sweep: bench_faults.py printed no sweep table"):
         figure.extract({"sweep": "900 s wall for the sweep\n"})
+
+
+FIG5_9_OUTPUT = """Table 5.5: 32 episodes per agent and domain, seed 0
+| domain | agent | reward (ours) | 95% CI (bootstrap) | reward (thesis) | Welch p vs thesis |
+|---|---|---|---|---|---|
+| gridworld | atpo | 5.10 ± 1.00 | [4.80, 5.40] | 5.00 ± 1.00 | 0.7 |
+Table 5.6: ATPO normalised between random (0 %) and value iteration (100 %)
+| domain | ATPO (ours) | Perseus (ours) | random-picker (ours) | ATPO (thesis) | >= 80 % |
+|---|---|---|---|---|---|
+| gridworld | 90.0 % | 95.0 % | 60.0 % | 92.0 % | yes |
+| domain | true model most likely after 5 | identify step (mean) |
+|---|---|---|
+| gridworld | 80 % | 4.00 |
+(thesis: ~5 steps on average, ~70 % after 10, ~90 % after 20)
+
+Fig. 5.9: ATPO normalised on gridworld by library size (0 % random, 100 % value iteration of the 4-model run)
+| library size | ATPO normalised (ours) | 95% CI (bootstrap), % | > 70 % |
+|---|---|---|---|
+| 2 models | 91.0 % | [86.0, 95.0] | yes |
+| 32 models | 72.0 % | [66.0, 78.0] | yes |
+"""
+
+
+def test_fig_5_9_is_held_to_its_intervals_and_to_the_thesis_verdict_per_library_size():
+    module = load_script()
+    figure = module.FIGURES["fig5-9"]
+    assert "gridworld" in figure.commands["reproduce"] and "--skip-fig59" not in figure.commands["reproduce"]
+    data = figure.extract({"reproduce": FIG5_9_OUTPUT})
+    tables = {table.key: table for table in figure.tables(data)}
+    assert tables["fig5_9"].rows[1] == ["32 models", "72.0 %", "[66.0, 78.0]", "yes"]
+    assert figure.compare(data, data) == []
+    inside = FIG5_9_OUTPUT.replace("| 32 models | 72.0 % |", "| 32 models | 75.0 % |")
+    assert figure.compare(data, figure.extract({"reproduce": inside})) == []
+    flipped = FIG5_9_OUTPUT.replace(
+        "| 32 models | 72.0 % | [66.0, 78.0] | yes |", "| 32 models | 69.0 % | [63.0, 75.0] | no |"
+    )
+    failures = figure.compare(data, figure.extract({"reproduce": flipped}))
+    assert any("> 70 %" in f for f in failures), failures
+    outside = FIG5_9_OUTPUT.replace("| 2 models | 91.0 % |", "| 2 models | 80.0 % |")
+    assert any(
+        "outside the published [86.0, 95.0]" in f
+        for f in figure.compare(data, figure.extract({"reproduce": outside}))
+    )
