@@ -10,9 +10,10 @@ at once: one sparse product ``B T_a`` per action, then the scores of every vecto
 observations the scores are computed on the support of the predicted beliefs: one sparse (possible branches x S)
 matrix ``W[(i, z), s'] = (b_i T_a)(s') O(z | s', a)`` times the dense ``Gamma^T`` (float32), so the cost is ``K``
 times the nonzeros of ``W``, never more than a product with the projection of all vectors on all observations
-(``n * K * nnz(O_a)``) and less by the predicted beliefs' density; dense observation models use one dense product
-with that projection. Each action's value follows from the best scores (float64, on the same entries); the
-vector, mapped back through ``T_a`` by two sparse products, is built only for each belief's best action.
+(``n * K * nnz(O_a)``) and less by the predicted beliefs' density; dense observation models use dense products
+with that projection, a block of vectors at a time. Each action's value follows from the best scores (float64, on
+the same entries); the vector, mapped back through ``T_a`` by two sparse products, is built only for each belief's
+best action.
 
 Every product that decides a choice gives the same bits on any host (products.py): sparse products are scipy's,
 in one summation order; the dense projection's BLAS scores are rescored in a fixed order wherever a runner-up lies
@@ -41,6 +42,7 @@ _DENSE_MAX_ELEMENTS = 20_000_000
 _EPS = float(np.finfo(np.float64).eps)
 _SPLIT_MIN_WORK = 1 << 22  # multiply-adds (nnz x columns) from which a product is split over the threads
 _BLOCK_ENTRIES = 1 << 20  # entries of a reduced product formed at once (RowProducts: 8 MiB of float64)
+DENSE_BLOCK_BYTES = 8 * _BLOCK_ENTRIES  # a block of the dense projection, or of its scores (_dense_choices)
 
 
 class RowProducts:
@@ -222,25 +224,21 @@ class BackupOperator:
         best = prepared.state_best
         return best["top"], best["first"], best["clean"]
 
-    def _projection(self, prepared: PreparedAlphas, action: int) -> np.ndarray | None:
-        """Dense projection (S, Z*K) of every vector on every observation of ``action``, for dense observation
-        models (a dense BLAS product then beats the support-restricted one despite the zeros); None when the
-        observations are sparse or the projection would exceed ``_DENSE_MAX_ELEMENTS``."""
+    def _dense_observations(self, prepared: PreparedAlphas, action: int) -> np.ndarray | None:
+        """The dense (S, Z) observation matrix of ``action`` when its branch scores use the dense projection of every
+        vector on every observation (dense observation models: a dense BLAS product then beats the
+        support-restricted one despite the zeros); None when the observations are sparse or the whole projection
+        would exceed ``_DENSE_MAX_ELEMENTS``. The projection itself is built by blocks of vectors
+        (:func:`_dense_choices`)."""
         if action in prepared.projections:
-            return prepared.projections[action]
-        alphas = prepared.alphas
-        n_vectors, n_obs, n_states = alphas.shape[0], self.n_observations, self.pomdp.n_states
-        projection = None
+            return None
+        n_vectors, n_obs, n_states = prepared.alphas.shape[0], self.n_observations, self.pomdp.n_states
         if not self.sparse_observations[action] and n_vectors * n_obs * n_states <= _DENSE_MAX_ELEMENTS:
-            # Laid out (S, Z, K) so that the scores come out (n, Z, K), K last for a contiguous argmax, and the
-            # product's right operand is C-contiguous.
-            dense = self.observation_rows[action].toarray()  # (S, Z)
-            projection = (dense[:, :, None] * alphas.T[:, None, :]).reshape(n_states, n_obs * n_vectors)
-        # Only "none" is remembered: a projection is rebuilt at each use (1 / batch of the scores' product), as
-        # keeping one per action held |A| times the largest array of the backup between batches.
-        if projection is None:
-            prepared.projections[action] = None
-        return projection
+            return self.observation_rows[action].toarray()
+        # Only "none" is remembered: the dense matrix is small, and a projection kept per action held |A| times the
+        # largest array of the backup between batches.
+        prepared.projections[action] = None
+        return None
 
     def _support_choices(
         self, prepared: PreparedAlphas, action: int, predicted: np.ndarray
@@ -403,8 +401,8 @@ class BackupOperator:
             # predicted[s', i] = sum_s b_i(s) T(s, a, s')  (one sparse product for the whole batch)
             predicted = self.transitions_t[action] @ beliefs_t
             chosen = chosen_by_action[action]  # (Z, n): best continuation per branch and belief
-            projected = self._projection(prepared, action) if project else None
-            if projected is None:
+            dense = self._dense_observations(prepared, action) if project else None
+            if dense is None:
                 # Scored on the predicted beliefs' support: the same products as the projection's, restricted to
                 # the states a belief can reach, in float32. Impossible branches keep the fallback.
                 chosen[:] = prepared.fallbacks[action][:, None]
@@ -414,7 +412,7 @@ class BackupOperator:
                 chosen[branch_observations, branch_beliefs] = best
             else:
                 branch_mass = self.entries[action][4] @ predicted  # (Z, n): P(z | b_i, a)
-                chosen[:], continuation = _dense_choices(predicted, projected, branch_mass, prepared.alphas)
+                chosen[:], continuation = _dense_choices(predicted, dense, branch_mass, prepared.alphas)
                 impossible = branch_mass <= 0.0
                 if impossible.any():
                     chosen[:] = np.where(impossible, prepared.fallbacks[action][:, None], chosen)
@@ -449,37 +447,66 @@ class BackupOperator:
 
 
 def _dense_choices(
-    predicted: np.ndarray, projected: np.ndarray, branch_mass: np.ndarray, alphas: np.ndarray
+    predicted: np.ndarray, dense: np.ndarray, branch_mass: np.ndarray, alphas: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Best vector of every branch ``(z, i)`` from the dense projection (S, Z*K), and each belief's continuation value
-    ``sum_z score(i, z, best)``, both the same on any host.
+    """Best vector of every branch ``(z, i)`` from the dense projection of the vectors on the observations
+    (``dense[s', z] * alphas[k, s']``), and each belief's continuation value ``sum_z score(i, z, best)``, both the
+    same on any host.
 
-    The scores come from one BLAS product (fast), whose last bits depend on the kernel. Any summation order is
+    The scores come from BLAS products (fast), whose last bits depend on the kernel. Any summation order is
     within ``gamma_S sum_s |terms| <= S u max|alpha| P(z | b_i)`` (``branch_mass``, Z x n) of the exact sum, so a
     vector more than ``margin`` (twice the distance between two orders, with slack) below a branch's best BLAS score
     is below its best fixed-order score too: the first maximum of the fixed-order scores lies among the candidates
     within ``margin``, and only those (exact ties, mostly) are rescored in a fixed order (a reduction over ``s``).
+    The projection and its scores are formed for a block of vectors at a time (:func:`_vector_blocks`): each block
+    adds to the running first maximum and runner-up of every branch, and keeps its entries within ``margin`` of
+    the running maximum (a superset of the final candidates, since that maximum only grows). Which vector wins is
+    the first maximum of the fixed-order scores whatever the blocks, so the result is the one of a single product.
     Impossible branches (all scores 0) are left to the caller's fallback. The continuation is summed from
     fixed-order scores of the chosen vectors alone."""
     n_states, n = predicted.shape
     n_obs = branch_mass.shape[0]
-    scores = (predicted.T @ projected).reshape(n, n_obs, -1)  # (n, Z, K)
-    n_vectors = scores.shape[2]
+    predicted_t = np.ascontiguousarray(predicted.T)  # (n, S): left operand of every block's product
     unit = 4.0 * n_states * _EPS * float(np.abs(alphas).max())
-    margin = (unit * branch_mass.T + 1e-290)[:, :, None]  # (n, Z, 1)
-    first = np.argmax(scores, axis=2)  # (n, Z)
-    top = np.take_along_axis(scores, first[:, :, None], axis=2)
-    threshold = top - margin
-    # the runner-up of each branch: its best score masked for one max pass (cheaper than counting a comparison)
-    np.put_along_axis(scores, first[:, :, None], -np.inf, axis=2)
-    second = scores.max(axis=2, keepdims=True) if n_vectors > 1 else np.full_like(top, -np.inf)
-    np.put_along_axis(scores, first[:, :, None], top, axis=2)
-    tied_i, tied_z = np.nonzero((second >= threshold)[:, :, 0] & (branch_mass.T > 0.0))
-    if tied_i.size:
-        # the candidates of the tied branches only (the full boolean array's nonzero costs as much as the product)
-        rows, near_k = np.nonzero(scores[tied_i, tied_z] >= threshold[tied_i, tied_z])
-        near_i, near_z = tied_i[rows], tied_z[rows]
-        exact = _fixed_order_scores(predicted, projected, near_i, near_z * n_vectors + near_k)
+    margin = unit * branch_mass.T + 1e-290  # (n, Z)
+    possible = branch_mass.T > 0.0
+    first = np.zeros((n, n_obs), dtype=np.int64)
+    top = np.full((n, n_obs), -np.inf)
+    second = np.full((n, n_obs), -np.inf)
+    near: list[tuple[np.ndarray, ...]] = []  # per block: branch (i, z), vector k and BLAS score of candidates
+    for low, high in _vector_blocks(alphas.shape[0], n_states * n_obs, n * n_obs):
+        width = high - low
+        projected = (dense[:, :, None] * alphas[low:high].T[:, None, :]).reshape(n_states, n_obs * width)
+        scores = (predicted_t @ projected).reshape(n, n_obs, width)  # (n, Z, block)
+        del projected
+        block_first = np.argmax(scores, axis=2)
+        block_top = np.take_along_axis(scores, block_first[:, :, None], axis=2)[:, :, 0]
+        # the block's runner-up: its best score masked for one max pass (cheaper than counting a comparison)
+        np.put_along_axis(scores, block_first[:, :, None], -np.inf, axis=2)
+        block_second = scores.max(axis=2) if width > 1 else np.full_like(block_top, -np.inf)
+        np.put_along_axis(scores, block_first[:, :, None], block_top[:, :, None], axis=2)
+        better = block_top > top  # strictly: the first of equal maxima stays, as one argmax keeps it
+        second = np.where(better, np.maximum(top, block_second), np.maximum(second, block_top))
+        first = np.where(better, block_first + low, first)
+        top = np.where(better, block_top, top)
+        threshold = top - margin
+        # Entries within margin of the running maximum: a branch's block runner-up decides whether more than its
+        # block maximum can be (the candidates of those branches only: the full boolean array's nonzero costs as
+        # much as the product).
+        several_i, several_z = np.nonzero(possible & (block_second >= threshold))
+        rows, near_k = np.nonzero(scores[several_i, several_z] >= threshold[several_i, several_z, None])
+        near.append(
+            (several_i[rows], several_z[rows], near_k + low, scores[several_i[rows], several_z[rows], near_k])
+        )
+        lone_i, lone_z = np.nonzero(possible & (block_second < threshold) & (block_top >= threshold))
+        near.append((lone_i, lone_z, block_first[lone_i, lone_z] + low, block_top[lone_i, lone_z]))
+        del scores
+    tied = possible & (second >= top - margin)
+    if tied.any():
+        near_i, near_z, near_k, near_scores = (np.concatenate(parts) for parts in zip(*near, strict=True))
+        keep = tied[near_i, near_z] & (near_scores >= (top - margin)[near_i, near_z])
+        near_i, near_z, near_k = near_i[keep], near_z[keep], near_k[keep]
+        exact = _fixed_order_scores(predicted, dense, alphas, near_i, near_z, near_k)
         # per tied branch, the first (lowest k) of the largest fixed-order scores: sort by branch, -score, k
         order = np.lexsort((near_k, -exact, near_i * n_obs + near_z))
         branch = (near_i * n_obs + near_z)[order]
@@ -487,18 +514,42 @@ def _dense_choices(
         first[near_i[order][leads], near_z[order][leads]] = near_k[order][leads]
     chosen = first.T  # (Z, n)
     beliefs = np.tile(np.arange(n), n_obs)
-    columns = (np.arange(n_obs)[:, None] * n_vectors + chosen).ravel()
+    observations = np.repeat(np.arange(n_obs), n)
     continuation = np.add.reduce(
-        _fixed_order_scores(predicted, projected, beliefs, columns).reshape(n_obs, n), axis=0
+        _fixed_order_scores(predicted, dense, alphas, beliefs, observations, chosen.ravel()).reshape(
+            n_obs, n
+        ),
+        axis=0,
     )
     return chosen, continuation
 
 
+def _vector_blocks(n_vectors: int, projection_row: int, scores_row: int) -> list[tuple[int, int]]:
+    """Ranges of vectors whose projection (``projection_row`` entries a vector) and scores (``scores_row``) stay
+    within ``_BLOCK_ENTRIES`` entries each (at least one vector a block)."""
+    step = max(1, _BLOCK_ENTRIES // max(projection_row, scores_row, 1))
+    return [(low, min(low + step, n_vectors)) for low in range(0, n_vectors, step)]
+
+
 def _fixed_order_scores(
-    predicted: np.ndarray, projected: np.ndarray, beliefs: np.ndarray, columns: np.ndarray
-):
-    """``predicted[:, beliefs[j]] . projected[:, columns[j]]`` for each ``j``, summed over ``s`` in increasing order."""
-    return np.add.reduce(predicted[:, beliefs] * projected[:, columns], axis=0)
+    predicted: np.ndarray,
+    dense: np.ndarray,
+    alphas: np.ndarray,
+    beliefs: np.ndarray,
+    observations: np.ndarray,
+    vectors: np.ndarray,
+) -> np.ndarray:
+    """``sum_s predicted[s, beliefs[j]] * (dense[s, observations[j]] * alphas[vectors[j], s])`` for each ``j``, summed
+    over ``s`` in increasing order (the projection's entries, formed as the block products form them), by blocks of
+    ``j`` of at most ``_BLOCK_ENTRIES`` entries (each sum is over its own column, so the same in any block)."""
+    n_states = predicted.shape[0]
+    step = max(1, _BLOCK_ENTRIES // max(n_states, 1))
+    parts = []
+    for low in range(0, len(beliefs), step):
+        high = low + step
+        projected = dense[:, observations[low:high]] * alphas[vectors[low:high]].T
+        parts.append(np.add.reduce(predicted[:, beliefs[low:high]] * projected, axis=0))
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 def _row_entries(matrix: sp.csr_matrix, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

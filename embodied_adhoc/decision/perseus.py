@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.decision.backup import BackupOperator, blind_policy_vectors, row_max
+from embodied_adhoc.decision.backup import DENSE_BLOCK_BYTES, BackupOperator, blind_policy_vectors, row_max
 from embodied_adhoc.decision.belief_expansion import explore, max_depth, sample_path
 from embodied_adhoc.decision.beliefs import collect_belief_rows, collect_beliefs, digest
 from embodied_adhoc.decision.memory import MB, default_cap_mb, resident_mb
@@ -657,15 +657,16 @@ def _stage_need(state: _Anytime) -> float:
     about as many vectors as V_n holds (``k``), each with its values on B (``k x |B|`` floats beside V_n's, kept
     from the last stage), V_n's float32 copy and fallback scores, and two copies of the vectors a batch is backed
     up against; each belief of a batch predicts a belief per action and builds its vector (with dense observations,
-    also V_n projected on every observation and the batch's scores on it); and when the graph's
+    also a block of V_n projected on every observation and the batch's scores on it, and the branches' candidates
+    and running maxima); and when the graph's
     rows outgrow its buffer, the grown buffer is allocated while the old one is still held."""
     pomdp, graph = state.pomdp, state.graph
     k, n_beliefs, n_states = len(state.current), state.rows.shape[0], pomdp.n_states
     values = k * n_beliefs * 8
     vectors = k * (2 * n_states * 8 + n_states * 4 + pomdp.n_actions * pomdp.n_observations * 8)
     batch = 2 * state.config.batch_size * pomdp.n_actions * n_states * 8
-    if not all(state.operator.sparse_observations):  # a dense projection of V_n and a batch's scores on it
-        batch += (n_states + state.config.batch_size) * pomdp.n_observations * k * 8
+    if not all(state.operator.sparse_observations):  # backup._dense_choices' blocks and per-branch arrays
+        batch += 3 * DENSE_BLOCK_BYTES + 6 * state.config.batch_size * pomdp.n_observations * 8
     return values + vectors + batch + graph.growth_bytes(k)
 
 

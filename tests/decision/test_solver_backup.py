@@ -372,6 +372,53 @@ def test_reduced_row_products_by_blocks_are_the_whole_product(monkeypatch):
             products.close()
 
 
+def _dense_observation_pomdp() -> POMDP:
+    """Every state emits every observation: the backups score with the dense projection."""
+    rng = np.random.default_rng(3)
+    observation = rng.random((25, 6)) + 0.05
+    observation /= observation.sum(axis=1, keepdims=True)
+    return _random_pomdp(rng, 25, 4, observation, density=0.3, bump=0.2)
+
+
+@pytest.mark.parametrize("ties", ["duplicates", "leading-duplicates"])
+def test_dense_projection_by_blocks_of_vectors_chooses_what_one_block_chooses(ties, monkeypatch):
+    """The dense projection and its BLAS scores formed a few vectors at a time give the same vectors, actions,
+    values and plans to the bit as one block: each branch's continuation is the first maximum of its fixed-order
+    scores (exact duplicates among the vectors: the first of them), whatever the blocks. The chosen continuations
+    are also the naive loop's first maxima. "leading-duplicates": the duplicated vector is best on every branch,
+    and a copy raised by 1e-15 (within the summation-order error) ties it in BLAS."""
+    from embodied_adhoc.decision import backup as backup_module
+
+    pomdp = _dense_observation_pomdp()
+    rng = np.random.default_rng(9)
+    alphas = rng.normal(size=(40, pomdp.n_states)) * 5.0
+    if ties == "leading-duplicates":
+        alphas[2] = alphas.max(axis=0) + 1.0
+        alphas[23] = alphas[2] + 1e-15
+    alphas[[9, 31]] = alphas[2]  # exact duplicates across blocks: the first of them must win
+    alphas[17] = alphas[5] + 1e-15  # a near-tie within the summation-order error
+    beliefs = collect_beliefs(pomdp, 30, np.random.default_rng(2))
+    point = np.zeros((3, pomdp.n_states))
+    point[np.arange(3), np.arange(3)] = 1.0
+    beliefs = np.vstack([beliefs, point])
+    operator = BackupOperator(pomdp)
+    assert not any(operator.sparse_observations)
+    reference = operator.backup(beliefs, alphas, with_children=True)
+    for block in (pomdp.n_states * pomdp.n_observations * 3, 1):  # blocks of 3 vectors; of one vector
+        monkeypatch.setattr(backup_module, "_BLOCK_ENTRIES", block)
+        blocked = BackupOperator(pomdp).backup(beliefs, alphas, with_children=True)
+        for got, want in zip(blocked, reference, strict=True):
+            np.testing.assert_array_equal(got, want)
+    _, actions, _, children = reference
+    for belief, action, plan in zip(beliefs, actions, children, strict=True):
+        predicted = operator.transitions_t[action] @ belief
+        observation = pomdp.observations[action].toarray()
+        for z in range(pomdp.n_observations):
+            # the fixed-order scores: summed over s in increasing order, as the backup's rescoring sums them
+            scores = np.add.reduce(predicted[:, None] * (observation[:, z][:, None] * alphas.T), axis=0)
+            assert plan[z] == int(np.argmax(scores))
+
+
 @pytest.mark.parametrize("update", ["gauss-seidel", "perseus"])
 def test_stage_products_by_chunks_change_nothing(update, monkeypatch):
     """The stage's values on B computed a vector at a time, its rows not kept between stages (as beyond
