@@ -38,7 +38,8 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULT = ROOT / "results" / "benchmark-heldout.json"
 CHAPTER5_AGENTS = ("atpo", "bopa", "perseus", "value-iteration", "random-picker", "random")
 GRID_AGENTS = ("atlpo-mf", "ppo-generalist", "liam", "meliba", "random")
-"""The agents that run on the grid arenas (``original``, the member's own policy, is the upper bound)."""
+"""The agents that run on the grid arenas (the upper bound is the better of ``original``, the member's own policy, and
+the member's trained best response: ``bench.bounds``)."""
 AGENTS = {
     "toxic-waste": ("hotspot", "atpo", "bopa", "known-task", "oracle", "random"),
     **dict.fromkeys(CHAPTER5, CHAPTER5_AGENTS),
@@ -459,19 +460,39 @@ def physics_table(physics: dict) -> list[str]:
 
 
 def simulated_bounds_lines(held: dict) -> list[str]:
-    """A sentence per domain whose bounds are simulated (the grid arenas): what its return and upper bound are."""
+    """A sentence per domain whose bounds are simulated (the grid arenas): what its return and upper bound are, and
+    per teammate which policy the upper bound is (``bench.bounds``: the better of a trained best response and the
+    original team)."""
+    from embodied_adhoc.bench.bounds import TRAINED
+
     lines = []
     for domain, scope in held.items():
-        bounds = [row["bounds"] for row in scope["teammates"] if row.get("bounds", {}).get("episodes")]
-        if bounds:
-            first = bounds[0]
+        rows = [row for row in scope["teammates"] if row.get("bounds", {}).get("episodes")]
+        if not rows:
+            continue
+        first = rows[0]["bounds"]
+        start = f"{domain}: a return is minus the steps to finish (the cap, {first['horizon']}, when unfinished), "
+        trained = [row["name"] for row in rows if row["bounds"]["upper"] == TRAINED]
+        if not trained:
             lines += [
                 "",
-                f"{domain}: a return is minus the steps to finish (the cap, {first['horizon']}, when unfinished), "
-                f"and the upper bound is the {first['upper']}, not a best response: the random ego's and its mean "
-                f"over {first['episodes']} episodes of their own seed, so an agent that beats the original team "
-                f"scores above 1 and `BR` is not known.",
+                start
+                + f"and the upper bound is the {first['upper']}, not a best response: the random ego's and "
+                f"its mean over {first['episodes']} episodes of their own seed, so an agent that beats the original "
+                "team scores above 1 and `BR` is not known.",
             ]
+            continue
+        others = [row["name"] for row in rows if row["bounds"]["upper"] != TRAINED]
+        lines += [
+            "",
+            start + "and the upper bound is the better of two mean returns over "
+            f"{first['episodes']} episodes of their own seed, the teammate's trained best response (recurrent PPO "
+            "against that teammate alone, shipped with the suite) and the original team (its policy in the ego's "
+            f"seat): the trained best response for {', '.join(trained)}"
+            + (f"; the original team for {', '.join(others)}" if others else "")
+            + ". Both are estimates below the true best response, so an agent can score above 1, and `BR` (the "
+            "exact best response's score) is not known.",
+        ]
     return lines
 
 

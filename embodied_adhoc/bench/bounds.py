@@ -18,10 +18,17 @@ horizon and this module's source, so a changed member, model or code never serve
 The grid arenas (:data:`~embodied_adhoc.teammates.populations.GRID`) have no finite model: a team's state includes
 the prey's and the learned teammates' draws and memories. There a return is minus the episode's steps (the trial
 cap when the task is not finished: the thesis's steps to finish), and both bounds are estimated by simulation
-(:func:`simulated_bounds`): the mean return of the random ego and of the *original teammate* (the member's own
-policy in the ego's seat, as the ATLPO split normalises) over :data:`GRID_BOUND_EPISODES` episodes of their own
-seed (:data:`GRID_BOUND_SEED`), run through the trial runner. The upper bound is then the original team's, not a
-best response: an agent can score above it, and the score is reported as it is.
+(:func:`simulated_bounds`) over :data:`GRID_BOUND_EPISODES` episodes of their own seed (:data:`GRID_BOUND_SEED`),
+run through the trial runner: the lower bound is the random ego's mean return; the upper bound is the better of
+two mean returns, the member's *trained best response* (recurrent PPO against that member alone, shipped with the
+suite: :mod:`embodied_adhoc.learning.best_response`) and the *original team* (the member's own policy in the
+ego's seat, as the ATLPO split normalises). The maximum, because a trained best response is a lower estimate of
+the true best response: a few minutes of PPO can end below the team's own policy, and the better of two policies
+is still one an ego could play. :attr:`Bounds.upper` says which one it is per member, and ``original`` and
+``trained`` hold both. A member without a shipped best response has the original team's. The best response's
+trials are stored under a folder named by the SHA-256 of its weights' bytes, so new weights never resume old
+trials. Either way the upper bound is an estimate, not the exact best response: an agent can score above it, and
+the score is reported as it is.
 """
 
 from __future__ import annotations
@@ -39,6 +46,8 @@ from embodied_adhoc.errors import ConfigError
 __all__ = [
     "GRID_BOUND_EPISODES",
     "GRID_BOUND_SEED",
+    "ORIGINAL",
+    "TRAINED",
     "Bounds",
     "bounds_cache_dir",
     "grid_return",
@@ -55,6 +64,7 @@ GRID_BOUND_SEED = 7_919
 GRID_UPPER = "original"
 EXACT = "exact best response"
 ORIGINAL = "original team (the member's policy in the ego's seat)"
+TRAINED = "trained best response (recurrent PPO against the member)"
 
 
 @dataclass(frozen=True)
@@ -70,6 +80,8 @@ class Bounds:
     random_values: tuple = field(default=(), compare=False, repr=False)
     upper: str = EXACT  # what ``best`` is: the exact best response, or the original team's estimated return
     episodes: int | None = None  # the episodes each simulated bound is the mean of (None: exact)
+    original: float | None = None  # simulated: the original team's mean return
+    trained: float | None = None  # simulated: the trained best response's mean return (None: none shipped)
 
     @property
     def span(self) -> float:
@@ -242,6 +254,30 @@ def grid_return(record) -> float:
     return -float(record.steps)
 
 
+def _trained_agent(domain: str, options: dict) -> tuple[str, str] | None:
+    """``(agent spec, weights digest)`` of the shipped best response to the member ``options`` puts in the teammate
+    seats (its ``bench_member``), or None where there is none."""
+    member = (options.get("bench_member") or {}).get("name")
+    if member is None:
+        return None
+    from embodied_adhoc.learning.best_response import agent_spec, shipped_path, weights_digest
+
+    path = shipped_path(domain, member)
+    if not path.is_file():
+        return None
+    return agent_spec(domain, member), weights_digest(path)
+
+
+def _mean_returns(config, out, agents: tuple[str, ...], sweep: dict) -> dict[str, float]:
+    from embodied_adhoc.experiments.runner import run_sweep
+
+    result = run_sweep(config, out=out, **sweep)
+    returns: dict[str, list[float]] = {agent: [] for agent in agents}
+    for record in result.records:
+        returns[record.agent].append(grid_return(record))
+    return {agent: float(np.mean(values)) for agent, values in returns.items()}
+
+
 def simulated_bounds(
     domain: str,
     options: dict,
@@ -249,23 +285,35 @@ def simulated_bounds(
     out: str | Path,
     episodes: int = GRID_BOUND_EPISODES,
     seed: int = GRID_BOUND_SEED,
+    trained: bool = True,
     **sweep,
 ) -> Bounds:
-    """A grid member's bounds (see the module docstring): the random ego's and the original team's mean
-    :func:`grid_return` over ``episodes`` episodes of ``seed`` with the trial ``options`` that put the member in
-    the teammate seats, on the abstract backend, stored (and resumed) under ``out``; ``sweep`` goes to the trial
-    runner (workers, executor, progress)."""
-    from embodied_adhoc.experiments.runner import SweepConfig, run_sweep
+    """A grid member's bounds (see the module docstring): the random ego's mean :func:`grid_return`, and the better
+    of the original team's and (with ``trained``, where the member has one) its trained best response's, over
+    ``episodes`` episodes of ``seed`` with the trial ``options`` that put the member in the teammate seats
+    (``options["bench_member"]`` names it), on the abstract backend, stored (and resumed) under ``out``, the best
+    response's under ``out/best-response-<digest>``; ``sweep`` goes to the trial runner (workers, executor,
+    progress)."""
+    from embodied_adhoc.experiments.runner import SweepConfig
 
-    config = SweepConfig(domain, "abstract", options, ("random", GRID_UPPER), episodes, seed, max_steps)
-    result = run_sweep(config, out=out, **sweep)
-    returns: dict[str, list[float]] = {"random": [], GRID_UPPER: []}
-    for record in result.records:
-        returns[record.agent].append(grid_return(record))
+    agents = ("random", GRID_UPPER)
+    config = SweepConfig(domain, "abstract", options, agents, episodes, seed, max_steps)
+    means = _mean_returns(config, out, agents, sweep)
+    found = _trained_agent(domain, options) if trained else None
+    trained_mean = None
+    if found is not None:
+        agent, digest = found
+        config = SweepConfig(domain, "abstract", options, (agent,), episodes, seed, max_steps)
+        trained_mean = _mean_returns(config, Path(out) / f"best-response-{digest[:16]}", (agent,), sweep)[
+            agent
+        ]
+    use_trained = trained_mean is not None and trained_mean > means[GRID_UPPER]
     return Bounds(
-        float(np.mean(returns["random"])),
-        float(np.mean(returns[GRID_UPPER])),
+        means["random"],
+        trained_mean if use_trained else means[GRID_UPPER],
         int(max_steps),
-        upper=ORIGINAL,
+        upper=TRAINED if use_trained else ORIGINAL,
         episodes=int(episodes),
+        original=means[GRID_UPPER],
+        trained=trained_mean,
     )

@@ -20,6 +20,15 @@ from its own Generator, the same numbers in the same order as the single env); t
 those numbers at once (:meth:`GridRules.sample_states`) and their state, task, team and step count written at
 once.
 
+Policy teams: a team given by plug-in spec in ``teams`` whose factory returns a policy object rather than a
+``TeamSpec`` (:mod:`~embodied_adhoc.teammates.grid_plugins`; the benchmark's seats, sticky and learned members,
+``TeammateSpec.trial_options``'s ``teams``) cannot go through the batched planner. Each sub-env holds its own
+object of each such team, built by the single env's own builder (``with_plugin_teams``), and a sub-env whose
+episode has one asks it for the teammates' actions with its own Generator, then draws the prey's uniforms, as the
+single env does; those sub-envs draw no uniform blocks. A team's memory (a sticky member's last actions, a learned
+member's GRU state) lives in its object and restarts when it is handed another Generator, as in the single env:
+at every seeded reset, not at an autoreset; a resumed training checkpoint restarts them too.
+
 Autoreset: gymnasium's default ``AutoresetMode.NEXT_STEP``. The step that ends an episode returns its last
 observation with ``terminated``/``truncated`` set; the next ``step`` ignores that sub-env's action, resets it and
 returns the first observation of the new episode with reward 0 and both flags False. ``truncated`` comes from
@@ -44,7 +53,7 @@ from gymnasium.vector.utils import batch_space
 
 from embodied_adhoc.domains.grid_rules import GridBatch
 from embodied_adhoc.domains.grid_rules_obs import egocentric_batch
-from embodied_adhoc.domains.grid_rules_team import TEAM_DRAWS, TeamTable, planner_for
+from embodied_adhoc.domains.grid_rules_team import TEAM_DRAWS, TeamSpec, TeamTable, planner_for
 from embodied_adhoc.errors import ConfigError
 
 GRID_IDS = {"foraging": "EmbodiedAdhoc/ForagingGrid-v0", "pursuit": "EmbodiedAdhoc/PursuitGrid-v0"}
@@ -89,7 +98,11 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.interchangeable = self.core.tasks[0].interchangeable
         self.team_names = tuple(self.core.teams)
         self.team_number = {name: i for i, name in enumerate(self.team_names)}
-        self.team_table = TeamTable.of([self.core.teams[name] for name in self.team_names])
+        teams = [self.core.teams[name] for name in self.team_names]
+        # a policy team's row of the table is a stand-in: the planner's actions for its sub-envs are replaced
+        stand_in = next((t for t in teams if isinstance(t, TeamSpec)), TeamSpec("stand-in", "unused"))
+        self.team_table = TeamTable.of([t if isinstance(t, TeamSpec) else stand_in for t in teams])
+        self.policy_team = np.array([not isinstance(t, TeamSpec) for t in teams])
         cfg = self.rules.config
         self.draws = TEAM_DRAWS * cfg.n_agents + self.rules.prey_draws()
 
@@ -121,6 +134,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         self.episode_teams = self.team_table.take(self.team_index)
         # DRAW_BLOCK steps of uniforms per sub-env, how many of them are used and the Generator state before them
         self.uniforms = np.zeros((num_envs, DRAW_BLOCK, self.draws))
+        self.team_policies = self._team_policies(num_envs)
         self.used = np.full(num_envs, DRAW_BLOCK, np.int64)
         self.block_states: list[dict | None] = [None] * num_envs
         # optional (task, team) pairs drawn per episode instead of the product tasks x teams; one extra draw
@@ -135,6 +149,27 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
                         f"environments: ({task}, {team!r}) is not a task 1..{len(self.core.tasks)} "
                         f"with a team of {sorted(self.core.teams)}"
                     )
+
+    def _team_policies(self, num_envs: int) -> list[dict]:
+        """Per sub-env, its own object of every policy team (see the module docstring)."""
+        from embodied_adhoc.teammates.grid_plugins import with_plugin_teams
+
+        names = [name for name, policy in zip(self.team_names, self.policy_team, strict=True) if policy]
+        if not names:
+            return [{} for _ in range(num_envs)]
+        return [with_plugin_teams({}, names, self.rules) for _ in range(num_envs)]
+
+    def _policy_actions(self, rows: np.ndarray, team: np.ndarray, prey_uniforms) -> None:
+        """The teammates' actions of the sub-envs ``rows`` (policy teams) into ``team``, then their prey uniforms:
+        the single env's draws in its order."""
+        n, members = self.rules.config.n_agents, list(range(1, self.rules.config.n_agents))
+        for index in rows.tolist():
+            rng = self.rngs[index]
+            policy = self.team_policies[index][self.team_names[self.team_index[index]]]
+            task = self.core.tasks[self.task_index[index]]
+            team[index, 1:n] = policy.actions(self.batch.state(index), task, rng, members)
+            if prey_uniforms is not None:
+                prey_uniforms[index] = rng.random(prey_uniforms.shape[1:])
 
     def _rewind(self, index: int) -> None:
         """Put sub-env ``index``'s Generator where the single env's is: after the used steps of its block."""
@@ -267,7 +302,8 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         """One step of every sub-env in ``stepping``; the others are planned too but keep their state."""
         cfg = self.rules.config
         n, b = cfg.n_agents, self.batch
-        uniforms = self._draw(stepping)
+        policy = stepping & self.policy_team[self.team_index]
+        uniforms = self._draw(stepping & ~policy)  # the policy teams' sub-envs draw from their Generators
         team_uniforms = uniforms[:, : TEAM_DRAWS * n].reshape(self.num_envs, n, TEAM_DRAWS)
         prey_uniforms = (
             uniforms[:, TEAM_DRAWS * n :].reshape(self.num_envs, cfg.n_targets, 2)
@@ -276,6 +312,8 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
         )
         offsets, teams = self.episode_offsets, self.episode_teams
         team = self.planner.actions(b, offsets, self.interchangeable, teams, team_uniforms)
+        if policy.any():
+            self._policy_actions(np.flatnonzero(policy), team, prey_uniforms)
         team[:, 0] = actions
         if self.teammate_info:  # before the move: the windows the teammates chose their actions from
             self._teammate_step = {

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import embodied_adhoc.envs  # noqa: F401  (registers the env ids)
-from embodied_adhoc.bench.bounds import ORIGINAL, grid_return, normalise, simulated_bounds
+from embodied_adhoc.bench.bounds import ORIGINAL, TRAINED, grid_return, normalise, simulated_bounds
 from embodied_adhoc.bench.evaluate import Suite, evaluate
 from embodied_adhoc.domains.grid_rules import GridConfig, GridRules
 from embodied_adhoc.learning.atlpo_heldout import MIXED, NOISE, thesis_team
@@ -115,8 +115,13 @@ def _options(spec) -> dict:
 def test_simulated_bounds_normalise_random_to_0_and_the_original_team_to_1(tmp_path):
     spec = find_member("foraging", "tau1-noise-p20")
     options, max_steps = _options(spec)
-    bounds = simulated_bounds("foraging", options, max_steps, tmp_path / "a", episodes=3, seed=2)
-    again = simulated_bounds("foraging", options, max_steps, tmp_path / "b", episodes=3, seed=2)
+    # the original team alone (the trained best response's side: tests/bench/test_bench_best_response.py)
+    bounds = simulated_bounds(
+        "foraging", options, max_steps, tmp_path / "a", episodes=3, seed=2, trained=False
+    )
+    again = simulated_bounds(
+        "foraging", options, max_steps, tmp_path / "b", episodes=3, seed=2, trained=False
+    )
     assert (bounds.random, bounds.best) == (again.random, again.best)
     assert bounds.upper == ORIGINAL and bounds.episodes == 3
     assert -max_steps <= bounds.random < bounds.best < 0
@@ -150,5 +155,5 @@ def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_
     rows = first["domains"]["foraging"]["teammates"]
     assert [row["name"] for row in rows] == ["sticky-tau2-p50", "tau0-noise-p20"]
     for row in rows:
-        assert row["bounds"]["upper"] == ORIGINAL and row["best_on_episodes"] is None
+        assert row["bounds"]["upper"] in (ORIGINAL, TRAINED) and row["best_on_episodes"] is None
         assert row["bounds"]["random"] < row["bounds"]["best"]
