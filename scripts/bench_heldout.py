@@ -84,6 +84,7 @@ class Args:
     physics: bool = False
     physics_episodes: int = 8  # per member and agent on each backend
     render_only: bool = False
+    no_render: bool = False  # write the result file only (the pages are rendered later by render_results)
     check: tuple[str, ...] = ()  # domains whose held-out suite runs as a second kernel's check
     agents: tuple[str, ...] = ()  # a subset of each domain's AGENTS (none: all of them)
 
@@ -105,6 +106,11 @@ def parse() -> Args:
     )
     parser.add_argument("--physics-episodes", type=int, default=Args.physics_episodes)
     parser.add_argument("--render-only", action="store_true")
+    parser.add_argument(
+        "--no-render",
+        action="store_true",
+        help="write the result file only; render the pages later with scripts/render_results.py render",
+    )
     parser.add_argument(
         "--check",
         default="",
@@ -136,6 +142,7 @@ def parse() -> Args:
         ns.physics,
         ns.physics_episodes,
         ns.render_only,
+        ns.no_render,
         check,
         tuple(a for a in ns.agents.split(",") if a),
     )
@@ -599,7 +606,8 @@ def main() -> int:
         fresh = run_physics(args) if args.physics else run_check(args) if args.check else run(args)
         previous = json.loads(RESULT.read_text()) if RESULT.is_file() else {}  # read now: runs may overlap
         atomic_write_text(RESULT, dumps(merge(previous, fresh)) + "\n")
-    render()
+    if not args.no_render:
+        render()
     print(table(json.loads(RESULT.read_text())))
     return 0
 
