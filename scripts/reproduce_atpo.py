@@ -223,14 +223,15 @@ def belief_dynamics(args: Args, results: dict[str, SweepResult], markdown: bool)
 def figure_5_9(args: Args, reference: SweepResult) -> tuple[str, Path | None]:
     low = float(np.mean(returns(reference, "random")))
     high = float(np.mean(returns(reference, "value-iteration")))
-    scores, rows = {}, []
+    scores, intervals, rows = {}, {}, []
     for size in args.library_sizes:
         result = sweep(args, "gridworld", {"n_models": size}, ("atpo",), f"fig5_9-{size}")
         scores[size] = normalised(result, "atpo", low, high)
         # the interval of ATPO's mean reward through the same normalisation, the reference's means held fixed
         sample = result.summary().agents["atpo"].total_reward
         span = 100 / (high - low) if high != low else math.nan
-        ci = bounds((sample.ci_low - low) * span, (sample.ci_high - low) * span, 1)
+        intervals[size] = ((sample.ci_low - low) * span, (sample.ci_high - low) * span)
+        ci = bounds(*intervals[size], 1)
         rows.append(
             [f"{size} models", f"{100 * scores[size]:.1f} %", ci, "yes" if scores[size] > 0.7 else "no"]
         )
@@ -240,7 +241,11 @@ def figure_5_9(args: Args, reference: SweepResult) -> tuple[str, Path | None]:
 
     plt = _pyplot()
     figure, axes = plt.subplots(figsize=(6, 3.5))
-    axes.plot(list(scores), [100 * s for s in scores.values()], marker="o", label="ATPO (ours)")
+    sizes = list(scores)
+    axes.fill_between(
+        sizes, [intervals[k][0] for k in sizes], [intervals[k][1] for k in sizes], alpha=0.2, label=CI_HEADER
+    )
+    axes.plot(sizes, [100 * s for s in scores.values()], marker="o", label="ATPO (ours)")
     axes.axhline(70, color="grey", linestyle="--", label="thesis: stays above 70 %")
     axes.set_xlabel("library size |M|")
     axes.set_ylabel("normalised score (%)")

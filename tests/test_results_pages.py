@@ -885,3 +885,15 @@ def test_fig_5_9_is_held_to_its_intervals_and_to_the_thesis_verdict_per_library_
         "outside the published [86.0, 95.0]" in f
         for f in figure.compare(data, figure.extract({"reproduce": outside}))
     )
+
+
+def test_fig_5_9_prose_names_the_sizes_whose_interval_reaches_the_thesis_line():
+    module = load_script()
+    figure = module.FIGURES["fig5-9"]
+    (_, sentence) = figure.prose(figure.extract({"reproduce": FIG5_9_OUTPUT}))["claim"]
+    assert "at or below it for no size" in sentence and "reaches 70 % or below for 32 models" in sentence
+    low = FIG5_9_OUTPUT.replace(
+        "| 2 models | 91.0 % | [86.0, 95.0] |", "| 2 models | 65.0 % | [60.0, 71.0] |"
+    )
+    (_, sentence) = figure.prose(figure.extract({"reproduce": low}))["claim"]
+    assert "at or below it for 2 models" in sentence
