@@ -4,6 +4,7 @@ upper bound is the better of the trained best response and the original team, la
 
 import json
 
+import gymnasium
 import numpy as np
 import pytest
 from safetensors.torch import load_file
@@ -22,7 +23,7 @@ from embodied_adhoc.learning.best_response import (
     weights_digest,
 )
 from embodied_adhoc.learning.generalist import GeneralistAgent, load_generalist
-from embodied_adhoc.learning.vector_grid import GridVectorEnv
+from embodied_adhoc.learning.vector_grid import GRID_IDS, GridVectorEnv
 from embodied_adhoc.learning.weights import load_weights
 from embodied_adhoc.paths import assets_dir
 from embodied_adhoc.teammates.populations import find_member, members
@@ -183,3 +184,34 @@ def test_the_held_out_page_says_per_teammate_which_upper_bound_it_is(monkeypatch
         script.simulated_bounds_lines({"gridworld": {"teammates": [{"name": "x", "bounds": {"best": 1.0}}]}})
         == []
     )
+
+
+def test_a_policy_team_in_pursuit_draws_the_prey_after_the_team_as_the_single_env(tmp_path):
+    """Pursuit's prey draws from the same Generator after the team: a noisy team (a policy object) given by a
+    file plug-in plays alike in the vector env and in a SyncVectorEnv of the single env, autoresets included."""
+    plugin = tmp_path / "noisy_pursuit.py"
+    plugin.write_text(
+        "from embodied_adhoc.teammates.grid_members import SeatTeam\n"
+        "from embodied_adhoc.teammates.pursuit_teams import PURSUIT_TEAMS\n\n\n"
+        "def team(rules):\n"
+        "    return SeatTeam(rules, (PURSUIT_TEAMS['tau1'], PURSUIT_TEAMS['tau2']), noise=0.3)\n"
+    )
+    teams = [f"{plugin}:team", "tau0"]
+    fast = GridVectorEnv("pursuit", 4, max_episode_steps=15, teams=teams)
+    slow = gymnasium.vector.SyncVectorEnv(
+        [lambda: gymnasium.make(GRID_IDS["pursuit"], max_episode_steps=15, teams=teams) for _ in range(4)],
+        autoreset_mode=gymnasium.vector.AutoresetMode.NEXT_STEP,
+    )
+    assert fast.policy_team.tolist() == [name == teams[0] for name in fast.team_names]
+    observation, info = fast.reset(seed=8)
+    assert np.array_equal(observation, slow.reset(seed=8)[0])
+    actions, drawn = np.random.default_rng(1), set()
+    for _ in range(50):
+        chosen = actions.integers(0, 5, 4)
+        step, reference = fast.step(chosen), slow.step(chosen)
+        for mine, theirs in zip(step[:4], reference[:4], strict=True):
+            assert np.array_equal(mine, theirs)
+        drawn.update(fast.team_names[t] for t in step[4]["team"])
+    assert drawn == set(teams)  # both kinds of team were drawn and played
+    fast.close()
+    slow.close()
