@@ -2776,9 +2776,10 @@ def heldout_headline(entry: SelfRendered, page: Path) -> list[str]:
         for domain, scope in data["suites"]["heldout"].items():
             fair = {agent: v for agent, v in scope["aggregate"].items() if agent not in privileged}
             agent = max(fair, key=lambda name: fair[name]["iqm"])
-            # a domain whose bounds are simulated (the grid arenas) has no best response to normalise by
+            # a domain whose bounds are simulated (the grid arenas) has no exact best response to normalise by:
+            # its 1 is the better of a trained best response and the original team, per teammate
             simulated = any(row.get("bounds", {}).get("episodes") for row in scope["teammates"])
-            yield domain, agent, fair[agent], " (1: the original team)" if simulated else ""
+            yield domain, agent, fair[agent], " (1: a simulated upper bound)" if simulated else ""
 
     title = (
         "Held-out benchmark: the best agent that does not see the state, per domain, held-out IQM of the "

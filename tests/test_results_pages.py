@@ -419,7 +419,7 @@ def test_a_self_rendered_table_is_checked_and_its_class_and_headline_come_from_i
         # a domain normalised by simulated bounds (no exact best response) says what its 1 is
         simulated = any(t.get("bounds", {}).get("episodes") for t in scope["teammates"])
         cell = next(c for c in row[1].split("; ") if c.startswith(f"{domain} "))
-        assert cell.endswith("(1: the original team)") == simulated, cell
+        assert cell.endswith("(1: a simulated upper bound)") == simulated, cell
     short = klass.split(" (")[0] + (" (the part checked)" if "(the part checked" in klass else "")
     assert row[3] == f"[{short}]({entry.page})"
 

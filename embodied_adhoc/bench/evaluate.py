@@ -221,6 +221,9 @@ def evaluate(
                     "horizon": max_steps,
                     "upper": bounds.upper,
                     **({"episodes": bounds.episodes} if bounds.episodes else {}),
+                    # both simulated candidates for the upper bound, so a reader sees what the max chose between
+                    **({"original": bounds.original} if bounds.original is not None else {}),
+                    **({"trained": bounds.trained} if bounds.trained is not None else {}),
                 },
                 # the best response's expected return from these episodes' own starts, normalised: what no agent's
                 # mean over the same episodes exceeds in expectation (none where the bounds are simulated)

@@ -157,3 +157,6 @@ def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_
     for row in rows:
         assert row["bounds"]["upper"] in (ORIGINAL, TRAINED) and row["best_on_episodes"] is None
         assert row["bounds"]["random"] < row["bounds"]["best"]
+        # both candidates are written, and the bound is the better one, named by its label
+        candidates = {ORIGINAL: row["bounds"]["original"], TRAINED: row["bounds"]["trained"]}
+        assert row["bounds"]["best"] == max(candidates.values()) == candidates[row["bounds"]["upper"]]
