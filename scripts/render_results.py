@@ -1876,14 +1876,6 @@ UNRUN = {
             STATISTICAL,
         ),
         Unrun(
-            "table5-3",
-            "Table 5.3: build and solve time of every chapter-5 library beside the thesis's",
-            "OPENBLAS_NUM_THREADS=1 .venv/bin/python scripts/bench_chapter5.py --solve --repeats 1 --markdown",
-            "every model of the eleven libraries solved without a cache at the default stage budgets: more than "
-            "27 CPU min (a run stopped unfinished there; pursuit-task's four models alone more than 345 CPU s)",
-            TIMING,
-        ),
-        Unrun(
             "chapter5-executors",
             "The whole Table 5.5 timed per executor (local processes, Ray)",
             "RAY_ADDRESS=127.0.0.1:6390 .venv/bin/python scripts/bench_chapter5.py --executors local local ray "
