@@ -1398,6 +1398,33 @@ FIGURES = {
             prose=chapter5_prose,
         ),
         Figure(
+            "chapter5-bugs",
+            "ATPO: Tables 5.5 and 5.6 on ntu, mit and overcooked beside the same domains rebuilt with the "
+            "original's model bugs (32 episodes per agent and domain, seed 0)",
+            {
+                "reproduce": [
+                    "{python}",
+                    "scripts/reproduce_atpo.py",
+                    "--out",
+                    "{out}",
+                    "--markdown",
+                    "--domains",
+                    "ntu",
+                    "mit",
+                    "overcooked",
+                    "--with-bugs",
+                    "--skip-fig59",
+                ]
+            },
+            markdown_extract("reproduce"),
+            markdown_figure_tables(("table5_5", "table5_6", "beliefs")),
+            compare_markdown_tables,
+            ("docs/atpo.md",),
+            markdown=True,
+            notes="Rows '(bug)' rebuild the domain with the original implementation's model bug "
+            "(`bug_compatible`); the other rows are the fixed models, as in Table 5.5's figure.",
+        ),
+        Figure(
             "arena-tasks",
             "Foraging and pursuit arenas: each team with its original teammate on each task "
             "(grid twin, 16 episodes per cell, seed 0)",
