@@ -38,6 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from embodied_adhoc.commands.pomdp import auto_solver
+from embodied_adhoc.decision import memory
 from embodied_adhoc.decision.backup import BackupOperator
 from embodied_adhoc.decision.beliefs import collect_beliefs
 from embodied_adhoc.decision.hsvi import HsviConfig, hsvi
@@ -306,9 +307,11 @@ def _measured_solve(path: Path, config, results) -> None:
     ``config`` is a PerseusConfig or an HsviConfig, which picks the solver."""
     points: list[tuple[float, float, float]] = []
     solve = hsvi if isinstance(config, HsviConfig) else perseus
-    policy = solve(
-        read_pomdp(path), config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0))
-    )
+    # As `pomdp solve` does: large arrays mapped on their own, and the reader's objects given back before solving.
+    memory.return_freed_memory()
+    pomdp = read_pomdp(path)
+    memory.trim()
+    policy = solve(pomdp, config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0)))
     # VmHWM: the spawned interpreter's ru_maxrss would start at the launching process's peak
     results.put((points, len(policy.alphas), peak_mb()))
 

@@ -460,7 +460,9 @@ def _dense_choices(
     within ``margin``, and only those (exact ties, mostly) are rescored in a fixed order (a reduction over ``s``).
     The projection and its scores are formed for a block of vectors at a time (:func:`_vector_blocks`): each block
     adds to the running first maximum and runner-up of every branch, and keeps its entries within ``margin`` of
-    the running maximum (a superset of the final candidates, since that maximum only grows). Which vector wins is
+    the running maximum (a superset of the final candidates, since that maximum only grows); every block is formed
+    in the same two buffers (blocks of 8 MiB, above glibc's mapping threshold, would otherwise each map, fault in
+    and unmap pages of their own: time spent in the kernel). Which vector wins is
     the first maximum of the fixed-order scores whatever the blocks, so the result is the one of a single product.
     Impossible branches (all scores 0) are left to the caller's fallback. The continuation is summed from
     fixed-order scores of the chosen vectors alone."""
@@ -474,11 +476,18 @@ def _dense_choices(
     top = np.full((n, n_obs), -np.inf)
     second = np.full((n, n_obs), -np.inf)
     near: list[tuple[np.ndarray, ...]] = []  # per block: branch (i, z), vector k and BLAS score of candidates
-    for low, high in _vector_blocks(alphas.shape[0], n_states * n_obs, n * n_obs):
+    blocks = _vector_blocks(alphas.shape[0], n_states * n_obs, n * n_obs)
+    widest = max((high - low for low, high in blocks), default=1)
+    projection_buffer, scores_buffer = np.empty(n_states * n_obs * widest), np.empty(n * n_obs * widest)
+    for low, high in blocks:
         width = high - low
-        projected = (dense[:, :, None] * alphas[low:high].T[:, None, :]).reshape(n_states, n_obs * width)
-        scores = (predicted_t @ projected).reshape(n, n_obs, width)  # (n, Z, block)
-        del projected
+        projected = projection_buffer[: n_states * n_obs * width].reshape(n_states, n_obs * width)
+        np.multiply(
+            dense[:, :, None], alphas[low:high].T[:, None, :], out=projected.reshape(n_states, n_obs, width)
+        )
+        scores = scores_buffer[: n * n_obs * width].reshape(n, n_obs * width)
+        np.matmul(predicted_t, projected, out=scores)
+        scores = scores.reshape(n, n_obs, width)  # (n, Z, block)
         block_first = np.argmax(scores, axis=2)
         block_top = np.take_along_axis(scores, block_first[:, :, None], axis=2)[:, :, 0]
         # the block's runner-up: its best score masked for one max pass (cheaper than counting a comparison)
@@ -500,7 +509,6 @@ def _dense_choices(
         )
         lone_i, lone_z = np.nonzero(possible & (block_second < threshold) & (block_top >= threshold))
         near.append((lone_i, lone_z, block_first[lone_i, lone_z] + low, block_top[lone_i, lone_z]))
-        del scores
     tied = possible & (second >= top - margin)
     if tied.any():
         near_i, near_z, near_k, near_scores = (np.concatenate(parts) for parts in zip(*near, strict=True))

@@ -42,7 +42,7 @@ import scipy.sparse as sp
 
 from embodied_adhoc.decision.backup import DENSE_BLOCK_BYTES, BackupOperator, blind_policy_vectors, row_max
 from embodied_adhoc.decision.belief_expansion import explore, max_depth, sample_path
-from embodied_adhoc.decision.beliefs import collect_belief_rows, collect_beliefs, digest
+from embodied_adhoc.decision.beliefs import collect_belief_rows, collect_beliefs
 from embodied_adhoc.decision.memory import MB, default_cap_mb, resident_mb
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus_stages import (
@@ -213,15 +213,17 @@ def _solve(pomdp: POMDP, config: PerseusConfig, progress: ProgressCallback | Non
     start = config.timer()
     rng = np.random.default_rng(config.seed)
     greedy_q = value_iteration(pomdp.as_mdp(), tolerance=1e-6, horizon=config.horizon).q_values
-    # A finite-horizon solve only needs beliefs reachable within the horizon.
-    beliefs = collect_beliefs(
-        pomdp, config.n_beliefs, rng, greedy_q=greedy_q, epsilon=config.epsilon, max_depth=config.horizon
-    )
+    options = {"greedy_q": greedy_q, "epsilon": config.epsilon}
     operator = BackupOperator(pomdp, threads=config.threads)
     try:
         if config.horizon is not None:
+            # A finite-horizon solve only needs beliefs reachable within the horizon.
+            beliefs = collect_beliefs(pomdp, config.n_beliefs, rng, max_depth=config.horizon, **options)
             return _finite_horizon(pomdp, config, operator, beliefs, start, progress)
-        return _infinite_horizon(pomdp, config, operator, beliefs, rng, greedy_q, start, progress)
+        # The rows and digests of the dense beliefs, bit for bit: the dense set is never built (a solve would
+        # hold it to its end).
+        rows, digests = collect_belief_rows(pomdp, config.n_beliefs, rng, **options)
+        return _infinite_horizon(pomdp, config, operator, (rows, digests), rng, greedy_q, start, progress)
     finally:
         operator.close()
 
@@ -230,7 +232,7 @@ def _infinite_horizon(
     pomdp: POMDP,
     config: PerseusConfig,
     operator: BackupOperator,
-    beliefs: np.ndarray,
+    beliefs: tuple[sp.csr_matrix, list[bytes]],
     rng: np.random.Generator,
     greedy_q: np.ndarray,
     start: float,
@@ -311,14 +313,15 @@ class _Anytime:
 
     @classmethod
     def begin(cls, pomdp, config, operator, beliefs, rng, greedy_q, start, progress) -> _Anytime:
-        """V_0 (the blind policies), the fast informed bound, and the belief set as collected."""
+        """V_0 (the blind policies), the fast informed bound, and the belief set as collected (``beliefs``: its
+        rows and their digests, as beliefs.collect_belief_rows returns them)."""
+        rows, digests = beliefs
         graph = PlanGraph.of_blind_policies(blind_policy_vectors(pomdp), pomdp.n_observations)
         alphas = graph.vectors
         deadline = None if config.time_limit is None else start + config.time_limit
         upper = SawtoothBound(pomdp, fast_informed_bound(pomdp))
-        rows = belief_rows(beliefs)
         values = (rows @ alphas.T).max(axis=1)
-        known = {digest(b) for b in beliefs}
+        known = set(digests)
         trace = [(config.timer() - start, float(dot(pomdp.initial_belief, alphas.T).max()))]
         bounds = _Bounds(trace[-1][1], float(upper.values(pomdp.initial_belief)[0]))
         gamma = pomdp.discount
@@ -478,6 +481,9 @@ def _trial(state: _Anytime) -> bool:
 def _stage(state: _Anytime) -> None:
     """One Perseus stage V_n -> V_{n+1} on B, recorded in the plan graph."""
     gauss_seidel = state.config.update == "gauss-seidel"
+    # The graph grows here, if the stage's vectors (about as many as V_n holds) would not fit: its copy then
+    # coincides with none of the stage's arrays.
+    state.graph.reserve(len(state.current))
     stage = _run_stage(state, gauss_seidel)
     state.backups, state.stage_backups = (
         state.backups + stage.n_backups,

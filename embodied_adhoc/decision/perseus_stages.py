@@ -25,8 +25,9 @@ _DOMINANCE_CANDIDATES = 4  # new vectors tested for dominating each vector a sta
 # stay within this many floats (8 MiB); beyond, it keeps only the first best vector and value per belief, and
 # those rows are products again where they are needed (the same CSR row products: the same bits).
 _STAGE_ROWS_MAX_ENTRIES = 1 << 20
-# Values of new vectors on all of B computed at once (a batch's columns by chunks of this many floats).
-_EVERYWHERE_BLOCK_ENTRIES = 1 << 20
+# Values of new vectors on all of B computed at once (a batch's columns by chunks of this many floats: the
+# product, its parts when split over threads and its transpose are held together).
+_EVERYWHERE_BLOCK_ENTRIES = 1 << 18
 
 
 @dataclass
@@ -88,7 +89,7 @@ def record_stage(
             candidates = _best_candidates(scores)
         else:  # by blocks of dropped vectors (RowProducts), the (dropped, new) scores being large
             candidates = RowProducts()(rows[witnesses], transposed(stage.vectors), _best_candidates)
-        dominates = np.all(stage.vectors[candidates] >= old[:, None, :], axis=2)  # (dropped, candidates)
+        dominates = _dominates(stage.vectors, candidates, old)  # (dropped, candidates)
         found = dominates.any(axis=1)
         if found.any():
             first = np.argmax(dominates[found], axis=1)
@@ -96,6 +97,18 @@ def record_stage(
             replacement[dropped[found]] = new_rows[candidates[found, first]]
             graph.redirect(replacement)
     return graph.keep_closure(new_rows)
+
+
+def _dominates(vectors: np.ndarray, candidates: np.ndarray, old: np.ndarray) -> np.ndarray:
+    """``vectors[candidates[i, c]] >= old[i]`` at every state, per dropped vector ``i`` and candidate ``c``, by
+    blocks of dropped vectors (their candidates' rows, gathered at once, would be four times the dropped set)."""
+    step = max(1, _EVERYWHERE_BLOCK_ENTRIES // max(candidates.shape[1] * old.shape[1], 1))
+    return np.concatenate(
+        [
+            np.all(vectors[candidates[first : first + step]] >= old[first : first + step, None, :], axis=2)
+            for first in range(0, len(old), step)
+        ]
+    )
 
 
 def _best_candidates(scores: np.ndarray) -> np.ndarray:
@@ -230,7 +243,10 @@ class _StageRun:
         self.best = np.zeros(beliefs.shape[0], dtype=np.int64)
         self.best_values = np.full(beliefs.shape[0], -np.inf)
         self.n_scored = 0
-        self.score_rows: list[np.ndarray] | None = [] if self.everywhere else None
+        # A stage keeps about as many vectors as V_n holds: where their rows would pass the limit they are not
+        # kept from the start (rows kept until they overflow would add to the stage's peak for nothing).
+        fits = alphas.shape[0] * beliefs.shape[0] <= _STAGE_ROWS_MAX_ENTRIES
+        self.score_rows: list[np.ndarray] | None = [] if self.everywhere and fits else None
         self.n_backups = 0
         if seidel is None:
             self.prepared = operator.prepare(alphas)

@@ -70,14 +70,20 @@ class PlanGraph:
         # that is most of a solve's memory unused.
         return max(self._vectors.shape[0] + self._vectors.shape[0] // 2, self._size + count)
 
-    def add(self, vectors: np.ndarray, actions: np.ndarray, children: np.ndarray) -> np.ndarray:
-        """Append plans whose ``children`` are rows of this graph; returns their rows."""
-        first, count = self._size, len(vectors)
-        if first + count > self._vectors.shape[0]:
+    def reserve(self, count: int) -> None:
+        """Make room for ``count`` more rows now (the buffers grow as :meth:`add` would grow them): growing copies
+        the graph, and a solver calls this where little else is held (before a stage, whose own arrays are then
+        not yet allocated). Rows beyond the graph's size are not written, so they take address space only."""
+        if self._size + count > self._vectors.shape[0]:
             capacity = self._capacity_for(count)
             self._vectors = _grown(self._vectors, capacity)
             self._actions = _grown(self._actions, capacity)
             self._children = _grown(self._children, capacity)
+
+    def add(self, vectors: np.ndarray, actions: np.ndarray, children: np.ndarray) -> np.ndarray:
+        """Append plans whose ``children`` are rows of this graph; returns their rows."""
+        first, count = self._size, len(vectors)
+        self.reserve(count)
         self._vectors[first : first + count] = vectors
         self._actions[first : first + count] = actions
         self._children[first : first + count] = children

@@ -75,6 +75,27 @@ def test_a_dominated_continuation_is_replaced_by_its_dominating_root():
     assert graph.children.tolist() == [[roots[0]]]
 
 
+def test_reserve_grows_the_buffers_before_the_rows_come_and_keeps_the_rows():
+    """reserve(count) grows the graph as add would for count rows, so that adding them afterwards copies nothing
+    (the solver reserves before a stage, where little else is held); the rows and plans are unchanged."""
+    rng = np.random.default_rng(0)
+    graph = PlanGraph.of_blind_policies(rng.normal(size=(3, 5)), n_observations=2)
+    before = (graph.vectors.copy(), graph.actions.copy(), graph.children.copy())
+    assert graph.growth_bytes(10) > 0
+    graph.reserve(10)
+    assert graph.growth_bytes(10) == 0
+    buffer = graph._vectors
+    for step in range(10):
+        graph.add(rng.normal(size=(1, 5)), [step % 3], np.array([[0, 1]]))
+    assert graph._vectors is buffer  # no growth, hence no copy, while the rows arrive
+    np.testing.assert_array_equal(graph.vectors[:3], before[0])
+    np.testing.assert_array_equal(graph.actions[:3], before[1])
+    np.testing.assert_array_equal(graph.children[:3], before[2])
+    assert len(graph) == 13 and graph.children[3:].tolist() == [[0, 1]] * 10
+    graph.reserve(0)
+    assert graph._vectors is buffer
+
+
 @pytest.mark.parametrize(
     ("name", "settings"),
     [
