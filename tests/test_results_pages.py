@@ -897,3 +897,30 @@ def test_fig_5_9_prose_names_the_sizes_whose_interval_reaches_the_thesis_line():
     )
     (_, sentence) = figure.prose(figure.extract({"reproduce": low}))["claim"]
     assert "at or below it for 2 models" in sentence
+
+
+def test_the_bug_table_counts_the_rows_that_differ_from_the_thesis_for_the_fixed_and_the_buggy_models():
+    module = load_script()
+    figure = module.FIGURES["chapter5-bugs"]
+    headers = [
+        "domain",
+        "agent",
+        "reward (ours)",
+        "95% CI (bootstrap)",
+        "reward (thesis)",
+        "Welch p vs thesis",
+    ]
+    rows = [
+        ["ntu", "atpo", "91.03 ± 4.71", "[89.41, 92.59]", "97.19 ± 0.53", "2.40e-08"],
+        ["ntu", "bopa", "97.90 ± 0.10", "[97.80, 98.00]", "98.00 ± 0.00", "0.2"],
+        ["ntu (bug)", "atpo", "97.19 ± 0.54", "[97.00, 97.38]", "97.19 ± 0.53", "1"],
+        ["mit (bug)", "random", "-60.00 ± 5.00", "[-62.00, -58.00]", "-71.41 ± 20.01", "0.003"],
+    ]
+    (key, sentence) = figure.prose({"tables": [{"caption": "", "headers": headers, "rows": rows}]})[
+        "differences"
+    ]
+    assert key == "table5_5"
+    assert (
+        "the models rebuilt with the bugs, 1 of 2 rows (higher here: mit (bug) random (p 0.003))" in sentence
+    )
+    assert "the fixed models, 1 of 2 rows (lower here: ntu atpo (p 2.40e-08))" in sentence
