@@ -39,14 +39,15 @@ __all__ = [
     "population",
 ]
 
-SUITE_VERSION = "3"
+SUITE_VERSION = "4"
 SPLITS = ("train", "validation", "held-out")
 LAB = "toxic-waste"
 CHAPTER5 = tuple(d for d in CHAPTER5_DOMAINS if d not in ("panic-buttons", "map"))
-GRID = ("foraging",)
+GRID = ("foraging", "pursuit")
 BENCH_DOMAINS = (LAB, *CHAPTER5, *GRID)
 """The domains with a population: the toxic-waste lab, the chapter-5 domains of Table 5.5 (not panic buttons,
-whose library picks the teammate, nor a user's map file) and the grid arena of level-based foraging."""
+whose library picks the teammate, nor a user's map file) and the grid arenas of level-based foraging and
+predator-prey."""
 _THESIS_TEAMMATES = {
     # the teammates the domain's own library holds (its train split); the maps' and the power plant's is the MMDP's
     # optimal teammate
@@ -237,7 +238,14 @@ _ATLPO_MIXED = (("tau1", "tau0", "tau1", "tau2"), ("tau2", "tau2", "tau0", "tau0
 
 
 def _grid(domain: str) -> tuple[TeammateSpec, ...]:
-    """The arena's scripted members (``teammates.grid_members``) and its learned ones (:func:`_learned`)."""
+    """The arena's scripted members (``teammates.grid_members``) and its learned ones (:func:`_learned`).
+
+    Both arenas hold the thesis teams (train) and the ATLPO split's noisy and mixed teams (held-out), with a noisy,
+    a mixed and a sticky team of other parameters as validation. The scripted ``spec`` members differ:
+    predator-prey has one prey and tasks whose capture positions are not interchangeable, so its target and slot
+    rules pick the same prey and cells whatever they are, and a team differs only by its goal (the slot or the
+    closing ring) and its navigation (greedy or path). The thesis teams take three of those four ways; the fourth,
+    the ring approached greedily, is its one scripted held-out member (see :func:`_pursuit_spec`)."""
 
     def team(name, split, label, **params):
         return TeammateSpec(name, domain, split, label, params)
@@ -272,17 +280,20 @@ def _grid(domain: str) -> tuple[TeammateSpec, ...]:
             team="tau1",
             p=0.3,
         ),
-        team(
-            "closest-path",
-            "validation",
-            "scripted: closest target, shortest paths",
-            family="spec",
-            target="closest",
-            slot="assigned",
-            goal="slot",
-            navigation="path",
-        ),
     ]
+    if domain == "foraging":
+        specs.append(
+            team(
+                "closest-path",
+                "validation",
+                "scripted: closest target, shortest paths",
+                family="spec",
+                target="closest",
+                slot="assigned",
+                goal="slot",
+                navigation="path",
+            )
+        )
     specs += [
         team(
             seats((tau,), _ATLPO_NOISE),
@@ -313,6 +324,8 @@ def _grid(domain: str) -> tuple[TeammateSpec, ...]:
             team="tau2",
             p=0.5,
         ),
+    ]
+    specs.append(
         team(
             "highest-greedy",
             "held-out",
@@ -322,9 +335,26 @@ def _grid(domain: str) -> tuple[TeammateSpec, ...]:
             slot="closest",
             goal="slot",
             navigation="greedy",
-        ),
-    ]
+        )
+        if domain == "foraging"
+        else _pursuit_spec(team)
+    )
     return tuple(sorted((*specs, *_learned(domain)), key=lambda spec: SPLITS.index(spec.split)))
+
+
+def _pursuit_spec(team) -> TeammateSpec:
+    """Predator-prey's scripted held-out member: tau0's greedy moves towards tau2's closing ring (the one way of
+    moving the thesis teams do not take; see :func:`_grid`)."""
+    return team(
+        "ring-greedy",
+        "held-out",
+        "scripted: encircling ring, greedy moves",
+        family="spec",
+        target="closest",
+        slot="closest",
+        goal="ring",
+        navigation="greedy",
+    )
 
 
 def _learned(domain: str) -> tuple[TeammateSpec, ...]:

@@ -1,6 +1,7 @@
-"""Trained best responses on the grid arena (level-based foraging): the vector env hosts a member's team with the
-member's own trial draws, a tiny training run is seeded and its weights load from safetensors, and the simulated
-upper bound is the better of the trained best response and the original team, labelled."""
+"""Trained best responses on the grid arenas (level-based foraging; each arena ships its own): the vector env hosts
+a member's team with the member's own trial draws, a tiny training run is seeded and its weights load from
+safetensors, and the simulated upper bound is the better of the trained best response and the original team,
+labelled."""
 
 import json
 
@@ -26,7 +27,7 @@ from embodied_adhoc.learning.generalist import GeneralistAgent, load_generalist
 from embodied_adhoc.learning.vector_grid import GRID_IDS, GridVectorEnv
 from embodied_adhoc.learning.weights import load_weights
 from embodied_adhoc.paths import assets_dir
-from embodied_adhoc.teammates.populations import find_member, members
+from embodied_adhoc.teammates.populations import GRID, find_member, members
 
 HOSTED = ("tau0-noise-p20", "mixed-tau2-tau0-tau0", "sticky-tau2-p50", "highest-greedy", "ppo-s2")
 """One member of each family: seats (noisy, mixed), sticky, spec (a TeamSpec: the batched planner) and learned."""
@@ -118,12 +119,15 @@ def test_a_tiny_best_response_is_seeded_and_loads_from_safetensors(tmp_path):
 
 
 @pytest.mark.parametrize("split", ("heldout", "validation"))
-def test_every_held_out_and_validation_member_ships_a_best_response(split):
-    for spec in members("foraging", split):
-        path = shipped_path("foraging", spec.name)
+@pytest.mark.parametrize("domain", GRID)
+def test_every_held_out_and_validation_member_ships_a_best_response(domain, split):
+    for spec in members(domain, split):
+        path = shipped_path(domain, spec.name)
         assert path.is_file(), spec.name
         _, metadata = load_weights(path)
         assert metadata["kind"] == KIND and metadata["env_kwargs"] == {"teams": [spec.plugin]}
+        assert metadata["domain"] == domain
+        assert metadata["warm_start"] == f"generalist/{domain}/{domain}-ppo-generalist.safetensors"
         report = json.loads((path.parent / "training.json").read_text())
         assert report["finished"] and report["settings"]["member"] == spec.name
         assert report["env_steps"] > 0 and report["cpu_seconds"] > 0

@@ -1,7 +1,7 @@
-"""The grid arena's benchmark population (level-based foraging): members deterministic per seed (scripted and
-learned), the ATLPO split's held-out teams reproduced draw for draw, the sticky family's memory, simulated bounds
-that normalise random to 0 and the original team to 1 by construction, and a tiny evaluate that gives the same
-numbers twice and after resuming."""
+"""The grid arenas' benchmark populations (level-based foraging, predator-prey): members deterministic per seed
+(scripted and learned), the ATLPO split's held-out teams reproduced draw for draw, the sticky family's memory,
+predator-prey's scripted member unlike every thesis team, simulated bounds that normalise random to 0 and the
+original team to 1 by construction, and a tiny evaluate that gives the same numbers twice and after resuming."""
 
 import json
 
@@ -13,17 +13,21 @@ import embodied_adhoc.envs  # noqa: F401  (registers the env ids)
 from embodied_adhoc.bench.bounds import ORIGINAL, TRAINED, grid_return, normalise, simulated_bounds
 from embodied_adhoc.bench.evaluate import Suite, evaluate
 from embodied_adhoc.domains.grid_rules import GridConfig, GridRules
+from embodied_adhoc.domains.grid_rules_team import TeamSpec, team_actions
 from embodied_adhoc.learning.atlpo_heldout import MIXED, NOISE, thesis_team
+from embodied_adhoc.learning.vector_grid import GRID_IDS
 from embodied_adhoc.teammates.foraging_teams import FORAGING_TEAMS
 from embodied_adhoc.teammates.grid_members import SeatTeam, StickyTeam
-from embodied_adhoc.teammates.populations import SUITE_VERSION, find_member, members, population
+from embodied_adhoc.teammates.populations import GRID, SUITE_VERSION, find_member, members, population
+from embodied_adhoc.teammates.pursuit_teams import PURSUIT_TEAMS
 
-FORAGING_ID = "EmbodiedAdhoc/ForagingGrid-v0"
+FORAGING_ID = GRID_IDS["foraging"]
+EVERY_MEMBER = [spec for domain in GRID for spec in population(domain)]
 
 
 def _episode(spec, seed: int, steps: int = 25, env=None) -> list:
     own = env is None
-    env = env or gymnasium.make(FORAGING_ID, teams=[spec.plugin], disable_env_checker=True)
+    env = env or gymnasium.make(GRID_IDS[spec.domain], teams=[spec.plugin], disable_env_checker=True)
     rng = np.random.default_rng(seed)
     observation, info = env.reset(seed=seed)
     trace = [info["state"]]
@@ -37,9 +41,9 @@ def _episode(spec, seed: int, steps: int = 25, env=None) -> list:
     return trace
 
 
-@pytest.mark.parametrize("spec", population("foraging"), ids=lambda s: s.name)
-def test_foraging_members_are_deterministic_per_seed(spec):
-    env = gymnasium.make(FORAGING_ID, teams=[spec.plugin], disable_env_checker=True)
+@pytest.mark.parametrize("spec", EVERY_MEMBER, ids=lambda s: f"{s.domain}/{s.name}")
+def test_grid_members_are_deterministic_per_seed(spec):
+    env = gymnasium.make(GRID_IDS[spec.domain], teams=[spec.plugin], disable_env_checker=True)
     first = _episode(spec, 5, env=env)
     _episode(spec, 6, env=env)  # an episode between: a member's memory starts afresh with each seeded reset
     assert _episode(spec, 5, env=env) == first
@@ -47,21 +51,60 @@ def test_foraging_members_are_deterministic_per_seed(spec):
     env.close()
 
 
-def test_foraging_population_shape():
-    held_out = {s.name: s for s in members("foraging", "heldout")}
+@pytest.mark.parametrize("domain", GRID)
+def test_grid_population_shape(domain):
+    held_out = {s.name: s for s in members(domain, "heldout")}
     # the ATLPO split's held-out teams are all held out here
     for tau in ("tau0", "tau1", "tau2"):
         assert held_out[f"{tau}-noise-p20"].params == {"family": "seats", "teams": [tau], "noise": NOISE}
     assert [s.params["teams"] for s in held_out.values() if s.name.startswith("mixed-")] == [
         list(types) for types in MIXED
     ]
-    assert [s.name for s in members("foraging", "train")] == ["tau0", "tau1", "tau2"]
-    learned = [s for s in population("foraging") if s.params["family"] == "learned"]
-    assert {s.split for s in learned} == {"validation", "held-out"}
+    assert [s.name for s in members(domain, "train")] == ["tau0", "tau1", "tau2"]
+    learned = [s for s in population(domain) if s.params["family"] == "learned"]
+    # foraging's RL teammates of other seeds are for tuning too; predator-prey reuses its shipped agents only
+    assert {s.split for s in learned} == (
+        {"validation", "held-out"} if domain == "foraging" else {"held-out"}
+    )
     for spec in learned:  # named by plug-in spec, weights shipped with the suite
-        assert spec.plugin == f"embodied_adhoc.learning.bench_members:foraging/{spec.name}"
+        assert spec.plugin == f"embodied_adhoc.learning.bench_members:{domain}/{spec.name}"
         assert callable(spec.factory())
-    assert all(s.version == SUITE_VERSION for s in population("foraging"))
+    assert all(s.version == SUITE_VERSION for s in population(domain))
+    assert {s.params["family"] for s in members(domain, "validation")} >= {"seats", "sticky"}
+
+
+def _pursuit_states(count: int):
+    env = gymnasium.make(GRID_IDS["pursuit"], disable_env_checker=True)
+    rules = env.unwrapped.core.rules
+    for seed in range(count):
+        env.reset(seed=seed)
+        core = env.unwrapped.core
+        yield rules, core.episode.state, core.task
+    env.close()
+
+
+def test_pursuit_teams_differ_by_goal_and_navigation_only():
+    """One prey and fixed capture positions: the target and slot rules pick the same cells whatever they are (so a
+    ``closest-path`` member would be tau1), and the scripted member, the ring approached greedily, plays unlike
+    every thesis team."""
+    closest_path = TeamSpec("closest-path", "", target="closest", slot="closest", navigation="path")
+    ring_greedy = find_member("pursuit", "ring-greedy")
+    assert ring_greedy.params["goal"] == "ring" and ring_greedy.params["navigation"] == "greedy"
+    differs = dict.fromkeys(PURSUIT_TEAMS, False)
+    for rules, state, task in _pursuit_states(12):
+        mine = ring_greedy.factory()(rules)
+        for name in ("tau0", "tau1", "tau2"):
+            a, b = np.random.default_rng(5), np.random.default_rng(5)
+            ours = team_actions(rules, state, task, mine, a, [1, 2, 3])
+            differs[name] |= not np.array_equal(
+                ours, team_actions(rules, state, task, PURSUIT_TEAMS[name], b, [1, 2, 3])
+            )
+        a, b = np.random.default_rng(5), np.random.default_rng(5)
+        assert np.array_equal(
+            team_actions(rules, state, task, closest_path, a, [1, 2, 3]),
+            team_actions(rules, state, task, PURSUIT_TEAMS["tau1"], b, [1, 2, 3]),
+        )
+    assert differs["tau0"] and differs["tau1"] and differs["tau2"]
 
 
 def _state_and_task(seed: int):
@@ -108,20 +151,17 @@ def test_sticky_member_repeats_its_own_action():
 def _options(spec) -> dict:
     from embodied_adhoc.bench.evaluate import domain_defaults
 
-    options, max_steps = domain_defaults("foraging")
+    options, max_steps = domain_defaults(spec.domain)
     return {**spec.trial_options(options), "bench_member": spec.describe()}, max_steps
 
 
-def test_simulated_bounds_normalise_random_to_0_and_the_original_team_to_1(tmp_path):
-    spec = find_member("foraging", "tau1-noise-p20")
+@pytest.mark.parametrize("domain", GRID)
+def test_simulated_bounds_normalise_random_to_0_and_the_original_team_to_1(tmp_path, domain):
+    spec = find_member(domain, "tau1-noise-p20")
     options, max_steps = _options(spec)
     # the original team alone (the trained best response's side: tests/bench/test_bench_best_response.py)
-    bounds = simulated_bounds(
-        "foraging", options, max_steps, tmp_path / "a", episodes=3, seed=2, trained=False
-    )
-    again = simulated_bounds(
-        "foraging", options, max_steps, tmp_path / "b", episodes=3, seed=2, trained=False
-    )
+    bounds = simulated_bounds(domain, options, max_steps, tmp_path / "a", episodes=3, seed=2, trained=False)
+    again = simulated_bounds(domain, options, max_steps, tmp_path / "b", episodes=3, seed=2, trained=False)
     assert (bounds.random, bounds.best) == (again.random, again.best)
     assert bounds.upper == ORIGINAL and bounds.episodes == 3
     assert -max_steps <= bounds.random < bounds.best < 0
@@ -138,9 +178,10 @@ def test_grid_return_is_minus_the_steps():
     assert grid_return(Record()) == -17.0
 
 
-def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_path):
-    specs = (find_member("foraging", "sticky-tau2-p50"), find_member("foraging", "tau0-noise-p20"))
-    suite = Suite("heldout", SUITE_VERSION, {"foraging": specs})
+@pytest.mark.parametrize("domain", GRID)
+def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_path, domain):
+    specs = (find_member(domain, "sticky-tau2-p50"), find_member(domain, "tau0-noise-p20"))
+    suite = Suite("heldout", SUITE_VERSION, {domain: specs})
 
     def run(out):
         return evaluate(
@@ -152,7 +193,7 @@ def test_tiny_grid_evaluate_gives_the_same_numbers_twice_and_after_resuming(tmp_
     resumed = run(tmp_path / "one")  # every trial stored: read back, not run again
     assert json.dumps(first, sort_keys=True) == json.dumps(second, sort_keys=True)
     assert json.dumps(first, sort_keys=True) == json.dumps(resumed, sort_keys=True)
-    rows = first["domains"]["foraging"]["teammates"]
+    rows = first["domains"][domain]["teammates"]
     assert [row["name"] for row in rows] == ["sticky-tau2-p50", "tau0-noise-p20"]
     for row in rows:
         assert row["bounds"]["upper"] in (ORIGINAL, TRAINED) and row["best_on_episodes"] is None

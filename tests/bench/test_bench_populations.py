@@ -155,6 +155,11 @@ def test_teammates_command_lists_every_member(capsys):
     assert [m["name"] for m in listed["members"]] == [s.name for s in population("gridworld")]
     assert main(["bench", "teammates", "--domain", "toxic-waste"]) == 0
     assert "held-out    quiet-p100" in capsys.readouterr().out
+    assert main(["bench", "teammates", "--domain", "pursuit", "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)["members"]
+    assert [m["name"] for m in listed] == [s.name for s in population("pursuit")]
+    assert {m["split"] for m in listed} == set(SPLITS)
+    assert {m["params"]["family"] for m in listed} == {"named", "seats", "sticky", "spec", "learned"}
     assert main(["bench", "teammates", "--domain", "nowhere"]) == 2
     assert "--domain 'nowhere': no benchmark population" in capsys.readouterr().err
 
