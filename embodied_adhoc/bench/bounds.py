@@ -260,7 +260,7 @@ def _trained_agent(domain: str, options: dict) -> tuple[str, str] | None:
     member = (options.get("bench_member") or {}).get("name")
     if member is None:
         return None
-    from embodied_adhoc.learning.best_response import agent_spec, shipped_path, weights_digest
+    from embodied_adhoc.teammates.best_responses import agent_spec, shipped_path, weights_digest
 
     path = shipped_path(domain, member)
     if not path.is_file():

@@ -19,7 +19,6 @@ best response of that member as an agent (``--agents``).
 
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import time
@@ -36,9 +35,9 @@ from embodied_adhoc.learning.generalist import (
     load_generalist,
     shipped_weights,
     train_generalist_run,
-    weights_name,
 )
 from embodied_adhoc.paths import assets_dir
+from embodied_adhoc.teammates.best_responses import KIND, agent_spec, shipped_path, weights_digest
 
 __all__ = [
     "KIND",
@@ -50,8 +49,6 @@ __all__ = [
     "weights_digest",
 ]
 
-KIND = "best-response"
-FOLDER = "bench/{domain}/best-response/{member}"
 STEPS = 102_400
 SHIPPED_COMMAND = (
     ".venv/bin/python -m embodied_adhoc.learning.best_response --domain {domain} --member {member} --seed 0"
@@ -72,21 +69,6 @@ def _member(domain: str, member: str):
             f"best response: {domain} has no member {member!r} (`embodied-adhoc bench teammates --domain {domain}`)"
         )
     return spec
-
-
-def shipped_path(domain: str, member: str) -> Path:
-    """Where the package holds the weights of ``member``'s best response (present or not)."""
-    return assets_dir() / FOLDER.format(domain=domain, member=member) / weights_name(domain, KIND)
-
-
-def weights_digest(path: str | Path) -> str:
-    """SHA-256 of the weights file's bytes: the content key of what a best response scores."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
-
-
-def agent_spec(domain: str, member: str) -> str:
-    """The agent plug-in spec of ``member``'s shipped best response."""
-    return f"{__name__}:{domain}/{member}"
 
 
 class _WarmStart:

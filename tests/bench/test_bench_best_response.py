@@ -219,3 +219,13 @@ def test_a_policy_team_in_pursuit_draws_the_prey_after_the_team_as_the_single_en
     assert drawn == set(teams)  # both kinds of team were drawn and played
     fast.close()
     slow.close()
+
+
+def test_the_shipped_location_and_spec_are_the_trainers_own_names():
+    import embodied_adhoc.learning.best_response as trainer
+    from embodied_adhoc.learning.generalist import weights_name
+    from embodied_adhoc.teammates.best_responses import KIND, TRAINER, shipped_path
+
+    assert TRAINER == trainer.__name__ and trainer.KIND == KIND
+    assert shipped_path("pursuit", "x").name == weights_name("pursuit", KIND)
+    assert trainer.agent_spec("foraging", "x").split(":")[0] == trainer.__name__
