@@ -718,13 +718,27 @@ def _lower_trial(
     # is loose, HSVI's gap rule alone lets them run many times longer, each step a single-belief backup.
     depth = min(max_depth(upper, lower, b0, precision), math.ceil(1.0 / (1.0 - operator.discount)))
     path = sample_path(upper, lower, b0, precision / 2, depth)
+    # The set grows by at most one vector a step: its vectors and fallback scores are kept in buffers with room for
+    # the whole path, and each backup (backup_one: the bits of the batched support-restricted backup) reads the
+    # reached states' columns alone, so no step prepares the whole set or its transposes anew.
+    count = len(current)
+    vectors = np.empty((count + len(path), alphas.shape[1]))
+    vectors[:count] = alphas
+    fallbacks = []
+    for scores in operator.fallback_scores(alphas):
+        fallbacks.append(np.empty((scores.shape[0], len(vectors))))
+        fallbacks[-1][:, :count] = scores
     for belief in reversed(path):
-        alphas = graph.vectors[current]
-        vector, action, value, children = operator.backup(
-            belief[None, :], alphas, with_children=True, project=False
+        kept = vectors[:count]
+        vector, action, value, children = operator.backup_one(
+            belief, kept, None, tuple(buffer[:, :count] for buffer in fallbacks)
         )
-        if value[0] > float(dot(belief, alphas.T).max()) + 1e-12:
-            current = np.append(current, graph.add(vector, action, current[children]))
+        if value > float(dot(belief, kept.T).max()) + 1e-12:
+            current = np.append(current, graph.add(vector[None, :], [action], current[children][None, :]))
+            vectors[count] = vector
+            for buffer, scores in zip(fallbacks, operator.fallback_scores(vector[None, :]), strict=True):
+                buffer[:, count] = scores[:, 0]
+            count += 1
     return current, len(path)
 
 
