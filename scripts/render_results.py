@@ -1912,16 +1912,6 @@ UNRUN = {
             STATISTICAL,
         ),
         Unrun(
-            "live-latency",
-            "Latency of the live page: frame intervals and key press to motion",
-            "MUJOCO_GL=egl .venv/bin/python -m pytest -q -s tests/live/test_live_browser.py -k typing (as "
-            "`render_results.py run live-latency` runs it)",
-            "the browser test's typing session at real time with headless Chromium (installed here): minutes of wall "
-            "clock on a machine that keeps the simulation at real time; at load 11-12 on the shared two cores the "
-            "human fell behind and the session timed out walking west (twice: 131 and 112 s wall)",
-            TIMING,
-        ),
-        Unrun(
             "chapter5-executors",
             "The whole Table 5.5 timed per executor (local processes, Ray)",
             "RAY_ADDRESS=127.0.0.1:6390 .venv/bin/python scripts/bench_chapter5.py --executors local local ray "
