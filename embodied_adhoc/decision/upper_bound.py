@@ -20,6 +20,8 @@ from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.products import dot
 from embodied_adhoc.decision.value_iteration import value_iteration
 
+_COVER_BLOCK_ENTRIES = 1 << 18  # (points x beliefs) support counts formed at once by SawtoothBound.values
+
 
 def fast_informed_bound(pomdp: POMDP, tolerance: float = 1e-6, max_iterations: int = 100_000) -> np.ndarray:
     """``Q_FIB`` (S, A), an upper bound of ``Q*`` of the POMDP at every stage of its iteration (the iteration
@@ -126,8 +128,7 @@ class SawtoothBound:
             self._sizes = sizes
         # phi_i(b) > 0 only where b covers the whole support of b_i: find those (point, belief) pairs with one
         # sparse product, then take the ratios on them alone (phi is 0 elsewhere, and so is its term).
-        covered = np.asarray(self._indicator @ (beliefs > 0.0).T.astype(np.float64))  # (P, n)
-        points, rows = np.nonzero(covered >= self._sizes[:, None])
+        points, rows = self._covering_pairs(beliefs)
         terms = np.zeros(beliefs.shape[0])
         if points.size:
             lengths = self._sizes[points]
@@ -142,6 +143,20 @@ class SawtoothBound:
             np.minimum.at(terms, rows, phi * self._excess[points])
         sawtooth = dot(beliefs, self.corners) + terms
         return np.minimum(bound, sawtooth)
+
+    def _covering_pairs(self, beliefs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The (point, belief) pairs where the belief covers the point's whole support, in row-major order (as
+        ``np.nonzero`` of the whole (P, n) table gives them), from that table formed a block of points at a time:
+        whole, it is the largest array of a solve's last upper-bound rounds, when the points are many."""
+        covers = (beliefs > 0.0).T.astype(np.float64)  # (S, n)
+        step = max(1, _COVER_BLOCK_ENTRIES // max(beliefs.shape[0], 1))
+        points, rows = [], []
+        for first in range(0, self.n_points, step):
+            covered = np.asarray(self._indicator[first : first + step] @ covers)  # (block, n) support counts
+            block_points, block_rows = np.nonzero(covered >= self._sizes[first : first + step, None])
+            points.append(block_points + first)
+            rows.append(block_rows)
+        return np.concatenate(points), np.concatenate(rows)
 
     def successors(self, belief: np.ndarray) -> Successors:
         """Per action: the observations of nonzero probability, their probabilities and posteriors (Eq. 2.3)."""
