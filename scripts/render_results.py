@@ -461,6 +461,11 @@ def markdown_extract(command: str) -> Callable[[dict[str, str]], dict]:
     return extract
 
 
+def reproduce_atpo_command(*extra: str) -> list[str]:
+    """``scripts/reproduce_atpo.py`` printing Markdown into a fresh run folder, with ``extra`` arguments."""
+    return ["{python}", "scripts/reproduce_atpo.py", "--out", "{out}", "--markdown", *extra]
+
+
 def markdown_figure_tables(keys: Sequence[str]) -> Callable[[dict], list[Table]]:
     def tables(data: dict) -> list[Table]:
         return [
@@ -1406,16 +1411,7 @@ FIGURES = {
             "chapter5",
             "ATPO: thesis Tables 5.5 and 5.6 and the belief dynamics "
             "(32 episodes per agent and domain, seed 0)",
-            {
-                "reproduce": [
-                    "{python}",
-                    "scripts/reproduce_atpo.py",
-                    "--out",
-                    "{out}",
-                    "--markdown",
-                    "--skip-fig59",
-                ]
-            },
+            {"reproduce": reproduce_atpo_command("--skip-fig59")},
             markdown_extract("reproduce"),
             markdown_figure_tables(("table5_5", "table5_6", "beliefs")),
             compare_markdown_tables,
@@ -1428,19 +1424,9 @@ FIGURES = {
             "ATPO: Tables 5.5 and 5.6 on ntu, mit and overcooked beside the same domains rebuilt with the "
             "original's model bugs (32 episodes per agent and domain, seed 0)",
             {
-                "reproduce": [
-                    "{python}",
-                    "scripts/reproduce_atpo.py",
-                    "--out",
-                    "{out}",
-                    "--markdown",
-                    "--domains",
-                    "ntu",
-                    "mit",
-                    "overcooked",
-                    "--with-bugs",
-                    "--skip-fig59",
-                ]
+                "reproduce": reproduce_atpo_command(
+                    "--domains", "ntu", "mit", "overcooked", "--with-bugs", "--skip-fig59"
+                )
             },
             markdown_extract("reproduce"),
             markdown_figure_tables(("table5_5", "table5_6", "beliefs")),

@@ -224,12 +224,12 @@ def figure_5_9(args: Args, reference: SweepResult) -> tuple[str, Path | None]:
     low = float(np.mean(returns(reference, "random")))
     high = float(np.mean(returns(reference, "value-iteration")))
     scores, intervals, rows = {}, {}, []
+    span = 100 / (high - low) if high != low else math.nan
     for size in args.library_sizes:
         result = sweep(args, "gridworld", {"n_models": size}, ("atpo",), f"fig5_9-{size}")
         scores[size] = normalised(result, "atpo", low, high)
         # the interval of ATPO's mean reward through the same normalisation, the reference's means held fixed
         sample = result.summary().agents["atpo"].total_reward
-        span = 100 / (high - low) if high != low else math.nan
         intervals[size] = ((sample.ci_low - low) * span, (sample.ci_high - low) * span)
         ci = bounds(*intervals[size], 1)
         rows.append(

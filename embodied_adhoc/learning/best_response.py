@@ -140,10 +140,11 @@ def train_best_response(domain: str, member: str, out: str | Path | None = None,
     out = Path(out)
     training = BestResponseTraining(domain=domain, out=str(out), member=member, **settings)
     cpu = time.process_time()
-    report = train_generalist_run(training, auxiliary=_WarmStart(domain), kind=KIND)
+    warm_start = _WarmStart(domain)
+    report = train_generalist_run(training, auxiliary=warm_start, kind=KIND)
     if "cpu_seconds" not in report and report.get("finished"):
         report["cpu_seconds"] = round(time.process_time() - cpu, 1)
-        report["warm_start"] = _WarmStart(domain).metadata
+        report["warm_start"] = warm_start.metadata
         atomic_write_text(out / "training.json", json.dumps(report, indent=1) + "\n")
     return report
 
