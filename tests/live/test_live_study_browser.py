@@ -133,9 +133,11 @@ class ScriptedParticipant:
         self.answers += 1
         time.sleep(0.2)
 
-    def walk_to(self, point, area: int, close: float, give_up: float = 360.0) -> None:
+    def walk_to(self, point, area: int, close: float, give_up: float = 360.0, ball: int | None = None) -> bool:
         """Follow the human route to ``area``, then walk straight towards ``point`` until within ``close`` m
-        (``give_up``: simulated seconds)."""
+        (``give_up``: simulated seconds); True when there. False, without arriving, once the episode is over
+        (the simulation then stands still) or ``ball`` is no longer on the floor (it was seen on the floor while
+        still falling into the container)."""
         deadline = self.clock.deadline(give_up, f"the walker to reach {point} in area {area}")
         lead = 1.2 * SPEED * 0.15 + 0.1  # m the walker still moves after a key is released (page latency)
         waypoints: list = []
@@ -144,6 +146,9 @@ class ScriptedParticipant:
         while True:
             self.answer_if_asked()
             state = self.state()
+            if self.stats("done") is not None or (ball is not None and state["balls"][ball] != 0):
+                self.hold(set())
+                return False
             deadline.check(f": state {state}", read=False)
             here = np.array(state["human"])
             if state["human_node"] != planned_from:  # (re)plan from the area the walker is in
@@ -155,7 +160,7 @@ class ScriptedParticipant:
             final = len(waypoints) == 1
             if final and state["human_node"] == area and np.hypot(*offset) < close:
                 self.hold(set())
-                return
+                return True
             if not final and np.abs(offset).max() < max(0.3, lead):
                 waypoints.pop(0)
                 continue
@@ -199,6 +204,8 @@ class ScriptedParticipant:
         self.hold(set())
         deadline = self.clock.deadline(60, "the walker's motion to finish")
         while self.state()["busy"]:
+            if self.stats("done") is not None:
+                return  # the episode ended mid-motion: nothing to press (press reads the done event)
             deadline.check(read=False)
             self.answer_if_asked()
             time.sleep(0.05)
@@ -245,7 +252,8 @@ class ScriptedParticipant:
                 here = np.array(state["human"])
                 ball = min(floor, key=lambda i: np.hypot(*(np.array(state["ball_xy"][i]) - here)))
                 xy = state["ball_xy"][ball]
-                self.walk_to(xy, LAB_LAYOUT.node_at(xy), close=0.5)
+                if not self.walk_to(xy, LAB_LAYOUT.node_at(xy), close=0.5, ball=ball):
+                    continue
                 outcome = self.press("pick")
                 if outcome is None:
                     refused += 1
@@ -255,7 +263,8 @@ class ScriptedParticipant:
                 assert outcome["succeeded"], outcome
             else:
                 robot_area = state["robot_node"]
-                self.walk_to(LAB_LAYOUT.human_spots[robot_area], robot_area, close=1.5)
+                if not self.walk_to(LAB_LAYOUT.human_spots[robot_area], robot_area, close=1.5):
+                    continue
                 if self.state()["robot_node"] != self.state()["human_node"]:
                     continue  # the robot moved on: follow it
                 outcome = self.press("drop")
