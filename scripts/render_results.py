@@ -133,6 +133,9 @@ class Figure:
     prose: Callable[[dict], dict[str, tuple[str | None, str]]] | None = None
     """the data -> sentences that pages embed beside the tables (``results:NAME.KEY`` blocks), each with the key
     of the table whose numbers it reads (None: the figure's one table), so that a page types no measurement"""
+    parallel: bool = False
+    """whether its commands are independent lanes that run at the same time (each one BLAS thread: a study split by
+    agent, whose records do not depend on which agents share a process)"""
 
 
 # ------------------------------------------------------------------------------------------ extraction
@@ -1291,6 +1294,213 @@ def ablation_compare(published: dict, check: dict) -> list[str]:
     return failures
 
 
+TEAMSTER_T5000 = ("--trials", "8", "--steps", "5000", "--eval-steps", "100", "--points", "10")
+"""Part D's protocol: the thesis's 8 trials and T = 5000 per team, evaluations of 100 steps every 10 %."""
+TEAMSTER_LANES = {
+    "teamster-plastic-model": "teamster,plastic-model",
+    "the-others": "learns-environment,learns-team,plastic-policy,random,original",
+}
+"""The study in two lanes of about the same CPU time (records depend on the agent and trial, not on the lane)."""
+TEAMSTER_TEAMS = ("teammate-aware", "greedy", "probabilistic-destinations")
+TEAMSTER_ORDER = (
+    "original",
+    "random",
+    "plastic-policy",
+    "teamster",
+    "plastic-model",
+    "learns-environment",
+    "learns-team",
+)
+THESIS_TABLE_4_4 = {
+    # (after learning, agent) -> the thesis's accumulated episode reward, mean (± its spread), per evaluation team
+    ("-", "original"): ((92.84, 6.76), (94.28, 5.35), (94.09, 4.69)),
+    ("-", "random"): ((39.84, 63.84), (56.88, 35.47), (45.66, 62.64)),
+    ("teammate-aware", "plastic-policy"): ((90.25, 7.77), (82.06, 21.49), (79.31, 19.85)),
+    ("teammate-aware", "teamster"): ((92.69, 5.45), (91.47, 4.95), (89.91, 8.01)),
+    ("teammate-aware", "plastic-model"): ((93.47, 4.69), (84.28, 12.86), (88.91, 9.55)),
+    ("teammate-aware", "learns-environment"): ((85.59, 16.93), (81.78, 15.16), (82.94, 19.45)),
+    ("teammate-aware", "learns-team"): ((92.25, 7.33), (90.72, 7.7), (92.72, 5.67)),
+    ("greedy", "plastic-policy"): ((86.31, 13.11), (86.81, 11.04), (84.19, 12.6)),
+    ("greedy", "teamster"): ((89.22, 11.13), (92.94, 5.7), (90.94, 7.13)),
+    ("greedy", "plastic-model"): ((94.66, 2.68), (96.47, 2.83), (92.53, 4.98)),
+    ("greedy", "learns-environment"): ((85.62, 11.59), (93.19, 4.81), (89.78, 9.78)),
+    ("greedy", "learns-team"): ((90.25, 7.79), (95.66, 3.07), (93.5, 5.41)),
+    ("probabilistic-destinations", "plastic-policy"): ((84.81, 13.28), (86.41, 8.26), (76.78, 43.89)),
+    ("probabilistic-destinations", "teamster"): ((91.16, 8.64), (94.56, 3.46), (93.06, 5.63)),
+    ("probabilistic-destinations", "plastic-model"): ((94.5, 3.83), (94.25, 4.42), (94.88, 3.72)),
+    ("probabilistic-destinations", "learns-environment"): ((84.41, 14.19), (93.53, 5.16), (87.81, 12.39)),
+    ("probabilistic-destinations", "learns-team"): ((90.38, 9.14), (95.75, 3.64), (94.34, 4.1)),
+}
+"""Thesis Table 4.4 (pursuit), as printed: the original teammate and random have one row each."""
+
+
+def teamster_t5000_extract(outputs: dict[str, str]) -> dict:
+    """The lanes' ``teamster --json`` summaries as one: per agent its curves and after-learning matrix (captures
+    per 500 steps, per-trial values with the mean and bootstrap CI); the seconds per trial are timing."""
+    agents, config, seconds = {}, None, {}
+    for key, text in outputs.items():
+        result = json.loads(text)
+        if config is not None and result["config"] != config:
+            sys.exit(f"teamster-t5000: lane {key} ran another protocol: {result['config']} vs {config}")
+        config = result["config"]
+        for agent, entry in result["agents"].items():
+            seconds[agent] = entry["seconds"]
+            agents[agent] = {
+                "trials": entry["trials"],
+                "curves": {
+                    t: [{"step": p["step"], **p["per_500"]} for p in c] for t, c in entry["curves"].items()
+                },
+                "after": {
+                    learned: {t: cells["per_500"] for t, cells in evals.items()}
+                    for learned, evals in entry["after"].items()
+                },
+            }
+    missing = [a for a in TEAMSTER_ORDER if a not in agents]
+    if missing:
+        sys.exit(f"teamster-t5000: no lane ran {', '.join(missing)}")
+    return {
+        "config": config,
+        "agents": {a: agents[a] for a in TEAMSTER_ORDER},
+        "timing": {"wall_seconds_per_trial": seconds},
+    }
+
+
+def _bracket(cell: dict) -> str:
+    low, high = cell["ci"]
+    return f"{cell['mean']:.1f}", f"[{low:.1f}, {high:.1f}]"
+
+
+def teamster_claims(data: dict) -> list[list[str]]:
+    """The thesis's claims on Table 4.4 and Fig. 4.7, each tested on the per-trial values (Welch's test where a
+    claim says one agent scores more than another)."""
+    from embodied_adhoc.experiments.stats import welch_test
+
+    agents = data["agents"]
+    last = TEAMSTER_TEAMS[-1]
+
+    def after(agent, learned, team):
+        return agents[agent]["after"][learned][team]
+
+    rows = []
+    # 1. Fig. 4.7: sample efficiency, the first evaluation after learning began with the first team
+    first = {a: agents[a]["curves"][TEAMSTER_TEAMS[0]][1] for a in ("teamster", "plastic-policy")}
+    t, pvalue = welch_test(first["teamster"]["values"], first["plastic-policy"]["values"])
+    step = first["teamster"]["step"]
+    rows.append(
+        [
+            f"Fig. 4.7: after {step} steps with the first team, TEAMSTER scores more than PLASTIC-Policy",
+            f"{first['teamster']['mean']:.1f} vs {first['plastic-policy']['mean']:.1f}, Welch p = {pvalue:.2g}",
+            "yes" if first["teamster"]["mean"] > first["plastic-policy"]["mean"] and pvalue < 0.05 else "no",
+        ]
+    )
+    # 2. Table 4.4: after all three teams, TEAMSTER above PLASTIC-Policy on every team
+    tests = [
+        welch_test(after("teamster", last, t)["values"], after("plastic-policy", last, t)["values"])
+        for t in TEAMSTER_TEAMS
+    ]
+    higher = all(
+        after("teamster", last, t)["mean"] > after("plastic-policy", last, t)["mean"] for t in TEAMSTER_TEAMS
+    )
+    rows.append(
+        [
+            "Table 4.4: after learning all three teams, TEAMSTER scores more than PLASTIC-Policy on every team",
+            "Welch p = " + " / ".join(f"{p:.2g}" for _, p in tests),
+            "yes" if higher and all(p < 0.05 for _, p in tests) else "no",
+        ]
+    )
+    # 3. Table 4.4: TEAMSTER close to PLASTIC-Model (the thesis: within 4 % in every cell after all three teams)
+    ratios = [
+        after("teamster", last, t)["mean"] / max(after("plastic-model", last, t)["mean"], 1e-9)
+        for t in TEAMSTER_TEAMS
+    ]
+    rows.append(
+        [
+            "Table 4.4: after learning all three teams, TEAMSTER reaches 95 % of PLASTIC-Model on every team "
+            "(the thesis: 96-100 %)",
+            "TEAMSTER / PLASTIC-Model = " + " / ".join(f"{r:.2f}" for r in ratios),
+            "yes" if min(ratios) >= 0.95 else "no",
+        ]
+    )
+    # 4. Section 4.1.4's discussion: on greedy after the first team only, the learned team models beat the
+    # hand-coded ones (TEAMSTER 91.47, Learns Team 90.72 against PLASTIC-Model 84.28, Learns Environment 81.78)
+    learned, team = TEAMSTER_TEAMS[0], TEAMSTER_TEAMS[1]
+    means = {
+        a: after(a, learned, team)["mean"]
+        for a in ("teamster", "learns-team", "plastic-model", "learns-environment")
+    }
+    rows.append(
+        [
+            "Section 4.1.4: on greedy after learning only the first team, TEAMSTER and Learns Team score more than "
+            "PLASTIC-Model and Learns Environment",
+            ", ".join(f"{a} {m:.1f}" for a, m in means.items()),
+            "yes"
+            if min(means["teamster"], means["learns-team"])
+            > max(means["plastic-model"], means["learns-environment"])
+            else "no",
+        ]
+    )
+    return rows
+
+
+def teamster_t5000_tables(data: dict) -> list[Table]:
+    agents = data["agents"]
+    end = [
+        [agent, *(x for t in TEAMSTER_TEAMS for x in _bracket(entry["curves"][t][-1]))]
+        for agent, entry in agents.items()
+    ]
+    team_headers = [h for t in TEAMSTER_TEAMS for h in (f"end of {t}", "95 % CI")]
+    after_rows = []
+    for (learned, agent), thesis in THESIS_TABLE_4_4.items():
+        ours = agents[agent]["after"][TEAMSTER_TEAMS[-1] if learned == "-" else learned]
+        after_rows.append(
+            [
+                learned,
+                agent,
+                *(
+                    x
+                    for team, (mean, spread) in zip(TEAMSTER_TEAMS, thesis, strict=True)
+                    for x in (*_bracket(ours[team]), f"{mean:.2f} ± {spread:.2f}")
+                ),
+            ]
+        )
+    after_headers = [
+        "after learning",
+        "agent",
+        *(h for t in TEAMSTER_TEAMS for h in (f"eval {t}", "95 % CI", "thesis")),
+    ]
+    seconds = data["timing"]["wall_seconds_per_trial"]
+    return [
+        Table("end", "", ["agent", *team_headers], end),
+        Table("after", "", after_headers, after_rows),
+        Table("claims", "", ["claim", "measured", "holds"], teamster_claims(data)),
+        Table("seconds", "", ["agent", "wall seconds per trial"], [[a, f"{seconds[a]:.0f}"] for a in agents]),
+    ]
+
+
+def teamster_t5000_compare(published: dict, check: dict) -> list[str]:
+    """Each second-kernel mean (curve ends, the after-learning matrix) lies inside the published 95 % interval;
+    every claim keeps its verdict."""
+    failures = []
+    for agent, entry in published["agents"].items():
+        other = check["agents"][agent]
+        cells = [(f"end of {t}", entry["curves"][t][-1], other["curves"][t][-1]) for t in TEAMSTER_TEAMS]
+        cells += [
+            (f"after {learned} / eval {t}", entry["after"][learned][t], other["after"][learned][t])
+            for learned in entry["after"]
+            for t in TEAMSTER_TEAMS
+        ]
+        for label, ours, theirs in cells:
+            low, high = ours["ci"]
+            if not low <= theirs["mean"] <= high:
+                failures.append(
+                    f"{agent} {label}: {theirs['mean']:.2f} outside the published [{low:.2f}, {high:.2f}]"
+                )
+    for ours, theirs in zip(teamster_claims(published), teamster_claims(check), strict=True):
+        if ours[-1] != theirs[-1]:
+            failures.append(f"claim '{ours[0][:60]}': {ours[-1]} -> {theirs[-1]}")
+    return failures
+
+
 FIGURES = {
     figure.name: figure
     for figure in (
@@ -1637,6 +1847,39 @@ FIGURES = {
             "seconds per model, with the trials' solver settings and no cache; the thesis's setup time is per "
             "POMDP, so its column is multiplied by the library size.",
             markdown=True,
+        ),
+        Figure(
+            "teamster-t5000",
+            "TEAMSTER Part D: the thesis's protocol on pursuit, 8 trials of seven agents at T = 5000 per team",
+            {
+                lane: [
+                    ".venv/bin/embodied-adhoc",
+                    "teamster",
+                    "pursuit",
+                    "--agents",
+                    agents,
+                    *TEAMSTER_T5000,
+                    "--out",
+                    "{out}",
+                    "--json",
+                    "--quiet",
+                ]
+                for lane, agents in TEAMSTER_LANES.items()
+            },  # fmt: skip
+            teamster_t5000_extract,
+            teamster_t5000_tables,
+            teamster_t5000_compare,
+            ("docs/teamster.md",),
+            notes="Prey captures per 500 steps of an evaluation (100 steps, learning paused, a fresh configuration), "
+            "mean over 8 trials with the 95 % percentile-bootstrap interval; the thesis's Table 4.4 reports an "
+            "accumulated episode reward near 90 for every agent, mean ± its spread, so only orderings and ratios "
+            "compare. The original teammate's and random's rows are after all three teams (they learn nothing). The "
+            "claims' Welch tests run on the per-trial values. Seconds per trial are each agent's mean wall seconds "
+            "(timing: its lane shared the host with the other lane).",
+            checked="every second-kernel mean lies inside the published 95 % interval and every claim keeps its "
+            "verdict",
+            timing_tables=("seconds",),
+            parallel=True,
         ),
         Figure(
             "fig5-9",
@@ -2317,7 +2560,7 @@ def run_figure(
         sys.exit(
             f"{figure.name}: the run would import {numerics['package']}, not the frozen copy in {folder}"
         )
-    outputs, commands = {}, {}
+    outputs, commands, lanes = {}, {}, {}
     started, load = dt.datetime.now(dt.UTC), os.getloadavg()[0]
     for key, argv in figure.commands.items():
         if keys and key not in keys:
@@ -2331,12 +2574,21 @@ def run_figure(
             (folder / out).mkdir(parents=True, exist_ok=True)
             (folder / out / Path(path).name).write_text(git("show", f"{commit}:{path}") + "\n")
         executable = [str(ROOT / command[0]) if command[0].startswith(".venv/") else command[0], *command[1:]]
-        done = subprocess.run(executable, cwd=folder, env=env, capture_output=True, text=True)
-        if done.returncode != 0:
-            # a test runner reports its failures on stdout: show that where stderr says nothing
-            said = done.stderr.strip() or done.stdout
-            sys.exit(f"{figure.name}: `{commands[key]}` exited {done.returncode}:\n{said[-2000:]}")
-        outputs[key] = done.stdout
+        # the output goes to files, so that lanes running at once never block on a full pipe
+        streams = (
+            folder / f"runs/{figure.name}-{label}-{key}.stdout",
+            folder / f"runs/{figure.name}-{label}-{key}.stderr",
+        )
+        streams[0].parent.mkdir(parents=True, exist_ok=True)
+        with streams[0].open("w") as stdout, streams[1].open("w") as stderr:
+            lanes[key] = (
+                subprocess.Popen(executable, cwd=folder, env=env, stdout=stdout, stderr=stderr),
+                streams,
+            )
+        if not figure.parallel:
+            finish_lane(figure, commands[key], *lanes.pop(key), outputs, key)
+    for key, lane in lanes.items():
+        finish_lane(figure, commands[key], *lane, outputs, key)
     return {
         "kernel": numerics["kernel"],
         "openblas_coretype": kernel,
@@ -2358,6 +2610,24 @@ def run_figure(
         "load": [round(load, 2), round(os.getloadavg()[0], 2)],
         "data": figure.extract(outputs),
     }
+
+
+def finish_lane(
+    figure: Figure,
+    command: str,
+    process: subprocess.Popen,
+    streams: tuple[Path, Path],
+    outputs: dict,
+    key: str,
+) -> None:
+    """Wait for one command; its stdout into ``outputs[key]``, or exit with its message if it failed."""
+    code = process.wait()
+    stdout, stderr = (path.read_text() for path in streams)
+    if code != 0:
+        # a test runner reports its failures on stdout: show that where stderr says nothing
+        said = stderr.strip() or stdout
+        sys.exit(f"{figure.name}: `{command}` exited {code}:\n{said[-2000:]}")
+    outputs[key] = stdout
 
 
 def write_run(figure: Figure, run: dict, check: bool) -> Path:

@@ -22,8 +22,11 @@ PER = 500  # captures are reported per 500 steps (the PLASTIC reference's unit)
 
 
 def _cell(values, scale: float) -> dict:
-    s = summarise_sample(np.asarray(values, dtype=float) * scale)
-    return {"mean": s.mean, "ci": [s.ci_low, s.ci_high], "n": s.n}
+    """Mean, 95 % percentile-bootstrap CI and count of per-trial ``values`` times ``scale``, and the scaled values
+    themselves (what Welch tests between agents and pooled summaries read)."""
+    scaled = np.asarray(values, dtype=float) * scale
+    s = summarise_sample(scaled)
+    return {"mean": s.mean, "ci": [s.ci_low, s.ci_high], "n": s.n, "values": scaled.tolist()}
 
 
 def load_records(folder: str | Path) -> list[dict]:
