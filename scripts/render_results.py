@@ -133,6 +133,9 @@ class Figure:
     prose: Callable[[dict], dict[str, tuple[str | None, str]]] | None = None
     """the data -> sentences that pages embed beside the tables (``results:NAME.KEY`` blocks), each with the key
     of the table whose numbers it reads (None: the figure's one table), so that a page types no measurement"""
+    plot: tuple[str, Callable[[dict, Path], object]] | None = None
+    """(the image's path in the repository, data -> that image): the figure's plot, which ``plot NAME`` draws from
+    its result file (images are not compared by ``--check``: matplotlib's bytes vary by version)"""
     parallel: bool = False
     """whether its commands are independent lanes that run at the same time (each one BLAS thread: a study split by
     agent, whose records do not depend on which agents share a process)"""
@@ -1477,6 +1480,20 @@ def teamster_t5000_tables(data: dict) -> list[Table]:
     ]
 
 
+def teamster_t5000_plot(data: dict, path: Path) -> object:
+    """Fig. 4.7's layout: captures per 500 steps against interaction steps, one panel per team, CI bands."""
+    from embodied_adhoc.experiments.domains.teamster import plot_curves
+
+    summary = {
+        agent: {
+            "metric": "per_500",
+            "curves": {t: [{"step": p["step"], "per_500": p} for p in c] for t, c in entry["curves"].items()},
+        }
+        for agent, entry in data["agents"].items()
+    }
+    return plot_curves(summary, path)
+
+
 def teamster_t5000_compare(published: dict, check: dict) -> list[str]:
     """Each second-kernel mean (curve ends, the after-learning matrix) lies inside the published 95 % interval;
     every claim keeps its verdict."""
@@ -1879,6 +1896,7 @@ FIGURES = {
             checked="every second-kernel mean lies inside the published 95 % interval and every claim keeps its "
             "verdict",
             timing_tables=("seconds",),
+            plot=("docs/images/teamster-curves-t5000.png", teamster_t5000_plot),
             parallel=True,
         ),
         Figure(
@@ -2947,7 +2965,7 @@ def index_page(documents: dict[str, dict]) -> str:
 
 HEADLINE = "headline"
 """The README's summary table: one row per headline figure, each cell taken from that figure's result file."""
-HEADLINE_SOURCES = ("hotspot", "sim-vs-physics", "chapter5")
+HEADLINE_SOURCES = ("hotspot", "sim-vs-physics", "chapter5", "teamster-t5000")
 NOT_GENERATED = (
     (
         "Offline speech pipeline: the human's node recognised from synthesised speech (thesis M4-M6)",
@@ -2958,7 +2976,7 @@ NOT_GENERATED = (
         "docs/atlpo.md",
     ),
     (
-        "TEAMSTER and PLASTIC captures per 500 steps in pursuit and on the navigation maps (chapter 4)",
+        "TEAMSTER and PLASTIC on the navigation maps ntu, isr and pentagon (Tables 4.5-4.7)",
         "docs/teamster.md",
     ),
 )
@@ -3018,6 +3036,27 @@ def headline(documents: dict[str, dict], page: Path) -> str:
                 f"{min(ours):.1f} % to {max(ours):.1f} %",
                 f"{min(theirs):.1f} % to {max(theirs):.1f} %",
                 link("chapter5", "table5_6"),
+            ]
+        )
+    if "teamster-t5000" in documents:
+        data = documents["teamster-t5000"]["published"]["data"]
+        last = TEAMSTER_TEAMS[-1]
+
+        def three(agent: str) -> str:
+            return " / ".join(
+                f"{data['agents'][agent]['after'][last][t]['mean']:.1f}" for t in TEAMSTER_TEAMS
+            )
+
+        def thesis(agent: str) -> str:
+            return " / ".join(f"{mean:.2f}" for mean, _ in THESIS_TABLE_4_4[(last, agent)])
+
+        rows.append(
+            [
+                "TEAMSTER and PLASTIC-Model on pursuit after learning all three teams, evaluated on each (Table 4.4; "
+                "8 trials at T = 5000; ours prey captures per 500 steps, the thesis an accumulated episode reward)",
+                f"TEAMSTER {three('teamster')}; PLASTIC-Model {three('plastic-model')}",
+                f"TEAMSTER {thesis('teamster')}; PLASTIC-Model {thesis('plastic-model')}",
+                link("teamster-t5000", "after"),
             ]
         )
     if "benchmark-heldout" in SELF_RENDERED:
@@ -3259,6 +3298,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="a check run of some of a many-command figure's commands only (comma-separated keys, see list)",
     )
     commands.add_parser("render", help="write docs/results/ and the marked blocks of README.md and docs/")
+    plot = commands.add_parser("plot", help="draw a figure's plot from its result file")
+    plot.add_argument("name", choices=sorted(n for n, f in FIGURES.items() if f.plot))
     commands.add_parser("list", help="the figures and their commands")
     args = parser.parse_args(argv)
     if args.check:
@@ -3286,6 +3327,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"wrote {path.relative_to(ROOT)}")
     elif args.action == "render":
         render()
+    elif args.action == "plot":
+        figure, source = FIGURES[args.name], RESULTS / f"{args.name}.json"
+        if not source.exists():
+            print(
+                f"{source.relative_to(ROOT)}: no result file; run `{SCRIPT} run {args.name}` first",
+                file=sys.stderr,
+            )
+            return 2
+        target, draw = figure.plot
+        draw(json.loads(source.read_text())["published"]["data"], ROOT / target)
+        print(f"wrote {target}")
     elif args.action == "list":
         for figure in FIGURES.values():
             print(

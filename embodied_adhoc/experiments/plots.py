@@ -42,6 +42,15 @@ def _save(figure, path: Path) -> Path:
     return path
 
 
+def line_with_band(axes, x, mean, low, high, label: str, alpha: float = 0.2, **style) -> None:
+    """A curve and its interval shaded in the curve's colour (``fill_between`` alone takes the next colour of the
+    cycle, so bands and lines would not match); no band where the interval is undefined (NaN)."""
+    (line,) = axes.plot(x, mean, label=label, **style)
+    low, high = np.asarray(low, dtype=float), np.asarray(high, dtype=float)
+    if np.isfinite(low).all() and np.isfinite(high).all():
+        axes.fill_between(x, low, high, alpha=alpha, color=line.get_color())
+
+
 def _mean_and_error(sample: SampleSummary) -> tuple[float, tuple[float, float]]:
     """Bar height and its (below, above) error-bar lengths: the bootstrap interval around the mean."""
     mean = 0.0 if math.isnan(sample.mean) else sample.mean
@@ -110,9 +119,8 @@ def plot_entropy(
         curve = mean_curve(curves)
         if not curve["step"].size:
             continue
-        axes.plot(curve["step"], curve["mean"], label=f"{name} (n={int(curve['n'][0])})")
-        if np.all(np.isfinite(curve["low"])):
-            axes.fill_between(curve["step"], curve["low"], curve["high"], alpha=0.25)
+        label = f"{name} (n={int(curve['n'][0])})"
+        line_with_band(axes, curve["step"], curve["mean"], curve["low"], curve["high"], label, alpha=0.25)
     axes.set_xlabel("time step")
     axes.set_ylabel("normalised entropy of the task belief")
     axes.set_ylim(-0.02, 1.05)

@@ -14,7 +14,7 @@ import numpy as np
 
 from embodied_adhoc.atomic import atomic_write_text
 from embodied_adhoc.errors import ConfigError
-from embodied_adhoc.experiments.plots import _pyplot, _save
+from embodied_adhoc.experiments.plots import _pyplot, _save, line_with_band
 from embodied_adhoc.experiments.stats import compare_pairs, summarise_sample
 from embodied_adhoc.experiments.tables import format_table
 
@@ -150,9 +150,7 @@ def plot_curves(summary: dict, path: str | Path) -> Path:
             mean = np.array([p[key]["mean"] for p in points])
             low = np.array([p[key]["ci"][0] for p in points])
             high = np.array([p[key]["ci"][1] for p in points])
-            axis.plot(x, mean, label=agent)
-            if not np.isnan(low).all():
-                axis.fill_between(x, low, high, alpha=0.2)
+            line_with_band(axis, x, mean, low, high, agent)
         axis.set_title(team)
         axis.set_xlabel("interaction steps")
     navigation = _metric(next(iter(summary.values()))) == "reward"
@@ -200,10 +198,8 @@ def plot_changed(summary: dict, path: str | Path) -> Path:
         key = _metric(entry)
         points = entry["changed"]
         x = [p["step"] for p in points]
-        left.plot(x, [p[key]["mean"] for p in points], label=agent)
         low, high = np.array([p[key]["ci"] for p in points], dtype=float).T
-        if not np.isnan(low).all():
-            left.fill_between(x, low, high, alpha=0.2)
+        line_with_band(left, x, [p[key]["mean"] for p in points], low, high, agent)
         if "changed_fit" in entry:
             fit = entry["changed_fit"]
             right.plot([p["step"] for p in fit], [p["share"]["mean"] for p in fit], marker="o", label=agent)
