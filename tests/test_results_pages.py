@@ -924,3 +924,92 @@ def test_the_bug_table_counts_the_rows_that_differ_from_the_thesis_for_the_fixed
         "the models rebuilt with the bugs, 1 of 2 rows (higher here: mit (bug) random (p 0.003))" in sentence
     )
     assert "the fixed models, 1 of 2 rows (lower here: ntu atpo (p 2.40e-08))" in sentence
+
+
+def test_a_figures_parallel_lanes_run_at_once_and_a_failing_lane_names_its_command(tmp_path, monkeypatch):
+    module = load_script()
+    monkeypatch.setattr(module, "RUN_DIR", str(tmp_path))
+    # the first lane waits for a file that only the second lane writes: run one after the other, it times out
+    waits = [
+        "sh",
+        "-c",
+        "for i in $(seq 200); do [ -e ../lane-flag ] && echo first && exit 0; sleep 0.1; done; exit 3",
+    ]
+    figure = module.Figure(
+        "lanes",
+        "lanes",
+        {"first": waits, "second": ["sh", "-c", "touch ../lane-flag && echo second"]},
+        lambda outputs: {key: text.strip() for key, text in outputs.items()},
+        None,
+        None,
+        parallel=True,
+    )
+    run = module.run_figure(figure, None)
+    assert run["data"] == {"first": "first", "second": "second"}
+    failing = replace(figure, commands={"first": ["sh", "-c", "echo broken >&2; exit 4"], "second": ["true"]})
+    with pytest.raises(SystemExit, match=r"lanes: `sh -c 'echo broken >&2; exit 4'` exited 4:\nbroken"):
+        module.run_figure(failing, None)
+
+
+def teamster_lane(agents, shift: float = 0.0, steps=(0, 500)) -> str:
+    """A ``teamster --json`` summary of ``agents``, every trial scoring the agent's index plus ``shift``."""
+    teams = ("teammate-aware", "greedy", "probabilistic-destinations")
+    order = (
+        "original",
+        "random",
+        "plastic-policy",
+        "teamster",
+        "plastic-model",
+        "learns-environment",
+        "learns-team",
+    )
+
+    def cell(value: float) -> dict:
+        values = [value - 1, value, value + 1]
+        return {"per_500": {"mean": value, "ci": [value - 1, value + 1], "n": 3, "values": values}}
+
+    summary = {}
+    for agent in agents:
+        score = 10.0 * order.index(agent) + shift
+        summary[agent] = {
+            "trials": 3,
+            "curves": {t: [{"step": s, **cell(score + s / 500)} for s in steps] for t in teams},
+            "after": {learned: {t: cell(score) for t in teams} for learned in teams},
+            "seconds": 12.5,
+        }
+    return json.dumps({"config": {"steps": steps[-1]}, "agents": summary})
+
+
+def test_the_teamster_study_merges_its_lanes_sets_the_thesis_beside_each_cell_and_tests_its_claims():
+    module = load_script()
+    figure = module.FIGURES["teamster-t5000"]
+    lanes = {
+        "teamster-plastic-model": teamster_lane(["teamster", "plastic-model"]),
+        "the-others": teamster_lane(
+            ["learns-environment", "learns-team", "plastic-policy", "random", "original"]
+        ),
+    }
+    data = figure.extract(lanes)
+    assert list(data["agents"]) == list(
+        module.TEAMSTER_ORDER
+    )  # the thesis's row order, whichever lane ran them
+    tables = {t.key: t for t in figure.tables(data)}
+    after = tables["after"]
+    (row,) = [r for r in after.rows if r[:2] == ["teammate-aware", "teamster"]]
+    assert row[2:5] == ["30.0", "[29.0, 31.0]", "92.69 ± 5.45"]  # ours, our interval, the thesis's cell
+    # teamster scores 30 (31 at 500 steps), plastic-policy 20 (21), plastic-model 40, learns-environment 50,
+    # learns-team 60, each trial within 1 of it: above PLASTIC-Policy (Welch p < 0.05), 75 % of PLASTIC-Model, and
+    # below the hand-coded team models on greedy after the first team
+    assert [r[-1] for r in tables["claims"].rows] == ["yes", "yes", "no", "no"]
+    assert "TEAMSTER / PLASTIC-Model = 0.75 / 0.75 / 0.75" in tables["claims"].rows[2][1]
+    assert figure.compare(data, data) == []
+    moved = figure.extract(
+        {**lanes, "teamster-plastic-model": teamster_lane(["teamster", "plastic-model"], 5.0)}
+    )
+    failures = figure.compare(data, moved)
+    assert any(f.startswith("teamster end of teammate-aware: 36.00 outside the published") for f in failures)
+    with pytest.raises(SystemExit, match="teamster-t5000: no lane ran teamster, plastic-model"):
+        figure.extract({"the-others": lanes["the-others"]})
+    other = json.loads(lanes["the-others"]) | {"config": {"steps": 20}}
+    with pytest.raises(SystemExit, match="lane the-others ran another protocol"):
+        figure.extract({**lanes, "the-others": json.dumps(other)})
