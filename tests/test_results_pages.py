@@ -953,16 +953,8 @@ def test_a_figures_parallel_lanes_run_at_once_and_a_failing_lane_names_its_comma
 
 def teamster_lane(agents, shift: float = 0.0, steps=(0, 500)) -> str:
     """A ``teamster --json`` summary of ``agents``, every trial scoring the agent's index plus ``shift``."""
-    teams = ("teammate-aware", "greedy", "probabilistic-destinations")
-    order = (
-        "original",
-        "random",
-        "plastic-policy",
-        "teamster",
-        "plastic-model",
-        "learns-environment",
-        "learns-team",
-    )
+    module = load_script()
+    teams, order = module.TEAMSTER_TEAMS, module.TEAMSTER_ORDER  # scores grow down the thesis's row order
 
     def cell(value: float) -> dict:
         values = [value - 1, value, value + 1]
