@@ -14,7 +14,9 @@
 
 Models are evaluated in batches (all leaves of a UCT wave at once, one forward per network per depth) by a
 numpy forward over views of the torch parameters (:class:`~embodied_adhoc.learning.blocks.NumpyMlp`): no torch
-dispatch and no autograd in the planner, and no weight export after an Adam step (measured in docs/teamster.md).
+dispatch and no autograd in the planner, and no weight export after an Adam step (measured in docs/teamster.md);
+the pursuit simulator's transition network reads contiguous copies instead, refreshed after each Adam step
+(:class:`PackedMlp`: the same products, packed more cheaply by OpenBLAS).
 On pursuit the planner's simulator fuses the team model's draw with the environment model's step
 (:class:`PursuitSimulator`), and one optimiser steps the transition and reward networks after one backward pass.
 """
@@ -55,6 +57,7 @@ class Features:
         self.offset_code = np.concatenate(
             [eye[world.delta[..., 0] + half], eye[world.delta[..., 1] + half]], -1
         )
+        self.pair_code = self.offset_code.reshape(world.cells * world.cells, -1)  # by from * C + to
         cells = np.arange(world.cells)
         moves = np.full((world.cells, world.cells), -1, dtype=np.int64)
         for k in range(N_ACTIONS):
@@ -194,6 +197,7 @@ class LearnedEnvironment:
             NumpyMlp(self.transition_net),
             NumpyMlp(self.reward_net),
         )
+        self.packed_transition = PackedMlp(self.transition_net)  # the pursuit simulator's (PackedMlp)
         # fused: torch's one-kernel CPU Adam, cheaper per step than the per-parameter loop for small networks;
         # one optimiser with a parameter group per network (Table 4.2's rates) steps both in one call
         self.optimiser = torch.optim.Adam(
@@ -223,11 +227,13 @@ class LearnedEnvironment:
         return softmax(logits).reshape(states.shape[0], self.features.n_agents, N_ACTIONS)
 
     def capture_probability(self, states: np.ndarray) -> np.ndarray:
-        logit = self.reward_forward(self.features.reward(states))[:, 0].astype(np.float64)
-        with np.errstate(
-            over="ignore"
-        ):  # exp(-logit) = inf for logit < -709 gives 1 / inf = 0.0, the exact limit
-            return 1.0 / (1.0 + np.exp(-logit))
+        # 1 / (1 + exp(-logit)) in float64, in place; exp(-logit) = inf for logit < -709 gives 1 / inf = 0.0,
+        # the exact limit
+        weight = np.negative(self.reward_forward(self.features.reward(states))[:, 0], dtype=np.float64)
+        with np.errstate(over="ignore"):
+            np.exp(weight, out=weight)
+        weight += 1.0
+        return np.divide(1.0, weight, out=weight)
 
     def step(self, states: np.ndarray, joint_actions: np.ndarray, rng: np.random.Generator):
         """Sample each agent's move from its factor (:func:`sample_logits`), then the predicted reward
@@ -263,6 +269,7 @@ class LearnedEnvironment:
         reward_loss = F.binary_cross_entropy_with_logits(predicted, torch.from_numpy(batch["reward"]))
         # the networks share no parameter, so the sum's gradient is each loss's own: one backward pass
         adam_step(self.optimiser, transition_loss + reward_loss)
+        self.packed_transition.refresh()
         return float(transition_loss.detach()), float(reward_loss.detach())
 
     def save(self, folder: str | Path) -> list[Path]:
@@ -276,6 +283,26 @@ class LearnedEnvironment:
     def load(self, folder: str | Path) -> None:
         load_into(self.transition_net, Path(folder) / "transition.safetensors")
         load_into(self.reward_net, Path(folder) / "reward.safetensors")
+        self.packed_transition.refresh()
+
+
+class PackedMlp(NumpyMlp):
+    """:class:`NumpyMlp` over C-contiguous copies of the weights (the views are the transposes of torch's
+    ``(out, in)`` rows): OpenBLAS then packs the right operand of each product without transposing it, which
+    is cheaper, and computes the same sums, since only the packing routine differs and the kernel is the same.
+    That holds where the product takes OpenBLAS's general path: for pursuit's transition network (five rows per
+    state) at every batch size, while some kernels' small-matrix path, taken for fewer than five rows, sums
+    in another order (``tests/teamster/test_fast_path.py``). Copies do not follow the torch parameters:
+    :meth:`refresh` after each change of them."""
+
+    def __init__(self, module: nn.Sequential) -> None:
+        super().__init__(module)
+        self.views = self.layers
+        self.layers = [(np.ascontiguousarray(weight), bias) for weight, bias in self.views]
+
+    def refresh(self) -> None:
+        for (copy, _), (weight, _) in zip(self.layers, self.views, strict=True):
+            np.copyto(copy, weight)
 
 
 class PursuitSimulator:
@@ -290,34 +317,45 @@ class PursuitSimulator:
         self.environment, self.team, self.features = environment, team, environment.features
         self.buffers = environment.simulator_inputs
 
-    def _inputs(self, count: int) -> tuple[np.ndarray, np.ndarray]:
-        """(count, 3, 43) team and (count, 5, 70) transition input arrays, constant columns set."""
-        if count not in self.buffers:
+    def _inputs(self, count: int) -> tuple[np.ndarray, ...]:
+        """(count, 3, 43) team and (count, 5, 70) transition input arrays, constant columns set, with views of
+        the transition array's blocks: offsets (count, 5, 4, 2 size), own action (count, 4, 5) and the joint
+        action's (count, 5, 20)."""
+        inputs = self.buffers.get(count)
+        if inputs is None:
             f = self.features
             team = np.zeros((count, 3, f.team_width), dtype=np.float32)
             team[:, :, :3] = np.eye(3, dtype=np.float32)
             transition = np.zeros((count, N_AGENTS, f.transition_width), dtype=np.float32)
             transition[:, :, :N_AGENTS] = np.eye(N_AGENTS, dtype=np.float32)
-            self.buffers[count] = team, transition
-        return self.buffers[count]
+            own = N_AGENTS + f.offset_width
+            offsets = transition[:, :, N_AGENTS:own].reshape(count, N_AGENTS, N_AGENTS - 1, -1)
+            inputs = self.buffers[count] = (
+                team,
+                transition,
+                offsets,
+                transition[:, :N_PREDATORS, own : own + N_ACTIONS],
+                transition[:, :, own + N_ACTIONS :],
+            )
+        return inputs
 
     def __call__(self, states: np.ndarray, actions: np.ndarray, rng: np.random.Generator):
         f, env = self.features, self.environment
         count = states.shape[0]
-        team_in, transition_in = self._inputs(count)
-        offsets = f.offset_code[states[:, :, None], states[:, _OTHERS]].reshape(count, N_AGENTS, -1)
-        team_in[:, :, 3:] = offsets[:, 1:N_PREDATORS]
+        team_in, transition_in, offsets, own, joint = self._inputs(count)
+        # the pairs' offset codes gathered straight into the transition input (mode="clip" writes into the
+        # strided view without the bounds-checked copy; the cell indices are in range)
+        pairs = states[:, _OTHERS]
+        pairs += states[:, :, None] * f.world.cells
+        np.take(f.pair_code, pairs, axis=0, out=offsets, mode="clip")
+        team_in[:, :, 3:] = transition_in[:, 1:N_PREDATORS, N_AGENTS : N_AGENTS + f.offset_width]
         mates = sample_logits(
             self.team.forward(team_in.reshape(count * 3, -1)).reshape(count, 3, N_ACTIONS), rng
         )
-        joint = np.empty((count, N_PREDATORS), dtype=np.int64)
-        joint[:, 0], joint[:, 1:] = actions, mates
-        action_code = _EYE5[joint]  # (B, 4, 5)
-        own = N_AGENTS + f.offset_width
-        transition_in[:, :, N_AGENTS:own] = offsets
-        transition_in[:, :N_PREDATORS, own : own + N_ACTIONS] = action_code
-        transition_in[:, :, own + N_ACTIONS :] = action_code.reshape(count, 1, -1)
-        logits = env.transition_forward(transition_in.reshape(count * N_AGENTS, -1))
+        np.take(_EYE5, actions, axis=0, out=own[:, 0], mode="clip")
+        np.take(_EYE5, mates, axis=0, out=own[:, 1:], mode="clip")
+        joint[:] = own.reshape(count, 1, -1)
+        logits = env.packed_transition(transition_in.reshape(count * N_AGENTS, -1))
         moves = sample_logits(logits.reshape(count, N_AGENTS, N_ACTIONS), rng)
         nxt = f.world.neighbours[states, moves]
         goal = env.capture_probability(nxt)
@@ -332,11 +370,24 @@ def sample_logits(logits: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     as :func:`~embodied_adhoc.decision.agents.teamwork.sample_rows` draws from the probabilities: the uniform is
     scaled by the total of the unnormalised weights instead of the weights divided by it, which saves the
     normalisation (two numpy calls per draw, a tenth of a planner step's simulator) and changes a draw only where
-    a uniform falls within float rounding of a category boundary."""
-    weights = logits.astype(np.float64)
-    weights -= weights.max(-1, keepdims=True)
+    a uniform falls within float rounding of a category boundary.
+
+    The draw is the count of cumulative weights at or below the uniform. The cumulative weights do not decrease,
+    so the last one is left out of the count instead of clipping it to ``A - 1`` afterwards; with five categories
+    the four comparisons of a row are four bytes, added by one multiplication of their 32-bit word (the top byte
+    of ``word * 0x01010101`` is the sum of its bytes), cheaper than numpy's sum over a short axis."""
+    weights = np.subtract(logits, np.maximum.reduce(logits, -1, keepdims=True), dtype=np.float64)
     np.exp(weights, out=weights)
-    np.cumsum(weights, -1, out=weights)
+    np.add.accumulate(weights, -1, out=weights)
     uniform = rng.random(weights.shape[:-1])
     uniform *= weights[..., -1]
-    return np.minimum((uniform[..., None] >= weights).sum(-1), weights.shape[-1] - 1)
+    below = np.greater_equal(uniform[..., None], weights[..., :-1])
+    if below.shape[-1] != 4:
+        return np.add.reduce(below, -1)
+    count = below.view(np.uint32)[..., 0]
+    count *= _BYTE_SUM
+    count >>= 24
+    return count
+
+
+_BYTE_SUM = np.uint32(0x01010101)

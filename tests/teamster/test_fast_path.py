@@ -12,11 +12,12 @@ import torch
 from embodied_adhoc.decision.agents.teamwork import sample_rows
 from embodied_adhoc.decision.uct import BatchedUct, PlainUct, UctConfig
 from embodied_adhoc.domains.pursuit4 import ExactEnvironment, ExactTeam, Pursuit4
-from embodied_adhoc.learning.blocks import softmax
+from embodied_adhoc.learning.blocks import NumpyMlp, softmax
 from embodied_adhoc.learning.teamster import (
     Features,
     LearnedEnvironment,
     LearnedTeam,
+    PackedMlp,
     PursuitSimulator,
     sample_logits,
 )
@@ -63,6 +64,74 @@ def test_draws_from_logits_are_the_draws_from_their_softmax():
     assert np.all(np.abs(frequencies - p) <= 4.0 * np.sqrt(p * (1 - p) / draws.size) + 1e-12)
     extreme = np.array([[-1e4, 80.0, -1e4, -1e4, -1e4]], dtype=np.float32)  # no overflow, no NaN
     assert set(sample_logits(np.repeat(extreme, 100, axis=0), np.random.default_rng(3))) == {1}
+
+
+def _straight_draws(logits: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """sample_logits's draws spelled out: shifted exponentials, their cumulative sums, the count of those at or
+    below the scaled uniform, clipped to the last category."""
+    weights = np.exp(logits.astype(np.float64) - logits.astype(np.float64).max(-1, keepdims=True))
+    cumulative = np.cumsum(weights, -1)
+    uniform = rng.random(weights.shape[:-1]) * cumulative[..., -1]
+    return np.minimum((uniform[..., None] >= cumulative).sum(-1), weights.shape[-1] - 1)
+
+
+@pytest.mark.parametrize("categories", [5, 3])
+def test_draws_from_logits_are_the_straightforward_counts(categories):
+    """The byte-summed count (five categories) and the plain count (others) are the clipped count of the
+    cumulative weights at or below the uniform, bit for bit and with as many uniforms, also where categories
+    tie, where weights underflow to zero and where a row is all equal."""
+    source = np.random.default_rng(7)
+    cases = [source.normal(0.0, scale, size=(40, 3, categories)) for scale in (1e-3, 1.0, 30.0, 1e3)]
+    cases.append(source.integers(-2, 3, size=(200, categories)))  # many ties
+    cases.append(np.zeros((30, 5, categories)))
+    tied = source.normal(0.0, 1.0, size=(50, categories))
+    tied[:, 1] = tied[:, 0]
+    cases.append(tied)
+    for case in cases:
+        logits = case.astype(np.float32)
+        for seed in range(5):
+            first, second = np.random.default_rng(seed), np.random.default_rng(seed)
+            got, expected = sample_logits(logits, first), _straight_draws(logits, second)
+            assert np.array_equal(got, expected) and got.shape == logits.shape[:-1]
+            assert first.random() == second.random()
+
+
+@pytest.mark.parametrize("size", [5, 10])
+def test_packed_transition_forward_is_the_torch_views_forward(size, tmp_path):
+    """The pursuit simulator's transition network over contiguous copies gives the bits of the forward over the
+    parameters' views for every batch of 1 to 20 states (5 to 100 rows), before and after Adam steps (the copies
+    are refreshed by update) and after loading other weights."""
+    world = Pursuit4(size)
+    team, env = _trained(world, steps=5)
+    views, packed = env.transition_forward, env.packed_transition
+    assert isinstance(packed, PackedMlp) and isinstance(views, NumpyMlp)
+    rng = np.random.default_rng(11)
+
+    def same() -> bool:
+        for count in range(1, 21):
+            rows = env.features.transition(world.sample_states(rng, count), rng.integers(0, 5, (count, 4)))
+            if not np.array_equal(packed(rows), views(rows)):
+                return False
+        return True
+
+    rows = env.features.transition(world.sample_states(rng, 8), rng.integers(0, 5, (8, 4)))
+    before = packed(rows)
+    assert same()
+    _, trained = _trained(world, steps=40)
+    for weight, other in zip(
+        env.transition_net.parameters(), trained.transition_net.parameters(), strict=True
+    ):
+        assert not torch.equal(weight, other)
+    state = world.sample_states(rng, 1)[0]
+    for _ in range(3):
+        joint = rng.integers(0, 5, size=4)
+        nxt, reward, done = world.step(state[None], joint[None], rng)
+        env.update(state, joint, float(reward[0]), nxt[0], bool(done[0]))
+        state = nxt[0]
+    assert not np.array_equal(packed(rows), before) and same()
+    trained.save(tmp_path)
+    env.load(tmp_path)
+    assert torch.equal(env.transition_net[0].weight, trained.transition_net[0].weight) and same()
 
 
 @pytest.mark.parametrize("size", [5, 10])
