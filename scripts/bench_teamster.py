@@ -81,7 +81,9 @@ def worker(args: argparse.Namespace) -> dict:
 def _forward_floor(wave: int, calls: int = 300) -> dict:
     """CPU time of one planner call of the transition network (a wave of ``wave`` states x 5 agents) and the
     rate of its products in multiply-adds per second: the part of a decision that no change of the code around
-    the networks removes (``iterations / wave x depth`` such calls per decision)."""
+    the networks removes (``iterations / wave x depth`` such calls per decision). The planner's forward is the
+    pursuit simulator's (``packed_transition``, contiguous weight copies) where the tree has one, else the
+    forward over the parameters' views."""
     import numpy as np
     from threadpoolctl import threadpool_limits
 
@@ -92,11 +94,12 @@ def _forward_floor(wave: int, calls: int = 300) -> dict:
     environment = LearnedEnvironment(world, rng)
     rows = environment.features.transition(world.sample_states(rng, wave), rng.integers(0, 5, (wave, 4)))
     sizes = [layer.weight.numel() for layer in environment.transition_net if hasattr(layer, "weight")]
+    forward = getattr(environment, "packed_transition", environment.transition_forward)
     with threadpool_limits(limits=1, user_api="blas"):
-        environment.transition_forward(rows)
+        forward(rows)
         start = time.process_time()
         for _ in range(calls):
-            environment.transition_forward(rows)
+            forward(rows)
         seconds = (time.process_time() - start) / calls
     return {"forward_ms": seconds * 1e3, "forward_gmacs": sum(sizes) * rows.shape[0] / seconds / 1e9}
 
