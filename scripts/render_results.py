@@ -2095,14 +2095,6 @@ UNRUN = {
             STATISTICAL,
         ),
         Unrun(
-            "teamster-t5000",
-            "TEAMSTER Part D: the thesis's scale, 8 trials at T = 5000 per team",
-            "OPENBLAS_NUM_THREADS=1 embodied-adhoc teamster pursuit --trials 8 --steps 5000 --eval-steps 100 "
-            "--points 10 --out runs/teamster-t5000",
-            "4,590 CPU s for the whole study (TEAMSTER 204 CPU s per trial)",
-            STATISTICAL,
-        ),
-        Unrun(
             "teamster-maps",
             "TEAMSTER on the navigation maps: the baselines beside Tables 4.5-4.7",
             ".venv/bin/python scripts/reproduce_teamster.py --maps ntu,isr,pentagon --episodes 40 --skip-protocol "

@@ -133,7 +133,9 @@ class ScriptedParticipant:
         self.answers += 1
         time.sleep(0.2)
 
-    def walk_to(self, point, area: int, close: float, give_up: float = 360.0, ball: int | None = None) -> bool:
+    def walk_to(
+        self, point, area: int, close: float, give_up: float = 360.0, ball: int | None = None
+    ) -> bool:
         """Follow the human route to ``area``, then walk straight towards ``point`` until within ``close`` m
         (``give_up``: simulated seconds); True when there. False, without arriving, once the episode is over
         (the simulation then stands still) or ``ball`` is no longer on the floor (it was seen on the floor while

@@ -48,7 +48,12 @@ def test_out_resumes_and_json_summary(tmp_path, capsys):
     assert main(argv + ["--json"]) == 0  # resumed: nothing rerun, same summary
     assert json.loads(capsys.readouterr().out) == first and record.stat().st_mtime_ns == stamp
     curve = first["agents"]["original"]["curves"]["greedy"]
-    assert [p["step"] for p in curve] == [0, 10, 20] and set(curve[0]["per_500"]) == {"mean", "ci", "n", "values"}
+    assert [p["step"] for p in curve] == [0, 10, 20] and set(curve[0]["per_500"]) == {
+        "mean",
+        "ci",
+        "n",
+        "values",
+    }
     cell = curve[0]["per_500"]
     assert len(cell["values"]) == cell["n"] and np.isclose(np.mean(cell["values"]), cell["mean"])
     assert (tmp_path / "curves.png").stat().st_size > 0 and "after learning" in (
