@@ -1368,7 +1368,7 @@ def teamster_t5000_extract(outputs: dict[str, str]) -> dict:
     }
 
 
-def _bracket(cell: dict) -> str:
+def _bracket(cell: dict) -> tuple[str, str]:
     low, high = cell["ci"]
     return f"{cell['mean']:.1f}", f"[{low:.1f}, {high:.1f}]"
 
@@ -1387,7 +1387,7 @@ def teamster_claims(data: dict) -> list[list[str]]:
     rows = []
     # 1. Fig. 4.7: sample efficiency, the first evaluation after learning began with the first team
     first = {a: agents[a]["curves"][TEAMSTER_TEAMS[0]][1] for a in ("teamster", "plastic-policy")}
-    t, pvalue = welch_test(first["teamster"]["values"], first["plastic-policy"]["values"])
+    _, pvalue = welch_test(first["teamster"]["values"], first["plastic-policy"]["values"])
     step = first["teamster"]["step"]
     rows.append(
         [
@@ -2585,10 +2585,7 @@ def run_figure(
             (folder / out / Path(path).name).write_text(git("show", f"{commit}:{path}") + "\n")
         executable = [str(ROOT / command[0]) if command[0].startswith(".venv/") else command[0], *command[1:]]
         # the output goes to files, so that lanes running at once never block on a full pipe
-        streams = (
-            folder / f"runs/{figure.name}-{label}-{key}.stdout",
-            folder / f"runs/{figure.name}-{label}-{key}.stderr",
-        )
+        streams = folder / f"{out}.stdout", folder / f"{out}.stderr"
         streams[0].parent.mkdir(parents=True, exist_ok=True)
         with streams[0].open("w") as stdout, streams[1].open("w") as stderr:
             lanes[key] = (
@@ -2596,9 +2593,9 @@ def run_figure(
                 streams,
             )
         if not figure.parallel:
-            finish_lane(figure, commands[key], *lanes.pop(key), outputs, key)
+            outputs[key] = finish_lane(figure, commands[key], *lanes.pop(key))
     for key, lane in lanes.items():
-        finish_lane(figure, commands[key], *lane, outputs, key)
+        outputs[key] = finish_lane(figure, commands[key], *lane)
     return {
         "kernel": numerics["kernel"],
         "openblas_coretype": kernel,
@@ -2622,22 +2619,15 @@ def run_figure(
     }
 
 
-def finish_lane(
-    figure: Figure,
-    command: str,
-    process: subprocess.Popen,
-    streams: tuple[Path, Path],
-    outputs: dict,
-    key: str,
-) -> None:
-    """Wait for one command; its stdout into ``outputs[key]``, or exit with its message if it failed."""
+def finish_lane(figure: Figure, command: str, process: subprocess.Popen, streams: tuple[Path, Path]) -> str:
+    """Wait for one command: its stdout, or exit with its message if it failed."""
     code = process.wait()
     stdout, stderr = (path.read_text() for path in streams)
     if code != 0:
         # a test runner reports its failures on stdout: show that where stderr says nothing
         said = stderr.strip() or stdout
         sys.exit(f"{figure.name}: `{command}` exited {code}:\n{said[-2000:]}")
-    outputs[key] = stdout
+    return stdout
 
 
 def write_run(figure: Figure, run: dict, check: bool) -> Path:
