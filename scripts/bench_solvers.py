@@ -45,7 +45,9 @@ from embodied_adhoc.decision.hsvi import HsviConfig, hsvi
 from embodied_adhoc.decision.memory import peak_mb
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import PerseusConfig, perseus
-from embodied_adhoc.decision.pomdp_io import read_pomdp
+from embodied_adhoc.decision.pomdp_io import read_pomdp, write_pomdp
+from embodied_adhoc.decision.rocksample import rocksample
+from embodied_adhoc.domains.chapter5 import CHAPTER5_DOMAINS, build_library
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 
 # SARSOP lower / upper bound at b0 and its run time, from ../shared/pomdp/README.md.
@@ -92,12 +94,16 @@ class Args:
     """print only the time-to-value table"""
     clock: str = "cpu"
     """time-to-value clock: cpu (process seconds, as pomdpsol's own timer counts) or wall"""
-    side_by_side: tuple[Path, ...] = ()
-    """.pomdp files for the side-by-side table only (this project's --solver auto choice vs pomdpsol)"""
+    side_by_side: tuple[str, ...] = ()
+    """models for the side-by-side table only (this project's --solver auto choice vs pomdpsol): .pomdp paths, or
+    generated ones written to a temporary folder for both solvers, rocksample:N,K (RockSample[N, K], rocks of
+    seed 0, as `pomdp generate rocksample`) or export:DOMAIN (the first model of a chapter-5 library, as
+    `pomdp export DOMAIN --models 1`)"""
     solver: str = "auto"
     """side-by-side: auto (the CLI's rule), hsvi or perseus"""
     json_out: str = ""
-    """side-by-side: also write the rows to this JSON file (e.g. results/solvers/side_by_side.json)"""
+    """side-by-side: also write the rows to this JSON file (e.g. results/solvers/side_by_side.json); '-': print the
+    JSON document alone on stdout, the table going to stderr"""
 
 
 def parse_args() -> Args:
@@ -105,9 +111,20 @@ def parse_args() -> Args:
     if args.solver not in ("auto", "hsvi", "perseus"):
         print(f"--solver: expected auto, hsvi or perseus, got {args.solver!r}", file=sys.stderr)
         raise SystemExit(2)
-    for path in args.side_by_side:
-        if not Path(path).is_file():
-            print(f"--side-by-side: no file {path}; give .pomdp paths", file=sys.stderr)
+    for spec in args.side_by_side:
+        problem = generated_spec(spec)
+        if problem is None and not Path(spec).is_file():
+            print(
+                f"--side-by-side: no file {spec}; give .pomdp paths, rocksample:N,K or export:DOMAIN",
+                file=sys.stderr,
+            )
+            raise SystemExit(2)
+        exportable = [d for d in CHAPTER5_DOMAINS if d != "map"]  # a map library needs its map file
+        if problem is not None and problem[0] == "export" and problem[1] not in exportable:
+            print(
+                f"--side-by-side: {spec}: no chapter-5 domain {problem[1]!r}; give one of {', '.join(exportable)}",
+                file=sys.stderr,
+            )
             raise SystemExit(2)
     if args.clock not in ("cpu", "wall"):
         print(f"--clock: expected cpu or wall, got {args.clock!r}", file=sys.stderr)
@@ -262,16 +279,38 @@ SARSOP_TRACES = {
 }
 
 
+def generated_spec(spec: str) -> tuple[str, ...] | None:
+    """``("rocksample", N, K)`` or ``("export", DOMAIN)`` for a generated model's spec, None for a path."""
+    rock = re.fullmatch(r"rocksample:([1-9][0-9]*),([1-9][0-9]*)", spec)
+    if rock:
+        return ("rocksample", rock[1], rock[2])
+    export = re.fullmatch(r"export:([a-z0-9-]+)", spec)
+    return ("export", export[1]) if export else None
+
+
+def model_path(spec: str, folder: Path) -> Path:
+    """The .pomdp file both solvers read for ``spec``: the path itself, or the generated model written into
+    ``folder`` (the name says what it is: ``rocksample-7-8.pomdp``, ``isr-m0.pomdp``)."""
+    problem = generated_spec(spec)
+    if problem is None:
+        return Path(spec)
+    if problem[0] == "rocksample":
+        pomdp = rocksample(int(problem[1]), int(problem[2]), seed=0)
+        return write_pomdp(pomdp, folder / f"rocksample-{problem[1]}-{problem[2]}.pomdp")
+    library = build_library(problem[1], n_models=1)
+    return write_pomdp((library.native_pomdps or library.pomdps)[0], folder / f"{problem[1]}-m0.pomdp")
+
+
 def _at(trace: list[tuple[float, float, float]], seconds: float) -> tuple[float, float] | None:
     """(lower, upper) of the last trace point at or before ``seconds``."""
     before = [point for point in trace if point[0] <= seconds]
     return (before[-1][1], before[-1][2]) if before else None
 
 
-def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, float]], float] | None:
-    """Run ``pomdpsol`` for ``seconds``: its progress table (time, #trial, #backup, lb, ub, ...) parsed, and its
+def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, float]], float, bool] | None:
+    """Run ``pomdpsol`` for ``seconds``: its progress table (time, #trial, #backup, lb, ub, ...) parsed, its
     peak resident memory in MB (its ``VmHWM``, read every 20 ms while it runs: the rusage of its wait would carry
-    this process's own peak over the fork and exec)."""
+    this process's own peak over the fork and exec), and whether it stopped at its target precision."""
     binary = shutil.which("pomdpsol")
     if binary is None:
         return None
@@ -299,7 +338,9 @@ def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, f
         fields = line.split()
         if len(fields) >= 5 and all(re.fullmatch(r"-?[0-9.]+(e[-+]?[0-9]+)?", f) for f in fields[:5]):
             trace.append((float(fields[0]), float(fields[3]), float(fields[4])))
-    return trace, max(peaks)
+    # pomdpsol ends its run with the reason it stopped: its target precision (a certificate) or the timeout
+    converged = "target precision reached" in output.lower()
+    return trace, max(peaks), converged
 
 
 def _measured_solve(path: Path, config, results) -> None:
@@ -313,19 +354,20 @@ def _measured_solve(path: Path, config, results) -> None:
     memory.trim()
     policy = solve(pomdp, config, progress=lambda r: points.append((r.seconds, r.value_b0, r.upper_b0)))
     # VmHWM: the spawned interpreter's ru_maxrss would start at the launching process's peak
-    results.put((points, len(policy.alphas), peak_mb()))
+    results.put((points, len(policy.alphas), peak_mb(), bool(policy.stats.converged)))
 
 
-def perseus_measured(path: Path, config) -> tuple[list[tuple[float, float, float]], int, float]:
-    """Progress points, saved vectors and peak resident memory (MB) of one solve, run in a spawned process so
-    that the peak is that solve's alone (reading the file included, as the CLI does)."""
+def perseus_measured(path: Path, config) -> tuple[list[tuple[float, float, float]], int, float, bool]:
+    """Progress points, saved vectors, peak resident memory (MB) and convergence (the gap at b0 within the
+    solver's precision) of one solve, run in a spawned process so that the peak is that solve's alone (reading
+    the file included, as the CLI does)."""
     context = multiprocessing.get_context("spawn")
     results = context.Queue()
     child = context.Process(target=_measured_solve, args=(path, config, results))
     child.start()
-    points, vectors, peak = results.get()
+    measured = results.get()
     child.join()
-    return points, vectors, peak
+    return measured
 
 
 def _reached(trace: list[tuple[float, float, float]], value: float) -> float | None:
@@ -349,7 +391,7 @@ def side_by_side_row(path: Path, args: Args) -> dict:
             n_beliefs=1000, time_limit=horizon, seed=args.seed, expand=True, clock=args.clock
         )
     sarsop = sarsop_trace(path, horizon)
-    points, vectors, peak = perseus_measured(path, config)
+    points, vectors, peak, converged = perseus_measured(path, config)
     row = {
         "file": path.name,
         "states": pomdp.n_states,
@@ -361,9 +403,12 @@ def side_by_side_row(path: Path, args: Args) -> dict:
         "ours": {f"{t:g}": _at(points, t) for t in args.checkpoints},
         "ours_peak_mb": peak,
         "ours_vectors": vectors,
+        "ours_converged": converged,
+        # the last progress report is the one that closed the gap
+        "ours_seconds_to_converge": points[-1][0] if converged and points else None,
     }
     if sarsop is not None:
-        trace, sarsop_peak = sarsop
+        trace, sarsop_peak, sarsop_converged = sarsop
         target = trace[-1][1] if trace else math.nan
         ours_time = _reached(points, target)
         row.update(
@@ -374,53 +419,82 @@ def side_by_side_row(path: Path, args: Args) -> dict:
             ours_seconds_to_sarsop_lower=ours_time,
             time_ratio=None if ours_time is None else ours_time / horizon,
             memory_ratio=peak / sarsop_peak if sarsop_peak else None,
+            sarsop_converged=sarsop_converged,
+            sarsop_seconds_to_converge=trace[-1][0] if sarsop_converged and trace else None,
         )
     return row
 
 
 def side_by_side_table(args: Args) -> None:
-    source = "pomdpsol measured in this run" if shutil.which("pomdpsol") else "pomdpsol not on the PATH"
-    print(f"\n## Side by side: --solver {args.solver} vs SARSOP ({source}, {args.clock} seconds)\n")
+    """The table, a row per model as it finishes; with ``--json-out`` the rows so far are written after each one,
+    so that a run stopped early keeps the models it finished."""
+    to_stdout = args.json_out == "-"
+    table = sys.stderr if to_stdout else sys.stdout
+    binary = shutil.which("pomdpsol")
+    source = "pomdpsol measured in this run" if binary else "pomdpsol not on the PATH"
+    print(
+        f"\n## Side by side: --solver {args.solver} vs SARSOP ({source}, {args.clock} seconds)\n", file=table
+    )
     header = " | ".join(f"ours {t:g} s | SARSOP {t:g} s" for t in args.checkpoints)
     print(
         f"| file | S | Z | solver | {header} | our time to SARSOP's final lb (ratio to its budget) | "
-        "peak memory ours / SARSOP (ratio) |"
+        "converged ours / SARSOP (CPU s) | peak memory ours / SARSOP (ratio) |",
+        file=table,
     )
-    print("|---|---|---|---|" + "---|" * (2 * len(args.checkpoints) + 2))
+    print("|---|---|---|---|" + "---|" * (2 * len(args.checkpoints) + 3), file=table)
     rows = []
-    for path in args.side_by_side:
-        row = side_by_side_row(Path(path), args)
-        rows.append(row)
+    document = {
+        "command": " ".join(sys.argv),
+        "pomdpsol": binary,
+        "models": list(args.side_by_side),
+        "rows": rows,
+    }
+    with tempfile.TemporaryDirectory() as folder:
+        for spec in args.side_by_side:
+            row = side_by_side_row(model_path(spec, Path(folder)), args)
+            row["model"] = spec
+            rows.append(row)
+            print(side_by_side_line(row, args.checkpoints), file=table, flush=True)
+            if args.json_out and not to_stdout:
+                out = Path(args.json_out)
+                out.parent.mkdir(parents=True, exist_ok=True)
+                out.write_text(json.dumps(document, indent=1) + "\n")
+    if to_stdout:
+        print(json.dumps(document))
 
-        def cell(bounds) -> str:
-            return "-" if bounds is None else f"{bounds[0]:.4f} / {bounds[1]:.4f}"
 
-        cells = []
-        for t in args.checkpoints:
-            cells.append(cell(row["ours"][f"{t:g}"]))
-            cells.append(cell(row["sarsop"][f"{t:g}"]) if "sarsop" in row else "-")
-        if "sarsop" in row:
-            reached = row["ours_seconds_to_sarsop_lower"]
-            cells.append(
-                f"never (target {row['sarsop_final_lower']:.4f})"
-                if reached is None
-                else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
-            )
-            cells.append(
-                f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
-            )
-        else:
-            cells += ["-", f"{row['ours_peak_mb']:.0f} MB / -"]
-        print(
-            f"| {row['file']} | {row['states']} | {row['observations']} | {row['solver']} | "
-            + " | ".join(cells)
-            + " |",
-            flush=True,
+def side_by_side_line(row: dict, checkpoints: tuple[float, ...]) -> str:
+    """One model's row of the side-by-side table."""
+
+    def cell(bounds) -> str:
+        return "-" if bounds is None else f"{bounds[0]:.4f} / {bounds[1]:.4f}"
+
+    def certificate(converged: bool, seconds: float | None) -> str:
+        return f"yes ({seconds:.1f})" if converged else "no"
+
+    cells = []
+    for t in checkpoints:
+        cells.append(cell(row["ours"][f"{t:g}"]))
+        cells.append(cell(row["sarsop"][f"{t:g}"]) if "sarsop" in row else "-")
+    ours = certificate(row["ours_converged"], row["ours_seconds_to_converge"])
+    if "sarsop" in row:
+        reached = row["ours_seconds_to_sarsop_lower"]
+        cells.append(
+            f"never (target {row['sarsop_final_lower']:.4f})"
+            if reached is None
+            else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
         )
-        if args.json_out:  # after each row, so a run stopped early keeps the models it finished
-            out = Path(args.json_out)
-            out.parent.mkdir(parents=True, exist_ok=True)
-            out.write_text(json.dumps({"command": " ".join(sys.argv), "rows": rows}, indent=1) + "\n")
+        cells.append(f"{ours} / {certificate(row['sarsop_converged'], row['sarsop_seconds_to_converge'])}")
+        cells.append(
+            f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
+        )
+    else:
+        cells += ["-", f"{ours} / -", f"{row['ours_peak_mb']:.0f} MB / -"]
+    return (
+        f"| {row['file']} | {row['states']} | {row['observations']} | {row['solver']} | "
+        + " | ".join(cells)
+        + " |"
+    )
 
 
 def anytime_row(name: str, args: Args) -> None:

@@ -1518,6 +1518,92 @@ def teamster_t5000_compare(published: dict, check: dict) -> list[str]:
     return failures
 
 
+SIDE_BY_SIDE_MODELS = (
+    "{corpus}/sarsop-TagAvoid.pomdp",
+    "{corpus}/cit.POMDP",
+    "{corpus}/hallway2.POMDP",
+    "rocksample:5,6",
+    "rocksample:5,7",
+    "rocksample:7,8",
+    "export:isr",
+    "export:pentagon",
+)
+"""The side-by-side's models: three of the classic corpus with many observations, this project's RockSample
+instances (few observations, 1,601 to 12,545 states) and two chapter-5 navigation models (81 observations)."""
+SIDE_BY_SIDE_CHECKPOINTS = ("5", "20", "60")
+
+
+def side_by_side_extract(outputs: dict[str, str]) -> dict:
+    """``bench_solvers.py --side-by-side ... --json-out -``'s document, with the SHA-256 of the ``pomdpsol`` it ran:
+    every number in it is a bound reached within CPU seconds, or a time or a peak (class timing)."""
+    document = json.loads(outputs["bench"].strip().splitlines()[-1])
+    binary = document.get("pomdpsol")
+    if binary is None:
+        sys.exit(
+            "solvers-side-by-side: pomdpsol is not on the PATH; build SARSOP (docs/pomdp.md) and put it there"
+        )
+    digest = hashlib.sha256(Path(binary).read_bytes()).hexdigest()
+    return {"timing": {**document, "pomdpsol_sha256": digest}}
+
+
+def side_by_side_tables(data: dict) -> list[Table]:
+    """``bench_solvers.py --side-by-side``'s rows: each solver's lower / upper bound at each checkpoint, the time
+    this project needs to reach SARSOP's final lower bound, whether each closed its gap, and both peaks."""
+    data = data.get("timing", data)
+    rows, checkpoints = [], list(data["rows"][0]["ours"]) if data["rows"] else []
+
+    def bounds(pair: Sequence[float] | None) -> str:
+        return "-" if pair is None else f"{pair[0]:.4f} / {pair[1]:.4f}"
+
+    def certificate(row: dict, who: str) -> str:
+        if who + "_converged" not in row:  # a file written before the solvers' convergence was recorded
+            return "-"
+        seconds = row[who + "_seconds_to_converge"]
+        return f"yes ({seconds:.1f} s)" if row[who + "_converged"] else "no"
+
+    certified = any("ours_converged" in row for row in data["rows"])
+    for row in data["rows"]:
+        sarsop = row.get("sarsop", {})
+        reached = row.get("ours_seconds_to_sarsop_lower")
+        if not sarsop:
+            to_sarsop, memory = "-", f"{row['ours_peak_mb']:.0f} MB / -"
+        else:
+            to_sarsop = (
+                f"never (target {row['sarsop_final_lower']:.4f})"
+                if reached is None
+                else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
+            )
+            memory = (
+                f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
+            )
+        cells = [cell for t in checkpoints for cell in (bounds(row["ours"][t]), bounds(sarsop.get(t)))]
+        converged = [f"{certificate(row, 'ours')} / {certificate(row, 'sarsop')}"] if certified else []
+        rows.append(
+            [
+                row["file"],
+                str(row["states"]),
+                str(row["observations"]),
+                row["solver"],
+                *cells,
+                to_sarsop,
+                *converged,
+                memory,
+            ]
+        )
+    clock = data["rows"][0]["clock"] if data["rows"] else "cpu"
+    headers = [
+        "file",
+        "S",
+        "Z",
+        "solver",
+        *(f"{who} {t} s" for t in checkpoints for who in ("ours", "SARSOP")),
+        f"our {clock} s to SARSOP's final lower bound (ratio to the budget)",
+        *(["converged ours / SARSOP (gap <= 0.001 at b0)"] if certified else []),
+        "peak memory ours / SARSOP (ratio)",
+    ]
+    return [Table("rows", "", headers, rows)]
+
+
 FIGURES = {
     figure.name: figure
     for figure in (
@@ -1985,6 +2071,34 @@ FIGURES = {
             "the stage limit raised by 3, no cache; the values are Perseus' progress reports after each stage.",
         ),
         Figure(
+            "solvers-side-by-side",
+            "This project's solver beside SARSOP (Tag, cit, hallway2, generated RockSample models, chapter-5 "
+            "navigation models): lower / upper bounds at CPU-second checkpoints, time to SARSOP's final lower bound, "
+            "convergence, peak memory",
+            {
+                "bench": [
+                    "{python}",
+                    "scripts/bench_solvers.py",
+                    "--side-by-side",
+                    *SIDE_BY_SIDE_MODELS,
+                    "--checkpoints",
+                    *SIDE_BY_SIDE_CHECKPOINTS,
+                    "--json-out",
+                    "-",
+                ]
+            },
+            side_by_side_extract,
+            side_by_side_tables,
+            None,
+            ("docs/pomdp.md",),
+            notes="One process per solver and model, one after the other, each single-threaded: pomdpsol (SARSOP, "
+            "built from AdaCompNUS/sarsop; the binary's SHA-256 is in the result file) for the longest checkpoint "
+            "with its default target precision 0.001, then `pomdp solve`'s `--solver auto` choice and defaults for "
+            "the same CPU seconds; bounds are read from each solver's progress at the checkpoints, peaks are each "
+            "process's VmHWM. Both budgets are CPU seconds, so a loaded host runs them longer in wall time; how far "
+            "a CPU second goes still depends on the host (class timing).",
+        ),
+        Figure(
             "live-latency",
             "Latency of the live page: frame intervals and key press to motion (headless Chromium on loopback, real "
             "time, 10 frames/s)",
@@ -2245,53 +2359,6 @@ def localisation_model_tables(data: dict) -> list[Table]:
     return [Table("matrix", "", headers, rows)]
 
 
-def side_by_side_tables(data: dict) -> list[Table]:
-    """``bench_solvers.py --side-by-side``'s rows: each solver's lower / upper bound at each checkpoint, the time
-    this project needs to reach SARSOP's final lower bound, and both peaks."""
-    rows, checkpoints = [], list(data["rows"][0]["ours"]) if data["rows"] else []
-
-    def bounds(pair: Sequence[float] | None) -> str:
-        return "-" if pair is None else f"{pair[0]:.4f} / {pair[1]:.4f}"
-
-    for row in data["rows"]:
-        sarsop = row.get("sarsop", {})
-        reached = row.get("ours_seconds_to_sarsop_lower")
-        if not sarsop:
-            to_sarsop, memory = "-", f"{row['ours_peak_mb']:.0f} MB / -"
-        else:
-            to_sarsop = (
-                f"never (target {row['sarsop_final_lower']:.4f})"
-                if reached is None
-                else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
-            )
-            memory = (
-                f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
-            )
-        cells = [cell for t in checkpoints for cell in (bounds(row["ours"][t]), bounds(sarsop.get(t)))]
-        rows.append(
-            [
-                row["file"],
-                str(row["states"]),
-                str(row["observations"]),
-                row["solver"],
-                *cells,
-                to_sarsop,
-                memory,
-            ]
-        )
-    clock = data["rows"][0]["clock"] if data["rows"] else "cpu"
-    headers = [
-        "file",
-        "S",
-        "Z",
-        "solver",
-        *(f"{who} {t} s" for t in checkpoints for who in ("ours", "SARSOP")),
-        f"our {clock} s to SARSOP's final lower bound (ratio to the budget)",
-        "peak memory ours / SARSOP (ratio)",
-    ]
-    return [Table("rows", "", headers, rows)]
-
-
 RECORDED = {
     entry.name: entry
     for entry in (
@@ -2309,15 +2376,6 @@ RECORDED = {
             localisation_model_tables,
             "the fault sweep's physics episodes and scripted tours with the localiser on",
             "MUJOCO_GL=egl .venv/bin/python scripts/bench_faults.py --confusion-out PATH",
-        ),
-        Recorded(
-            "solvers-side-by-side",
-            "This project's solver beside SARSOP (generated RockSample files, Tag, cit, hallway2): lower / upper "
-            "bounds at CPU-second checkpoints, time to SARSOP's final lower bound, peak memory",
-            "results/solvers/side_by_side.json",
-            side_by_side_tables,
-            "pomdpsol built and on the PATH, and the longest checkpoint's CPU seconds per solver and file; seconds "
-            "and memory depend on the host and its load (class timing)",
         ),
     )
 }

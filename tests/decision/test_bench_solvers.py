@@ -65,3 +65,37 @@ def test_checkpoints_and_time_to_target_read_the_trace(script):
     assert script._at(trace, 1.0) == (2.0, 4.0)
     assert script._reached(trace, 2.5) == 1.5
     assert script._reached(trace, 3.5) is None
+
+
+def test_a_generated_model_is_written_for_both_solvers_and_its_convergence_recorded(tmp_path):
+    """``rocksample:N,K`` is generated into a temporary file; the JSON document goes to stdout with ``-``, the
+    table to stderr; a tiny model closes its gap, and the row says when."""
+    empty = tmp_path / "bin"
+    empty.mkdir()
+    env = {**os.environ, "PATH": str(empty), "OPENBLAS_NUM_THREADS": "1"}
+    command = [sys.executable, str(ROOT / "scripts" / "bench_solvers.py"), "--side-by-side", "rocksample:2,1"]
+    command += ["--checkpoints", "2", "--json-out", "-"]
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    document = json.loads(done.stdout)
+    assert document["pomdpsol"] is None and document["models"] == ["rocksample:2,1"]
+    (row,) = document["rows"]
+    assert row["file"] == "rocksample-2-1.pomdp" and row["model"] == "rocksample:2,1" and row["states"] == 9
+    assert row["ours_converged"] and 0.0 <= row["ours_seconds_to_converge"] <= 2.0
+    lower, upper = row["ours"]["2"]
+    assert upper - lower <= 1e-3
+    assert "| rocksample-2-1.pomdp | 9 | 2 |" in done.stderr and "yes (" in done.stderr
+
+
+@pytest.mark.parametrize(
+    ("spec", "said"), [("export:nowhere", "no chapter-5 domain 'nowhere'"), ("rocksample:0,1", "no file")]
+)
+def test_a_bad_generated_model_is_refused_before_any_solve(spec, said):
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "bench_solvers.py"), "--side-by-side", spec],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 2 and said in done.stderr and done.stderr.count("\n") == 1
