@@ -98,7 +98,8 @@ class Args:
     """models for the side-by-side table only (this project's --solver auto choice vs pomdpsol): .pomdp paths, or
     generated ones written to a temporary folder for both solvers, rocksample:N,K (RockSample[N, K], rocks of
     seed 0, as `pomdp generate rocksample`) or export:DOMAIN (the first model of a chapter-5 library, as
-    `pomdp export DOMAIN --models 1`)"""
+    `pomdp export DOMAIN --models 1`); a suffix @auto, @hsvi or @perseus sets that model's solver (default:
+    --solver)"""
     solver: str = "auto"
     """side-by-side: auto (the CLI's rule), hsvi or perseus"""
     json_out: str = ""
@@ -111,7 +112,13 @@ def parse_args() -> Args:
     if args.solver not in ("auto", "hsvi", "perseus"):
         print(f"--solver: expected auto, hsvi or perseus, got {args.solver!r}", file=sys.stderr)
         raise SystemExit(2)
-    for spec in args.side_by_side:
+    for given in args.side_by_side:
+        spec, solver = split_solver(given, args.solver)
+        if solver not in ("auto", "hsvi", "perseus"):
+            print(
+                f"--side-by-side: {given}: expected @auto, @hsvi or @perseus, got @{solver}", file=sys.stderr
+            )
+            raise SystemExit(2)
         problem = generated_spec(spec)
         if problem is None and not Path(spec).is_file():
             print(
@@ -279,6 +286,12 @@ SARSOP_TRACES = {
 }
 
 
+def split_solver(given: str, default: str) -> tuple[str, str]:
+    """A side-by-side model's spec and solver: ``MODEL@SOLVER``, or ``MODEL`` with the default solver."""
+    spec, at, solver = given.rpartition("@")
+    return (spec, solver) if at else (given, default)
+
+
 def generated_spec(spec: str) -> tuple[str, ...] | None:
     """``("rocksample", N, K)`` or ``("export", DOMAIN)`` for a generated model's spec, None for a path."""
     rock = re.fullmatch(r"rocksample:([1-9][0-9]*),([1-9][0-9]*)", spec)
@@ -307,10 +320,13 @@ def _at(trace: list[tuple[float, float, float]], seconds: float) -> tuple[float,
     return (before[-1][1], before[-1][2]) if before else None
 
 
-def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, float]], float, bool] | None:
+def sarsop_trace(
+    path: Path, seconds: float
+) -> tuple[list[tuple[float, float, float]], float, bool, float] | None:
     """Run ``pomdpsol`` for ``seconds``: its progress table (time, #trial, #backup, lb, ub, ...) parsed, its
     peak resident memory in MB (its ``VmHWM``, read every 20 ms while it runs: the rusage of its wait would carry
-    this process's own peak over the fork and exec), and whether it stopped at its target precision."""
+    this process's own peak over the fork and exec), whether it stopped at its target precision, and the unit of
+    the last digit it printed of its final lower bound."""
     binary = shutil.which("pomdpsol")
     if binary is None:
         return None
@@ -333,14 +349,22 @@ def sarsop_trace(path: Path, seconds: float) -> tuple[list[tuple[float, float, f
         output = process.stdout.read()
         process.wait()
         watcher.join()
-    trace = []
+    trace, resolution = [], 0.0
     for line in output.splitlines():
         fields = line.split()
         if len(fields) >= 5 and all(re.fullmatch(r"-?[0-9.]+(e[-+]?[0-9]+)?", f) for f in fields[:5]):
             trace.append((float(fields[0]), float(fields[3]), float(fields[4])))
+            resolution = printed_resolution(fields[3])
     # pomdpsol ends its run with the reason it stopped: its target precision (a certificate) or the timeout
     converged = "target precision reached" in output.lower()
-    return trace, max(peaks), converged
+    return trace, max(peaks), converged, resolution
+
+
+def printed_resolution(number: str) -> float:
+    """The last printed digit's unit of a decimal number as pomdpsol prints it (``13.3119``: 1e-4)."""
+    mantissa, _, exponent = number.lower().partition("e")
+    decimals = len(mantissa.partition(".")[2])
+    return 10.0 ** (int(exponent or 0) - decimals)
 
 
 def _measured_solve(path: Path, config, results) -> None:
@@ -375,13 +399,13 @@ def _reached(trace: list[tuple[float, float, float]], value: float) -> float | N
     return next((point[0] for point in trace if point[1] >= value), None)
 
 
-def side_by_side_row(path: Path, args: Args) -> dict:
+def side_by_side_row(path: Path, args: Args, solver: str | None = None) -> dict:
     """One model: pomdpsol for the longest checkpoint, then this project's solve for the same CPU seconds (the
-    CLI's --solver choice and defaults), their bounds at each checkpoint, the time each needs to SARSOP's final
-    lower bound, and both peaks."""
+    CLI's choice of ``solver``, default --solver, and its defaults), their bounds at each checkpoint, the time
+    each needs to SARSOP's final lower bound, and both peaks."""
     pomdp = read_pomdp(path)
     horizon = max(args.checkpoints)
-    solver = args.solver
+    solver = solver or args.solver
     if solver == "auto":
         solver = auto_solver(pomdp.n_states, pomdp.n_observations, pomdp.discount, None)
     if solver == "hsvi":
@@ -408,9 +432,10 @@ def side_by_side_row(path: Path, args: Args) -> dict:
         "ours_seconds_to_converge": points[-1][0] if converged and points else None,
     }
     if sarsop is not None:
-        trace, sarsop_peak, sarsop_converged = sarsop
+        trace, sarsop_peak, sarsop_converged, resolution = sarsop
         target = trace[-1][1] if trace else math.nan
-        ours_time = _reached(points, target)
+        # pomdpsol prints its bounds rounded: a lower bound within half its last digit of the printed one reached it
+        ours_time = _reached(points, target - resolution / 2)
         row.update(
             sarsop={f"{t:g}": _at(trace, t) for t in args.checkpoints},
             sarsop_peak_mb=sarsop_peak,
@@ -450,9 +475,10 @@ def side_by_side_table(args: Args) -> None:
         "rows": rows,
     }
     with tempfile.TemporaryDirectory() as folder:
-        for spec in args.side_by_side:
-            row = side_by_side_row(model_path(spec, Path(folder)), args)
-            row["model"] = spec
+        for given in args.side_by_side:
+            spec, solver = split_solver(given, args.solver)
+            row = side_by_side_row(model_path(spec, Path(folder)), args, solver)
+            row["model"] = given
             rows.append(row)
             print(side_by_side_line(row, args.checkpoints), file=table, flush=True)
             if args.json_out and not to_stdout:
@@ -463,6 +489,13 @@ def side_by_side_table(args: Args) -> None:
         print(json.dumps(document))
 
 
+def peaks(row: dict) -> str:
+    """Both peaks and their ratio; pomdpsol's is unknown when it ended before the first reading (20 ms)."""
+    if not row.get("memory_ratio"):
+        return f"{row['ours_peak_mb']:.0f} MB / - (pomdpsol ended before its memory was read)"
+    return f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
+
+
 def side_by_side_line(row: dict, checkpoints: tuple[float, ...]) -> str:
     """One model's row of the side-by-side table."""
 
@@ -470,7 +503,9 @@ def side_by_side_line(row: dict, checkpoints: tuple[float, ...]) -> str:
         return "-" if bounds is None else f"{bounds[0]:.4f} / {bounds[1]:.4f}"
 
     def certificate(converged: bool, seconds: float | None) -> str:
-        return f"yes ({seconds:.1f})" if converged else "no"
+        if not converged:
+            return "no"
+        return "yes" if seconds is None else f"yes ({seconds:.1f})"
 
     cells = []
     for t in checkpoints:
@@ -485,9 +520,7 @@ def side_by_side_line(row: dict, checkpoints: tuple[float, ...]) -> str:
             else f"{reached:.1f} s ({row['time_ratio']:.2f}x)"
         )
         cells.append(f"{ours} / {certificate(row['sarsop_converged'], row['sarsop_seconds_to_converge'])}")
-        cells.append(
-            f"{row['ours_peak_mb']:.0f} / {row['sarsop_peak_mb']:.0f} MB ({row['memory_ratio']:.1f}x)"
-        )
+        cells.append(peaks(row))
     else:
         cells += ["-", f"{ours} / -", f"{row['ours_peak_mb']:.0f} MB / -"]
     return (

@@ -99,3 +99,28 @@ def test_a_bad_generated_model_is_refused_before_any_solve(spec, said):
         check=False,
     )
     assert done.returncode == 2 and said in done.stderr and done.stderr.count("\n") == 1
+
+
+def test_a_model_may_name_its_own_solver(script):
+    assert script.split_solver("export:isr@hsvi", "auto") == ("export:isr", "hsvi")
+    assert script.split_solver("rocksample:5,6", "perseus") == ("rocksample:5,6", "perseus")
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "scripts" / "bench_solvers.py"),
+            "--side-by-side",
+            "rocksample:2,1@sarsop",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 2 and "expected @auto, @hsvi or @perseus, got @sarsop" in done.stderr
+
+
+def test_sarsop_s_printed_digits_set_how_close_counts_as_reaching_it(script):
+    assert script.printed_resolution("13.3119") == pytest.approx(1e-4)
+    assert script.printed_resolution("-6.2") == pytest.approx(0.1)
+    assert script.printed_resolution("2.5e-03") == pytest.approx(1e-4)
+    assert script.printed_resolution("20") == 1.0
