@@ -2658,8 +2658,12 @@ def run_figure(
             )
         if not figure.parallel:
             outputs[key] = finish_lane(figure, commands[key], *lanes.pop(key))
-    for key, lane in lanes.items():
-        outputs[key] = finish_lane(figure, commands[key], *lane)
+    try:
+        for key, lane in lanes.items():
+            outputs[key] = finish_lane(figure, commands[key], *lane)
+    except SystemExit:
+        stop_lanes([process for process, _ in lanes.values()])
+        raise
     return {
         "kernel": numerics["kernel"],
         "openblas_coretype": kernel,
@@ -2681,6 +2685,20 @@ def run_figure(
         "load": [round(load, 2), round(os.getloadavg()[0], 2)],
         "data": figure.extract(outputs),
     }
+
+
+def stop_lanes(processes: Sequence[subprocess.Popen], grace: float = 10.0) -> None:
+    """End the lanes still running once one has failed: the figure cannot be published without it, and lanes
+    left behind would hold the cores for hours."""
+    for process in processes:
+        if process.poll() is None:
+            process.terminate()
+    for process in processes:
+        try:
+            process.wait(timeout=grace)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
 
 
 def finish_lane(figure: Figure, command: str, process: subprocess.Popen, streams: tuple[Path, Path]) -> str:

@@ -6,10 +6,12 @@ Nothing here solves or simulates: the check renders the committed ``results/*.js
 import copy
 import importlib.util
 import json
+import os
 import re
 import shutil
 import subprocess
 import sys
+import time
 from dataclasses import replace
 from pathlib import Path
 
@@ -950,6 +952,16 @@ def test_a_figures_parallel_lanes_run_at_once_and_a_failing_lane_names_its_comma
     failing = replace(figure, commands={"first": ["sh", "-c", "echo broken >&2; exit 4"], "second": ["true"]})
     with pytest.raises(SystemExit, match=r"lanes: `sh -c 'echo broken >&2; exit 4'` exited 4:\nbroken"):
         module.run_figure(failing, None)
+    # the lane still running when another fails is ended, not left to hold a core
+    slow = ["sh", "-c", "echo $$ > ../slow-lane.pid && exec sleep 120"]
+    failing = replace(failing, commands={"first": ["sh", "-c", "sleep 0.5; exit 4"], "second": slow})
+    began = time.monotonic()
+    with pytest.raises(SystemExit, match="exited 4"):
+        module.run_figure(failing, None)
+    assert time.monotonic() - began < 60
+    pid = int((tmp_path / "slow-lane.pid").read_text())
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)
 
 
 def teamster_lane(agents, shift: float = 0.0, steps=(0, 500)) -> str:
