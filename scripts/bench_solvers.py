@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
-from embodied_adhoc.commands.pomdp import auto_solver
+from embodied_adhoc.commands.pomdp import auto_solver, solver_features
 from embodied_adhoc.decision import memory
 from embodied_adhoc.decision.backup import BackupOperator
 from embodied_adhoc.decision.beliefs import collect_beliefs
@@ -407,7 +407,9 @@ def side_by_side_row(path: Path, args: Args, solver: str | None = None) -> dict:
     horizon = max(args.checkpoints)
     solver = solver or args.solver
     if solver == "auto":
-        solver = auto_solver(pomdp.n_states, pomdp.n_observations, pomdp.discount, None)
+        solver = auto_solver(
+            pomdp.n_states, pomdp.n_observations, pomdp.discount, None, **solver_features(pomdp)
+        )
     if solver == "hsvi":
         config = HsviConfig(time_limit=horizon, clock=args.clock)
     else:

@@ -18,18 +18,43 @@ AUTO_MIN_STATES = 200
 """``--solver auto`` picks HSVI for infinite-horizon models with at least this many states and at most that many
 observations (the RockSample class: long information-gathering horizons, where trials down the optimally
 reachable beliefs beat a sampled belief set), else Perseus (docs/pomdp.md, "Choosing a solver")."""
+AUTO_MAX_START_SHARE = 0.1
+AUTO_MAX_OBSERVATION_SHARE = 0.25
+"""... and for those whose initial belief covers at most this share of the states and whose states each emit at
+most that share of the observations on average (the chapter-5 navigation models: a known start, a sensor that
+reads the neighbourhood): their optimally reachable beliefs stay few and narrow, so trials close the gap that a
+sampled belief set leaves open. A dense observation model (the classic corpus's cit, mit, sunysb: every state
+can emit most observations) or a spread start (Tag) widens every trial step, and Perseus is ahead there."""
 
 
-def auto_solver(n_states: int, n_observations: int, discount: float, horizon: int | None) -> str:
-    """The solver ``--solver auto`` runs on a model of these sizes (rule: :data:`AUTO_MIN_STATES`)."""
-    if (
-        horizon is None
-        and discount < 1.0
-        and n_states >= AUTO_MIN_STATES
-        and n_observations <= AUTO_MAX_OBSERVATIONS
-    ):
+def auto_solver(
+    n_states: int,
+    n_observations: int,
+    discount: float,
+    horizon: int | None,
+    start_share: float = 1.0,
+    observation_share: float = 1.0,
+) -> str:
+    """The solver ``--solver auto`` runs on a model of these sizes, whose initial belief covers ``start_share``
+    of the states and whose states emit ``observation_share`` of the observations on average (rule:
+    :data:`AUTO_MIN_STATES`, :data:`AUTO_MAX_START_SHARE`; the shares from :func:`solver_features`)."""
+    if horizon is not None or discount >= 1.0 or n_states < AUTO_MIN_STATES:
+        return "perseus"
+    if n_observations <= AUTO_MAX_OBSERVATIONS:
+        return "hsvi"
+    if start_share <= AUTO_MAX_START_SHARE and observation_share <= AUTO_MAX_OBSERVATION_SHARE:
         return "hsvi"
     return "perseus"
+
+
+def solver_features(pomdp) -> dict[str, float]:
+    """What :func:`auto_solver` reads of a model besides its sizes: the share of states on the initial belief's
+    support, and the mean over actions and end states of the share of observations with nonzero probability."""
+    import numpy as np
+
+    start = np.count_nonzero(np.asarray(pomdp.initial_belief)) / pomdp.n_states
+    emitted = np.mean([np.diff(matrix.indptr).mean() for matrix in pomdp.observations])
+    return {"start_share": float(start), "observation_share": float(emitted / pomdp.n_observations)}
 
 
 _POSITIVE_INT = bounded(int, 1, "an integer >= 1")
@@ -56,8 +81,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--solver",
         choices=SOLVERS,
         default="auto",
-        help=f"default: auto = hsvi for infinite-horizon models with >= {AUTO_MIN_STATES} states and <= "
-        f"{AUTO_MAX_OBSERVATIONS} observations, else perseus; hsvi = heuristic search value iteration (trials "
+        help=f"default: auto = hsvi for infinite-horizon models with >= {AUTO_MIN_STATES} states and either <= "
+        f"{AUTO_MAX_OBSERVATIONS} observations, or an initial belief on <= {AUTO_MAX_START_SHARE * 100:.0f}%% of "
+        f"the states and states that each emit <= {AUTO_MAX_OBSERVATION_SHARE * 100:.0f}%% of the observations on "
+        "average; else perseus; hsvi = heuristic search value iteration (trials "
         "from b0 guided by the bounds' gap; uses --precision, --trials, --max-depth, --time-limit, --clock, "
         "--threads)",
     )
@@ -289,7 +316,9 @@ def _solve(args: argparse.Namespace) -> int:
     pomdp = _load(args)
     memory.trim()  # the reader's objects are gone: the solve starts from the model alone
     if args.solver == "auto":
-        args.solver = auto_solver(pomdp.n_states, pomdp.n_observations, pomdp.discount, args.horizon)
+        args.solver = auto_solver(
+            pomdp.n_states, pomdp.n_observations, pomdp.discount, args.horizon, **solver_features(pomdp)
+        )
         _check_hsvi_flags(args, chosen=True)
     if args.solver == "perseus" and args.beliefs * pomdp.n_states > MAX_BELIEF_ENTRIES:
         raise ConfigError(

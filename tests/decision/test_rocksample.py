@@ -8,8 +8,9 @@ import json
 import numpy as np
 import pytest
 
+from embodied_adhoc import paths
 from embodied_adhoc.cli import main
-from embodied_adhoc.commands.pomdp import auto_solver
+from embodied_adhoc.commands.pomdp import auto_solver, solver_features
 from embodied_adhoc.decision.pomdp_io import read_pomdp
 from embodied_adhoc.decision.rocksample import rock_positions, rocksample
 from embodied_adhoc.errors import ConfigError
@@ -87,6 +88,26 @@ def test_auto_picks_hsvi_for_large_few_observation_models_only():
     assert auto_solver(870, 30, 0.95, None) == "perseus"  # Tag: many observations
     assert auto_solver(3201, 2, 0.95, 10) == "perseus"  # finite horizon: only Perseus solves it
     assert auto_solver(3201, 2, 1.0, None) == "perseus"
+
+
+
+def test_auto_picks_hsvi_for_navigation_models_with_a_known_start_and_a_local_sensor():
+    # the chapter-5 exports (isr: a start on 12 of 1,807 states, each state emitting 17 % of the 81 observations)
+    assert auto_solver(1807, 81, 0.95, None, start_share=0.0066, observation_share=0.17) == "hsvi"
+    # a dense observation model (the classic corpus's cit: 96 % of the observations from every state)
+    assert auto_solver(284, 28, 0.95, None, start_share=0.0035, observation_share=0.96) == "perseus"
+    # a spread start (Tag: 97 % of the states, one observation each)
+    assert auto_solver(870, 30, 0.95, None, start_share=0.97, observation_share=0.033) == "perseus"
+    assert auto_solver(150, 81, 0.95, None, start_share=0.01, observation_share=0.1) == "perseus"  # small
+
+
+def test_solver_features_read_the_start_s_support_and_the_observations_each_state_emits():
+    tiger = read_pomdp(paths.asset("data/tiger.95.POMDP"))
+    assert solver_features(tiger) == {"start_share": 1.0, "observation_share": 1.0}
+    rock = rocksample(3, 2, 4)  # the robot's cell is known, the rocks are not: 4 of 37 states at the start
+    features = solver_features(rock)
+    assert features["start_share"] == np.count_nonzero(rock.initial_belief) / rock.n_states < 0.25
+    assert 0.0 < features["observation_share"] <= 1.0
 
 
 def test_cli_auto_runs_hsvi_on_rocksample(tmp_path, capsys):
