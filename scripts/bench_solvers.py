@@ -103,7 +103,7 @@ class Args:
     solver: str = "auto"
     """side-by-side: auto (the CLI's rule), hsvi or perseus"""
     json_out: str = ""
-    """side-by-side: also write the rows to this JSON file (e.g. results/solvers/side_by_side.json); '-': print the
+    """side-by-side: also write the rows to this JSON file (e.g. /tmp/side-by-side.json); '-': print the
     JSON document alone on stdout, the table going to stderr"""
 
 

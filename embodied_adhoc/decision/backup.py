@@ -41,7 +41,7 @@ _DENSE_DENSITY = 0.1  # observation-matrix density from which scores use a dense
 _DENSE_MAX_ELEMENTS = 20_000_000
 _EPS = float(np.finfo(np.float64).eps)
 _SPLIT_MIN_WORK = 1 << 22  # multiply-adds (nnz x columns) from which a product is split over the threads
-_BLOCK_ENTRIES = 1 << 20  # entries of a reduced product formed at once (RowProducts: 8 MiB of float64)
+_BLOCK_ENTRIES = 1 << 18  # entries of a reduced product formed at once (RowProducts: 2 MiB of float64)
 DENSE_BLOCK_BYTES = 8 * _BLOCK_ENTRIES  # a block of the dense projection, or of its scores (_dense_choices)
 
 
@@ -461,8 +461,8 @@ def _dense_choices(
     The projection and its scores are formed for a block of vectors at a time (:func:`_vector_blocks`): each block
     adds to the running first maximum and runner-up of every branch, and keeps its entries within ``margin`` of
     the running maximum (a superset of the final candidates, since that maximum only grows); every block is formed
-    in the same two buffers (blocks of 8 MiB, above glibc's mapping threshold, would otherwise each map, fault in
-    and unmap pages of their own: time spent in the kernel). Which vector wins is
+    in the same two buffers (blocks mapped afresh would each fault in and unmap pages of their own: time spent in
+    the kernel). Which vector wins is
     the first maximum of the fixed-order scores whatever the blocks, so the result is the one of a single product.
     Impossible branches (all scores 0) are left to the caller's fallback. The continuation is summed from
     fixed-order scores of the chosen vectors alone."""

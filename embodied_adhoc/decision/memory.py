@@ -61,11 +61,12 @@ def peak_mb(pid: int | str = "self") -> float | None:
     return None
 
 
-# Bytes from which a block is mapped on its own and unmapped when freed. Above the backups' dense blocks
-# (backup.DENSE_BLOCK_BYTES, 8 MiB), which a stage forms and frees thousands of times: mapped afresh, each would
-# be faulted in page by page, and the kernel's zeroing of those pages would cost as much CPU as the products
-# themselves. 32 MiB is the ceiling that glibc's own dynamic threshold stops at on 64-bit hosts.
-_MALLOC_THRESHOLD = 32 << 20
+# Bytes from which a block is mapped on its own and unmapped when freed, and free memory at the heap's top beyond
+# which the heap shrinks. Twice the backups' dense blocks (backup.DENSE_BLOCK_BYTES, 2 MiB), which a stage forms and
+# frees thousands of times: mapped afresh, each would be faulted in page by page, and the kernel's zeroing of those
+# pages would cost as much CPU as the products themselves; reused from the heap, they leave holes of at most their
+# own size, so the peak stays near what is live.
+_MALLOC_THRESHOLD = 4 << 20
 _M_TRIM_THRESHOLD, _M_MMAP_THRESHOLD = -1, -3  # glibc's mallopt parameters
 
 
@@ -84,9 +85,9 @@ def return_freed_memory() -> None:
 
     glibc raises its mapping threshold to the size of each large block freed, and the heap's trim threshold to
     twice that, so a solver's transient products would hold the process's resident size (and its peak, the
-    figure compared with SARSOP's) at their high-water mark. Fixed thresholds of 32 MiB map the arrays from that
-    size on by themselves, returned when freed, and give free memory beyond 32 MiB at the heap's top back; the
-    blocks below that size (the backups' 8 MiB blocks above all) are reused from the heap."""
+    figure compared with SARSOP's) at their high-water mark. Fixed thresholds of 4 MiB map the arrays from that
+    size on by themselves, returned when freed, and give free memory beyond 4 MiB at the heap's top back; the
+    blocks below that size (the backups' 2 MiB blocks above all) are reused from the heap."""
     libc = _glibc()
     if libc is not None:
         libc.mallopt(_M_MMAP_THRESHOLD, _MALLOC_THRESHOLD)
