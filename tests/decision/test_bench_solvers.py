@@ -124,3 +124,23 @@ def test_sarsop_s_printed_digits_set_how_close_counts_as_reaching_it(script):
     assert script.printed_resolution("-6.2") == pytest.approx(0.1)
     assert script.printed_resolution("2.5e-03") == pytest.approx(1e-4)
     assert script.printed_resolution("20") == 1.0
+
+
+def test_the_allocation_bench_runs_the_same_work_under_each_setting(tmp_path):
+    """scripts/bench_solver_memory.py: one fresh process per setting, the same bounds in each, ratios to the first."""
+    out = tmp_path / "rows.json"
+    command = [
+        sys.executable,
+        str(ROOT / "scripts" / "bench_solver_memory.py"),
+        "--job",
+        "hsvi:rocksample:3,2:4",
+    ]
+    command += ["--setting", "1:8", "--setting", "4:2", "--json", str(out)]
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    first, second = json.loads(out.read_text())["rows"]
+    assert (first["setting"], second["setting"]) == ("1:8", "4:2")
+    assert (first["lower"], first["upper"]) == (second["lower"], second["upper"])
+    assert first["cpu"] > 0 and first["peak_mb"] > 0 and first["faults"] >= 0
+    assert "| hsvi:rocksample:3,2:4 | 1:8 | " in done.stdout and " | 1.00 | " in done.stdout
