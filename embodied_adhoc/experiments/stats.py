@@ -199,6 +199,18 @@ def welch_test(first: Sequence[float], second: Sequence[float]) -> tuple[float, 
     )  # fmt: skip
 
 
+def holm_adjusted(pvalues: Sequence[float]) -> np.ndarray:
+    """Holm's step-down adjustment of ``m`` p-values for the family-wise error rate: the k-th smallest times
+    ``m - k + 1``, made non-decreasing in that order and capped at 1, returned in the input's order. A test is
+    rejected at family-wise level alpha where its adjusted p-value is below alpha."""
+    p = np.asarray(pvalues, dtype=np.float64)
+    order = np.argsort(p, kind="stable")
+    scaled = np.minimum(1.0, p[order] * (p.size - np.arange(p.size)))
+    adjusted = np.empty_like(p)
+    adjusted[order] = np.maximum.accumulate(scaled) if p.size else scaled
+    return adjusted
+
+
 def _sample_sd(sample: np.ndarray) -> float:
     return float(sample.std(ddof=1)) if sample.size > 1 else math.nan
 

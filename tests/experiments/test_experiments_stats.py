@@ -10,6 +10,7 @@ from scipy import stats
 
 from embodied_adhoc.experiments.stats import (
     compare_pairs,
+    holm_adjusted,
     identify_step,
     improvement_interval,
     interquartile_mean,
@@ -195,3 +196,19 @@ def test_entropy_band_stays_inside_0_1():
     assert np.all(curve["low"] >= 0.0) and np.all(curve["high"] <= 1.0)
     assert np.all(curve["low"] <= curve["mean"]) and np.all(curve["mean"] <= curve["high"])
     assert mean_curve(curves)["low"] == pytest.approx(curve["low"])  # seeded
+
+
+def test_holm_adjustment_by_hand():
+    # sorted 0.01, 0.02, 0.04 scaled by 3, 2, 1 -> 0.03, 0.04, 0.04; the input's order kept
+    assert holm_adjusted([0.04, 0.01, 0.02]).tolist() == pytest.approx([0.04, 0.03, 0.04])
+    assert holm_adjusted([0.5, 0.9]).tolist() == [1.0, 1.0]  # capped at 1
+    assert holm_adjusted([]).size == 0
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=1, max_size=30))
+def test_holm_never_lowers_a_p_value_and_keeps_their_order(pvalues):
+    adjusted = holm_adjusted(pvalues)
+    assert np.all(adjusted >= np.asarray(pvalues) - 1e-15) and np.all(adjusted <= 1.0)
+    order = np.argsort(pvalues, kind="stable")
+    assert np.all(np.diff(adjusted[order]) >= 0)
