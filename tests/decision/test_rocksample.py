@@ -90,7 +90,6 @@ def test_auto_picks_hsvi_for_large_few_observation_models_only():
     assert auto_solver(3201, 2, 1.0, None) == "perseus"
 
 
-
 def test_auto_picks_hsvi_for_navigation_models_with_a_known_start_and_a_local_sensor():
     # the chapter-5 exports (isr: a start on 12 of 1,807 states, each state emitting 17 % of the 81 observations)
     assert auto_solver(1807, 81, 0.95, None, start_share=0.0066, observation_share=0.17) == "hsvi"
