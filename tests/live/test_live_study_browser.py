@@ -31,6 +31,7 @@ pytestmark = pytest.mark.slow
 
 CHROMIUM, DRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 SPEED = 3.0
+ESCAPE_AFTER = 30.0  # simulated s without a step closer to the point before the walker tries a spot nearby
 PLAN = {
     "episodes": [{"agent": agent, "seed": seed} for agent in ("hotspot", "known-task") for seed in (0, 1, 2)],
     "questionnaire": [
@@ -92,6 +93,7 @@ class ScriptedParticipant:
         self.answers = 0
         self.shot_question = False
         self.clock = SimClock(driver)
+        self.rng = np.random.default_rng(0)  # the escape spots (ScriptedParticipant._escape_spot)
 
     def stats(self, expression: str):
         return self.driver.execute_script(f"return window.liveStats.{expression};")
@@ -145,6 +147,10 @@ class ScriptedParticipant:
         waypoints: list = []
         planned_from = None
         stuck_since, last = self.clock.elapsed, None
+        # No step closer to the point for ESCAPE_AFTER simulated s (blocked where walking round the robot does not
+        # help, or going to and fro across an area's border as the plan flips): walk to a random spot nearby,
+        # then plan afresh.
+        nearest, nearest_at, escape = np.inf, self.clock.elapsed, None
         while True:
             self.answer_if_asked()
             state = self.state()
@@ -153,6 +159,20 @@ class ScriptedParticipant:
                 return False
             deadline.check(f": state {state}", read=False)
             here = np.array(state["human"])
+            distance = float(np.hypot(*(np.array(point, dtype=float) - here)))
+            if distance < nearest - 0.3:
+                nearest, nearest_at = distance, self.clock.elapsed
+            elif escape is None and self.clock.elapsed - nearest_at > ESCAPE_AFTER:
+                escape = (self._escape_spot(here), self.clock.elapsed)
+            if escape is not None:
+                spot, since = escape
+                if np.abs(spot - here).max() < max(0.3, lead) or self.clock.elapsed - since > 3 * SPEED:
+                    escape, planned_from = None, None  # there (or as near as it gets): plan afresh
+                    nearest, nearest_at = distance, self.clock.elapsed
+                    continue
+                self.hold(self._keys_towards(spot - here, lead))
+                time.sleep(0.03)
+                continue
             if state["human_node"] != planned_from:  # (re)plan from the area the walker is in
                 planned_from = state["human_node"]
                 waypoints = [np.array(p) for p in LAB_LAYOUT.route(planned_from, area, spots="human")[:-1]]
@@ -166,15 +186,7 @@ class ScriptedParticipant:
             if not final and np.abs(offset).max() < max(0.3, lead):
                 waypoints.pop(0)
                 continue
-            keys = set()
-            if offset[0] > lead / 2:
-                keys.add("right")
-            elif offset[0] < -lead / 2:
-                keys.add("left")
-            if offset[1] > lead / 2:
-                keys.add("up")
-            elif offset[1] < -lead / 2:
-                keys.add("down")
+            keys = self._keys_towards(offset, lead)
             if last is None or np.hypot(*(here - last)) > 0.05:
                 stuck_since, last = self.clock.elapsed, here
             elif self.clock.elapsed - stuck_since > SPEED:  # blocked (the robot in the way): walk round it
@@ -183,6 +195,29 @@ class ScriptedParticipant:
                 continue
             self.hold(keys)
             time.sleep(0.03)
+
+    @staticmethod
+    def _keys_towards(offset, lead: float) -> set[str]:
+        """The arrow keys that move the walker along ``offset`` (each axis beyond half the lead)."""
+        keys = set()
+        if offset[0] > lead / 2:
+            keys.add("right")
+        elif offset[0] < -lead / 2:
+            keys.add("left")
+        if offset[1] > lead / 2:
+            keys.add("up")
+        elif offset[1] < -lead / 2:
+            keys.add("down")
+        return keys
+
+    def _escape_spot(self, here) -> np.ndarray:
+        """A spot a person can stand on 1-2 m from ``here`` (the participant's own seeded draws)."""
+        for _ in range(200):
+            angle, reach = self.rng.uniform(0.0, 2 * np.pi), self.rng.uniform(1.0, 2.0)
+            spot = here + reach * np.array([np.cos(angle), np.sin(angle)])
+            if walkable(LAB_LAYOUT, spot):
+                return spot
+        return here
 
     @staticmethod
     def _round_the_robot(here, target, robot) -> list:
