@@ -11,6 +11,7 @@ import argparse
 import difflib
 import math
 import os
+import stat
 from collections.abc import Iterable, Mapping
 
 import numpy as np
@@ -137,7 +138,10 @@ def read_text(
     ``Path.read_text``."""
     try:
         with open(path, encoding="utf-8", errors="replace" if replace else "strict") as stream:
-            text = stream.read(limit + 1)
+            # a read of n characters reserves room for n, so a regular file reads its own size, not the limit
+            size = os.fstat(stream.fileno())
+            count = limit + 1 if not stat.S_ISREG(size.st_mode) else min(limit, size.st_size) + 1
+            text = stream.read(count)
     except FileNotFoundError:
         raise error(f"{path}: no such file ({what})") from None
     except OSError as failure:

@@ -200,3 +200,25 @@ def test_bad_confusion_matrices_are_refused_naming_file_and_field(tmp_path, chan
     with pytest.raises(ConfigError) as caught:
         load_confusion(path)
     assert str(caught.value).startswith(f"{path}: field 'matrix': ") and expected in str(caught.value)
+
+
+def test_a_small_file_under_a_large_limit_reserves_its_own_size_only(tmp_path):
+    import tracemalloc
+
+    from embodied_adhoc.checks import read_text
+
+    path = tmp_path / "model.pomdp"
+    path.write_text("discount: 0.95\n" * 100)
+    tracemalloc.start()
+    try:
+        assert read_text(path, 256 * 2**20, "POMDP file") == "discount: 0.95\n" * 100
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 2**20  # a 1.5 kB file, not the 256 MiB a read up to the limit reserves
+    fifo = tmp_path / "stream"
+    os.mkfifo(fifo)  # no size to go by: still read up to the limit, and refused past it
+    writer = subprocess.Popen([sys.executable, "-c", f"open({str(fifo)!r}, 'w').write('x' * 101)"])
+    with pytest.raises(Exception, match="100-character limit"):
+        read_text(fifo, 100, "POMDP file")
+    writer.wait(timeout=30)
