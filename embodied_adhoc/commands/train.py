@@ -82,17 +82,20 @@ def _train_recurrent(args, agent: str, settings, run, postfix, last) -> int:
     return 0
 
 
-def _common(args) -> tuple:
-    return (
-        args.domain,
-        str(args.out),
-        args.steps,
-        args.seed,
-        args.envs,
-        args.rollout,
-        args.device,
-        args.threads,
-    )
+def _common(args) -> dict:
+    """The settings every recurrent PPO agent's training takes from its flags."""
+    return {
+        "domain": args.domain,
+        "out": str(args.out),
+        "steps": args.steps,
+        "seed": args.seed,
+        "envs": args.envs,
+        "rollout": args.rollout,
+        "device": args.device,
+        "threads": args.threads,
+        "teammates": args.teammates,
+        "pipeline": args.pipeline,
+    }
 
 
 def handle_generalist(args: argparse.Namespace) -> int:
@@ -105,7 +108,7 @@ def handle_generalist(args: argparse.Namespace) -> int:
     return _train_recurrent(
         args,
         "ppo-generalist",
-        lambda: GeneralistTraining(*_common(args), teammates=args.teammates),
+        lambda: GeneralistTraining(**_common(args)),
         train_generalist_run,
         postfix,
         lambda final: f"solved {final.get('solved')}",
@@ -120,9 +123,7 @@ def handle_liam(args: argparse.Namespace) -> int:
     return _train_recurrent(
         args,
         "liam",
-        lambda: LiamTraining(
-            *_common(args), teammates=args.teammates, reconstruction_coef=args.reconstruction
-        ),
+        lambda: LiamTraining(**_common(args), reconstruction_coef=args.reconstruction),
         train_liam_run,
         lambda row: f"{_length(row)} reconstruction {row['reconstruction_loss']:.3f}",
         lambda final: f"reconstruction loss {final.get('reconstruction_loss')}",
@@ -139,7 +140,7 @@ def handle_meliba(args: argparse.Namespace) -> int:
     return _train_recurrent(
         args,
         "meliba",
-        lambda: MelibaTraining(*_common(args), teammates=args.teammates, latent=args.latent, kl_coef=args.kl),
+        lambda: MelibaTraining(**_common(args), latent=args.latent, kl_coef=args.kl),
         train_meliba_run,
         lambda row: f"{_length(row)} elbo {row['elbo_loss']:.3f} variance {row['posterior_variance']:.3f}",
         lambda final: f"negative ELBO {final.get('elbo_loss')}",
@@ -304,6 +305,12 @@ def _recurrent_parser(kinds, name: str, steps: int, **texts) -> argparse.Argumen
     )
     parser.add_argument("--device", choices=("auto", "cpu", "cuda"), default="cpu")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads (default 1)")
+    parser.add_argument(
+        "--pipeline",
+        action="store_true",
+        help="grid domains: run the policy of half the sub-envs on a second thread while the env steps the "
+        "other half (faster collection with many --envs on two or more cores; the same weights)",
+    )
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument(
         "--out", type=output_folder, required=True, help="folder for the weights, curve and checkpoint"

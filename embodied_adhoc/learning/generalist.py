@@ -230,10 +230,16 @@ class GeneralistTraining:
     device: str = "cpu"
     threads: int = 1
     teammates: int = 0  # the first N teams or train members; 0: all of them
+    pipeline: bool = False  # RecurrentPpoConfig.pipeline (grid domains)
 
     def __post_init__(self) -> None:
         if self.domain not in DOMAINS:
             raise ConfigError(f"--domain {self.domain}: use one of {', '.join(DOMAINS)}")
+        if self.pipeline and self.domain not in GRID_DOMAINS:
+            raise ConfigError(
+                f"--pipeline: the rollout pipeline steps the grid domains ({', '.join(GRID_DOMAINS)}) only; "
+                f"drop it for {self.domain}"
+            )
         if self.domain in GRID_DOMAINS and not 0 <= self.teammates <= len(TRAIN_TEAMS):
             raise ConfigError(f"--teammates {self.teammates}: give 1..{len(TRAIN_TEAMS)} or 0 for all")
 
@@ -248,6 +254,7 @@ class GeneralistTraining:
             minibatches=minibatches,
             seed=self.seed,
             device=self.device,
+            pipeline=self.pipeline,
         )
 
     def env_kwargs(self) -> dict:

@@ -103,13 +103,14 @@ def advantages_and_returns(rewards, values, next_value, ended, terminal, config:
     return advantages, advantages + values
 
 
-def start_training(domain: str, env_kwargs: dict, config: PpoConfig):
+def start_training(domain: str, env_kwargs: dict, config: PpoConfig, vector_env=GridVectorEnv):
     """What every PPO run begins with, in this order (the seeds' use depends on it): torch seeded, the minibatch
-    Generator, the device, the vector env reset with the seed, and the network sizes its observations give."""
+    Generator, the device, the vector env (``vector_env(domain, num_envs, **env_kwargs)``) reset with the seed,
+    and the network sizes its observations give."""
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
     device = pick_device(config.device)
-    env = GridVectorEnv(domain, config.num_envs, **env_kwargs)
+    env = vector_env(domain, config.num_envs, **env_kwargs)
     observation, _ = env.reset(seed=config.seed)
     network = NetworkConfig(
         channels=observation.shape[1],

@@ -46,6 +46,7 @@ from embodied_adhoc.learning.ppo import (
     pick_device,
     start_training,
 )
+from embodied_adhoc.learning.rollout_pipeline import rollout_steps
 from embodied_adhoc.learning.vector_grid import GridVectorEnv
 from embodied_adhoc.learning.weights import WeightsError, load_weights, save_weights
 
@@ -63,6 +64,10 @@ class RecurrentPpoConfig(PpoConfig):
     learning_rate: float = 5e-4
     recurrent: int = 64  # GRU state size
     checkpoint_every: int = 25  # updates between checkpoints
+    # grid domains: step the policy of one half of the sub-envs while the env steps the other (a second thread,
+    # rollout_pipeline); the same run where the network's kernels treat rows alike, so, like ``device``, not
+    # part of a checkpoint's identity
+    pipeline: bool = False
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -176,33 +181,45 @@ _BATCH_FIELDS = ("agents", "agent_levels", "targets", "target_levels", "alive")
 _ENV_ARRAYS = ("task_index", "team_index", "steps", "needs_reset", "uniforms", "used")
 
 
-def _env_state(env: GridVectorEnv) -> tuple[dict[str, torch.Tensor], dict]:
+def _env_state(env) -> tuple[dict[str, torch.Tensor], dict]:
     """Everything a :class:`GridVectorEnv` carries from one step to the next: its state arrays (tensors) and its
-    Generators' states (JSON). The episode's offsets and team table follow from the task and team indices. An
-    index domain's env (its episodes live in registered envs and plug-in humans) is restarted instead."""
-    if not isinstance(env, GridVectorEnv):
+    Generators' states (JSON); a :class:`~embodied_adhoc.learning.rollout_pipeline.HalvedGridEnv`'s halves
+    concatenated, which is the single env's state (a checkpoint resumes with or without the pipeline). The
+    episode's offsets and team table follow from the task and team indices. An index domain's env (its episodes
+    live in registered envs and plug-in humans) is restarted instead."""
+    halves = getattr(env, "halves", (env,))
+    if not all(isinstance(half, GridVectorEnv) for half in halves):
         return {}, {"restart": True}
-    tensors = {f"env.batch.{n}": torch.from_numpy(getattr(env.batch, n).copy()) for n in _BATCH_FIELDS}
-    tensors.update({f"env.{n}": torch.from_numpy(getattr(env, n).copy()) for n in _ENV_ARRAYS})
-    header = {"rngs": [rng.bit_generator.state for rng in env.rngs], "block_states": env.block_states}
+
+    def joined(read) -> torch.Tensor:
+        return torch.from_numpy(np.concatenate([read(half) for half in halves]))
+
+    tensors = {f"env.batch.{n}": joined(lambda h, n=n: getattr(h.batch, n)) for n in _BATCH_FIELDS}
+    tensors.update({f"env.{n}": joined(lambda h, n=n: getattr(h, n)) for n in _ENV_ARRAYS})
+    header = {
+        "rngs": [rng.bit_generator.state for half in halves for rng in half.rngs],
+        "block_states": [state for half in halves for state in half.block_states],
+    }
     return tensors, header
 
 
-def _restore_env(env: GridVectorEnv, tensors: dict, header: dict) -> None:
+def _restore_env(env, tensors: dict, header: dict) -> None:
     if header.get("restart"):
         return
-    for name in _BATCH_FIELDS:
-        getattr(env.batch, name)[...] = tensors[f"env.batch.{name}"].numpy()
-    for name in _ENV_ARRAYS:
-        getattr(env, name)[...] = tensors[f"env.{name}"].numpy()
-    env.rngs = []
-    for state in header["rngs"]:
-        rng = np.random.Generator(np.random.PCG64())
-        rng.bit_generator.state = state
-        env.rngs.append(rng)
-    env.block_states = list(header["block_states"])
-    env.episode_offsets = env.offsets[env.task_index]
-    env.episode_teams = env.team_table.take(env.team_index)
+    halves, rows = getattr(env, "halves", (env,)), getattr(env, "rows", (slice(None),))
+    for half, part in zip(halves, rows, strict=True):
+        for name in _BATCH_FIELDS:
+            getattr(half.batch, name)[...] = tensors[f"env.batch.{name}"].numpy()[part]
+        for name in _ENV_ARRAYS:
+            getattr(half, name)[...] = tensors[f"env.{name}"].numpy()[part]
+        half.rngs = []
+        for state in header["rngs"][part]:
+            rng = np.random.Generator(np.random.PCG64())
+            rng.bit_generator.state = state
+            half.rngs.append(rng)
+        half.block_states = list(header["block_states"][part])
+        half.episode_offsets = half.offsets[half.task_index]
+        half.episode_teams = half.team_table.take(half.team_index)
 
 
 def _save_checkpoint(
@@ -242,7 +259,10 @@ def _load_checkpoint(path: Path, config: RecurrentPpoConfig, env_kwargs: dict):
         raise WeightsError(f"{path}: not a ppo-generalist checkpoint (kind={header.get('kind')!r})")
     wanted = asdict(config)
     stored = header["config"]
-    differ = [k for k in wanted if k != "device" and stored.get(k) != wanted[k]]
+    defaults = asdict(RecurrentPpoConfig())  # a setting added later reads as its default in older checkpoints
+    differ = [
+        k for k in wanted if k not in ("device", "pipeline") and stored.get(k, defaults.get(k)) != wanted[k]
+    ]
     if differ or header["env_kwargs"] != json.loads(json.dumps(env_kwargs)):
         names = ", ".join(f"{k} {stored.get(k)!r} (now {wanted[k]!r})" for k in differ) or "env settings"
         raise ConfigError(
@@ -259,7 +279,7 @@ def _json_ready(state: list[dict]) -> list[dict]:
 def _fresh_carried(model: RecurrentActorCritic, observation, envs: int) -> dict:
     """The rollout's carried state at the start of every sub-env's first episode."""
     return {
-        "observation": torch.as_tensor(observation),
+        "observation": torch.tensor(observation),  # a copy: the rollout updates it in place
         "hidden": model.initial_state(envs),
         "previous": torch.full((envs,), model.no_action, dtype=torch.long),
         "fresh": torch.ones(envs, dtype=torch.bool),  # the observation is an episode's first
@@ -274,7 +294,13 @@ def _start(domain: str, vector_kwargs: dict, config: RecurrentPpoConfig):
     from embodied_adhoc.learning.index_domains import INDEX_DOMAINS, IndexNetworkConfig, IndexVectorEnv
 
     if domain not in INDEX_DOMAINS:
+        if config.pipeline:
+            from embodied_adhoc.learning.rollout_pipeline import HalvedGridEnv
+
+            return start_training(domain, vector_kwargs, config, vector_env=HalvedGridEnv)
         return start_training(domain, vector_kwargs, config)
+    if config.pipeline:
+        raise ConfigError(f"pipeline: the rollout pipeline steps the grid domains only, not {domain}")
     env = IndexVectorEnv(domain, config.num_envs, **vector_kwargs)  # it draws nothing until its reset
     torch.manual_seed(config.seed)
     rng, device = np.random.default_rng(config.seed), pick_device(config.device)
@@ -386,28 +412,36 @@ def train_recurrent_ppo(
         if config.anneal_lr:
             optimiser.param_groups[0]["lr"] = config.learning_rate * (1.0 - update / result.total_updates)
         first_hidden = carried["hidden"].clone()
-        next_obs, hidden, previous = carried["observation"], carried["hidden"], carried["previous"]
-        fresh, resetting, lengths = carried["fresh"], carried["resetting"], carried["lengths"]
+        lengths = carried["lengths"]
         finished, solved = [], []
-        for t in range(steps):
-            obs_buf[t], previous_buf[t], start_buf[t], valid_buf[t] = next_obs, previous, fresh, ~resetting
-            action, logprob, value, hidden = rollout_step(model, next_obs, previous, hidden, fresh)
-            action_buf[t], logprob_buf[t], value_buf[t] = action, logprob, value
-            observation, reward, terminated, truncated, infos = env.step(action.cpu().numpy())
+
+        def act(t: int, rows: slice, state: dict) -> torch.Tensor:
+            obs_buf[t, rows], previous_buf[t, rows] = state["observation"], state["previous"]
+            start_buf[t, rows], valid_buf[t, rows] = state["fresh"], ~state["resetting"]
+            action, logprob, value, hidden = rollout_step(
+                model, state["observation"], state["previous"], state["hidden"], state["fresh"]
+            )
+            action_buf[t, rows], logprob_buf[t, rows], value_buf[t, rows] = action, logprob, value
+            state["hidden"][...] = hidden
+            return action
+
+        for t, _, reward, terminated, truncated, infos in rollout_steps(env, act, carried, steps):
             if auxiliary is not None:
                 auxiliary.record(t, infos)
                 if getattr(auxiliary, "records_steps", False):  # targets built from the ego's own steps
-                    auxiliary.record_step(t, action, reward, terminated)
+                    auxiliary.record_step(t, action_buf[t], reward, terminated)
             result.env_steps += envs
             ended = torch.as_tensor(terminated | truncated, device=device)
-            lengths = lengths + (~resetting).long()
+            lengths = lengths + valid_buf[t].long()
             finished.extend(lengths[ended].tolist())
             solved.extend(terminated[(terminated | truncated)].tolist())
             lengths = torch.where(ended, torch.zeros_like(lengths), lengths)
             reward_buf[t] = torch.as_tensor(reward, dtype=torch.float32, device=device)
             ended_buf[t], terminal_buf[t] = ended, torch.as_tensor(terminated, device=device)
-            next_obs = torch.as_tensor(observation, device=device)
-            previous, fresh, resetting = action, resetting, ended
+        carried["lengths"] = lengths
+        next_obs, previous, hidden, fresh = (
+            carried[k] for k in ("observation", "previous", "hidden", "fresh")
+        )
         with torch.no_grad():
             _, next_value, _ = model.step(next_obs, previous, hidden, fresh)
             advantages, returns = advantages_and_returns(
@@ -416,14 +450,6 @@ def train_recurrent_ppo(
             valid_advantages = advantages[valid_buf]
             if valid_advantages.numel() > 1:
                 advantages = (advantages - valid_advantages.mean()) / (valid_advantages.std() + 1e-8)
-        carried = {
-            "observation": next_obs,
-            "hidden": hidden,
-            "previous": previous,
-            "fresh": fresh,
-            "resetting": resetting,
-            "lengths": lengths,
-        }
 
         segment = {
             "observations": obs_buf,

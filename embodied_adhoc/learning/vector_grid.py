@@ -60,6 +60,17 @@ GRID_IDS = {"foraging": "EmbodiedAdhoc/ForagingGrid-v0", "pursuit": "EmbodiedAdh
 DRAW_BLOCK = 64  # steps of uniforms drawn per sub-env at once
 
 
+def sub_env_seeds(seed: int | list[int | None] | None, num_envs: int) -> list[int | None]:
+    """One seed per sub-env: ``seed + i`` for sub-env ``i`` of an int (as ``SyncVectorEnv``), all None for None,
+    or the list given (one per sub-env)."""
+    if seed is None or isinstance(seed, int):
+        return [None if seed is None else seed + i for i in range(num_envs)]
+    seeds = list(seed)
+    if len(seeds) != num_envs:
+        raise ConfigError(f"seed: {len(seeds)} seeds for {num_envs} sub-envs; give one each or an int")
+    return seeds
+
+
 class GridVectorEnv(gymnasium.vector.VectorEnv):
     """``num_envs`` ad hoc grid envs (``domain`` foraging or pursuit; ``env_kwargs`` as for the single env's
     ``gymnasium.make``: tasks, teams, rows, cols, n_agents, toroidal, view, ...). Agent 0 of each sub-env is the
@@ -250,14 +261,7 @@ class GridVectorEnv(gymnasium.vector.VectorEnv):
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
         """Reset every sub-env; ``seed`` an int (sub-env ``i`` gets ``seed + i``, as ``SyncVectorEnv``) or one
         seed per sub-env; ``options`` as the single env's (task, team, state), applied to every sub-env."""
-        if seed is None or isinstance(seed, int):
-            seeds = [None if seed is None else seed + i for i in range(self.num_envs)]
-        else:
-            seeds = list(seed)
-            if len(seeds) != self.num_envs:
-                raise ConfigError(
-                    f"seed: {len(seeds)} seeds for {self.num_envs} sub-envs; give one each or an int"
-                )
+        seeds = sub_env_seeds(seed, self.num_envs)
         if not self.rngs or seed is not None:
             self.rngs = [seeding.np_random(s)[0] for s in seeds]
             self.used[:], self.block_states = DRAW_BLOCK, [None] * self.num_envs
