@@ -494,6 +494,23 @@ def batch_table(speed: dict) -> list[str]:
             f"{row['rollout_steps_per_cpu_s'] / first['rollout_steps_per_cpu_s']:.2f} | "
             f"{row['rollout_env_share']:.2f} |"
         )
+    if all("pipelined_steps_per_s" in row for row in speed["batches"]):
+        lines += [
+            "",
+            "The same rollout per wall second, as `train` runs it (`rollout_pipeline.rollout_steps`), over one "
+            "vector env and with `--pipeline` (the sub-envs in two halves, one half's policy on a second thread "
+            "while the other half's env steps), with their ratio and whether the two chose the same actions "
+            "from the same seeds:",
+            "",
+            "| sub-envs | rollout (steps/s) | pipelined (steps/s) | x rollout | same actions |",
+            "|---|---|---|---|---|",
+        ]
+        for row in speed["batches"]:
+            lines.append(
+                f"| {row['envs']} | {row['rollout_steps_per_s']:,.0f} | {row['pipelined_steps_per_s']:,.0f} | "
+                f"{row['pipelined_steps_per_s'] / row['rollout_steps_per_s']:.2f} | "
+                f"{'yes' if row['pipelined_same_actions'] else 'no'} |"
+            )
     return lines
 
 

@@ -4,7 +4,9 @@ the vector env), with the ratio of each to a reference measured in the same run:
 grid with the same settings. ``--batches`` adds the foraging grid's collection per CPU second at each number of
 sub-envs: the vector env alone under random actions, and the training loop's rollout (the shipped ppo-generalist
 sampling every sub-env's action, then the vector env's step; its short episodes reset sub-envs often), each
-with its ratio to the first batch size. ``--baseline REF`` also times the reference training row and every
+with its ratio to the first batch size; then the rollout per wall second over one vector env and over the two
+halves of ``train --pipeline`` (one half's policy on a second thread while the other half's env steps), with
+their ratio and whether both drew the same actions. ``--baseline REF`` also times the reference training row and every
 batch of the sweep with the code of the git commit ``REF`` (exported to a temporary folder and run there in a
 subprocess, row by row in turn with the current code's), and prints the current code's ratio to it.
 
@@ -164,6 +166,58 @@ def batch_rates(envs: int, steps: int) -> dict:
         "random_env_steps_per_cpu_s": random_rate,
         "rollout_steps_per_cpu_s": steps * envs / (policy_seconds + env_seconds),
         "rollout_env_share": env_seconds / (policy_seconds + env_seconds),
+        # longer than the CPU-time loops: a wall-clock rate needs more steps to settle on a shared host
+        **pipeline_rates(model, envs, max(64, 131_072 // envs)),
+    }
+
+
+def pipeline_rates(model, envs: int, steps: int) -> dict:
+    """Env steps per wall second of the training loop's rollout (``rollout_pipeline.rollout_steps`` with the
+    shipped ppo-generalist's draws) over one vector env and over the two halves of ``train --pipeline``, and
+    whether both chose the same actions. Each runs ``steps`` steps after a warm-up of 8, from the same seeds."""
+    import torch
+
+    from embodied_adhoc.learning.generalist import TRAIN_TEAMS
+    from embodied_adhoc.learning.recurrent_ppo import rollout_step
+    from embodied_adhoc.learning.rollout_pipeline import HalvedGridEnv, rollout_steps
+    from embodied_adhoc.learning.vector_grid import GridVectorEnv
+
+    def timed(env) -> tuple[float, torch.Tensor]:
+        observation = env.reset(seed=1)[0]
+        carried = {
+            "observation": torch.tensor(observation),
+            "previous": torch.full((envs,), model.no_action),
+            "hidden": model.initial_state(envs),
+            "fresh": torch.ones(envs, dtype=torch.bool),
+            "resetting": torch.zeros(envs, dtype=torch.bool),
+        }
+        actions = torch.zeros((8 + steps, envs), dtype=torch.long)
+
+        def act(t: int, rows: slice, state: dict) -> torch.Tensor:
+            action, _, _, hidden = rollout_step(
+                model, state["observation"], state["previous"], state["hidden"], state["fresh"]
+            )
+            state["hidden"][...] = hidden
+            actions[t, rows] = action
+            return action
+
+        torch.manual_seed(0)
+        for _ in rollout_steps(env, act, carried, 8):
+            pass
+        began = time.perf_counter()
+        for _ in rollout_steps(env, lambda t, rows, state: act(8 + t, rows, state), carried, steps):
+            pass
+        rate = steps * envs / (time.perf_counter() - began)
+        env.close()
+        return rate, actions
+
+    teams = {"teams": list(TRAIN_TEAMS)}
+    single, single_actions = timed(GridVectorEnv("foraging", envs, **teams))
+    halved, halved_actions = timed(HalvedGridEnv("foraging", envs, **teams))
+    return {
+        "rollout_steps_per_s": single,
+        "pipelined_steps_per_s": halved,
+        "pipelined_same_actions": bool(torch.equal(single_actions, halved_actions)),
     }
 
 
@@ -269,9 +323,9 @@ def main() -> int:
         than = " baseline rollout (steps/CPU s) | x baseline |" if tree else ""
         print(
             "| sub-envs | random actions (steps/CPU s) | x first | rollout (steps/CPU s) | x first | env share "
-            f"|{than}"
+            f"| rollout (steps/s) | pipelined (steps/s) | x rollout | same actions |{than}"
         )
-        print("|---|---|---|---|---|---|" + ("---|---|" if tree else ""))
+        print("|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if tree else ""))
         for envs in args.batches:
             steps = max(20, 16_384 // envs)
             if tree:
@@ -289,7 +343,10 @@ def main() -> int:
                 f"{row['random_env_steps_per_cpu_s'] / first['random_env_steps_per_cpu_s']:.2f} | "
                 f"{row['rollout_steps_per_cpu_s']:.0f} | "
                 f"{row['rollout_steps_per_cpu_s'] / first['rollout_steps_per_cpu_s']:.2f} | "
-                f"{row['rollout_env_share']:.2f} |{versus}",
+                f"{row['rollout_env_share']:.2f} | {row['rollout_steps_per_s']:.0f} | "
+                f"{row['pipelined_steps_per_s']:.0f} | "
+                f"{row['pipelined_steps_per_s'] / row['rollout_steps_per_s']:.2f} | "
+                f"{'yes' if row['pipelined_same_actions'] else 'no'} |{versus}",
                 flush=True,
             )
     if tree:
