@@ -46,8 +46,10 @@ from embodied_adhoc.decision.memory import peak_mb
 from embodied_adhoc.decision.models import POMDP
 from embodied_adhoc.decision.perseus import PerseusConfig, perseus
 from embodied_adhoc.decision.pomdp_io import read_pomdp, write_pomdp
+from embodied_adhoc.decision.random_pomdp import check_counts, random_pomdp
 from embodied_adhoc.decision.rocksample import rocksample
 from embodied_adhoc.domains.chapter5 import CHAPTER5_DOMAINS, build_library
+from embodied_adhoc.errors import ConfigError
 from embodied_adhoc.experiments.script_args import parse_dataclass_args
 
 # SARSOP lower / upper bound at b0 and its run time, from ../shared/pomdp/README.md.
@@ -97,7 +99,8 @@ class Args:
     side_by_side: tuple[str, ...] = ()
     """models for the side-by-side table only (this project's --solver auto choice vs pomdpsol): .pomdp paths, or
     generated ones written to a temporary folder for both solvers, rocksample:N,K (RockSample[N, K], rocks of
-    seed 0, as `pomdp generate rocksample`) or export:DOMAIN (the first model of a chapter-5 library, as
+    seed 0, as `pomdp generate rocksample`), random:S,A,Z (the seed-0 random model of
+    `embodied_adhoc.decision.random_pomdp`) or export:DOMAIN (the first model of a chapter-5 library, as
     `pomdp export DOMAIN --models 1`); a suffix @auto, @hsvi or @perseus sets that model's solver (default:
     --solver)"""
     solver: str = "auto"
@@ -122,10 +125,16 @@ def parse_args() -> Args:
         problem = generated_spec(spec)
         if problem is None and not Path(spec).is_file():
             print(
-                f"--side-by-side: no file {spec}; give .pomdp paths, rocksample:N,K or export:DOMAIN",
+                f"--side-by-side: no file {spec}; give .pomdp paths, rocksample:N,K, random:S,A,Z or export:DOMAIN",
                 file=sys.stderr,
             )
             raise SystemExit(2)
+        if problem is not None and problem[0] == "random":
+            try:
+                check_counts(*(int(count) for count in problem[1:]))
+            except ConfigError as failure:
+                print(f"--side-by-side: {spec}: {failure}", file=sys.stderr)
+                raise SystemExit(2) from None
         exportable = [d for d in CHAPTER5_DOMAINS if d != "map"]  # a map library needs its map file
         if problem is not None and problem[0] == "export" and problem[1] not in exportable:
             print(
@@ -293,10 +302,14 @@ def split_solver(given: str, default: str) -> tuple[str, str]:
 
 
 def generated_spec(spec: str) -> tuple[str, ...] | None:
-    """``("rocksample", N, K)`` or ``("export", DOMAIN)`` for a generated model's spec, None for a path."""
+    """``("rocksample", N, K)``, ``("random", S, A, Z)`` or ``("export", DOMAIN)`` for a generated model's spec,
+    None for a path."""
     rock = re.fullmatch(r"rocksample:([1-9][0-9]*),([1-9][0-9]*)", spec)
     if rock:
         return ("rocksample", rock[1], rock[2])
+    drawn = re.fullmatch(r"random:([1-9][0-9]*),([1-9][0-9]*),([1-9][0-9]*)", spec)
+    if drawn:
+        return ("random", drawn[1], drawn[2], drawn[3])
     export = re.fullmatch(r"export:([a-z0-9-]+)", spec)
     return ("export", export[1]) if export else None
 
@@ -310,6 +323,9 @@ def model_path(spec: str, folder: Path) -> Path:
     if problem[0] == "rocksample":
         pomdp = rocksample(int(problem[1]), int(problem[2]), seed=0)
         return write_pomdp(pomdp, folder / f"rocksample-{problem[1]}-{problem[2]}.pomdp")
+    if problem[0] == "random":
+        pomdp = random_pomdp(*(int(count) for count in problem[1:]), seed=0)
+        return write_pomdp(pomdp, folder / f"random-{'-'.join(problem[1:])}.pomdp")
     library = build_library(problem[1], n_models=1)
     return write_pomdp((library.native_pomdps or library.pomdps)[0], folder / f"{problem[1]}-m0.pomdp")
 

@@ -88,7 +88,13 @@ def test_a_generated_model_is_written_for_both_solvers_and_its_convergence_recor
 
 
 @pytest.mark.parametrize(
-    ("spec", "said"), [("export:nowhere", "no chapter-5 domain 'nowhere'"), ("rocksample:0,1", "no file")]
+    ("spec", "said"),
+    [
+        ("export:nowhere", "no chapter-5 domain 'nowhere'"),
+        ("rocksample:0,1", "no file"),
+        ("random:3,2,4", "5 successors of 3 states"),
+        ("random:100000,65,10", "actions = 65 exceeds 64"),
+    ],
 )
 def test_a_bad_generated_model_is_refused_before_any_solve(spec, said):
     done = subprocess.run(
