@@ -1553,13 +1553,15 @@ SIDE_BY_SIDE_MODELS = (
     "rocksample:5,6",
     "rocksample:5,7",
     "rocksample:7,8",
+    "random:250,5,10",
     "export:isr@perseus",
     "export:isr",
     "export:pentagon",
 )
 """The side-by-side's models: three of the classic corpus with many observations, this project's RockSample
-instances (few observations, 1,601 to 12,545 states) and two chapter-5 navigation models (81 observations), isr's
-under Perseus too, the default rule's choice there before the rule read the start and the sensor."""
+instances (few observations, 1,601 to 12,545 states), a 250-state random model and two chapter-5 navigation
+models (81 observations), isr's under Perseus too, the default rule's choice there before the rule read the
+start and the sensor."""
 SIDE_BY_SIDE_CHECKPOINTS = ("5", "20", "60")
 
 
@@ -2119,9 +2121,9 @@ FIGURES = {
         ),
         Figure(
             "solvers-side-by-side",
-            "This project's solver beside SARSOP (Tag, cit, hallway2, generated RockSample models, chapter-5 "
-            "navigation models): lower / upper bounds at CPU-second checkpoints, time to SARSOP's final lower bound, "
-            "convergence, peak memory",
+            "This project's solver beside SARSOP (Tag, cit, hallway2, generated RockSample and random models, "
+            "chapter-5 navigation models): lower / upper bounds at CPU-second checkpoints, time to SARSOP's final "
+            "lower bound, convergence, peak memory",
             {
                 "bench": [
                     "{python}",
