@@ -97,8 +97,9 @@ THESIS_MAPS = {
 }
 
 
-def part_c(map_name: str, episodes: int, seed: int) -> list[list[str]]:
-    """Rows (agent, team, mean [CI], ended share, mean over ended episodes, thesis) of the map baselines."""
+def part_c(map_name: str, episodes: int, seed: int, markdown: bool = False) -> list[list[str]]:
+    """Rows (agent, team, mean [CI], ended share, mean over ended episodes, thesis) of the map baselines; with
+    ``markdown`` the mean and its interval take a column each (render_results.py compares the one to the other)."""
     world = make_world(map_name)
     rows = []
     for name in ("original", "random", "plastic-model"):
@@ -114,11 +115,16 @@ def part_c(map_name: str, episodes: int, seed: int) -> list[list[str]]:
                 )
             )
             ended = returns > -world.episode_cap
+            s = summarise_sample(returns)
             rows.append(
                 [
                     name,
                     team,
-                    _cell(returns),
+                    *(
+                        [f"{s.mean:.2f}", f"[{s.ci_low:.2f}, {s.ci_high:.2f}]"]
+                        if markdown
+                        else [_cell(returns)]
+                    ),
                     f"{ended.mean():.2f}",
                     f"{returns[ended].mean():.2f}" if ended.any() else "-",
                     f"{THESIS_MAPS.get(map_name, {}).get(name, ('-',) * 3)[k]}",
@@ -175,18 +181,24 @@ def main() -> None:
     parser.add_argument(
         "--markdown",
         action="store_true",
-        help="part A as a pipe table with the mean and its interval in columns of their own (render_results.py)",
+        help="parts A and C as pipe tables with the mean and its interval in columns of their own "
+        "(render_results.py)",
     )
     args = parser.parse_args()
 
     for map_name in [m for m in args.maps.split(",") if m]:
-        print(f"Part C: {map_name}, {args.episodes} episodes per row (accumulated episode reward)")
-        print(
-            format_table(
-                ["ad hoc agent", "team", "mean [95% CI]", "ended", "mean of ended", "thesis"],
-                part_c(map_name, args.episodes, args.seed),
+        rows = part_c(map_name, args.episodes, args.seed, markdown=args.markdown)
+        if args.markdown:
+            print(
+                f"Part C: {map_name}, {args.episodes} episodes per row of seed {args.seed} (accumulated episode "
+                "reward, mean and 95 % percentile-bootstrap interval over the episodes)"
             )
-        )
+            headers = ["ad hoc agent", "team", "mean", "95 % CI", "ended", "mean of ended", "thesis"]
+            print(format_table(headers, rows, markdown=True))
+        else:
+            print(f"Part C: {map_name}, {args.episodes} episodes per row (accumulated episode reward)")
+            headers = ["ad hoc agent", "team", "mean [95% CI]", "ended", "mean of ended", "thesis"]
+            print(format_table(headers, rows))
         if not args.skip_protocol:
             out = f"{args.out}-{map_name}"
             command = [
