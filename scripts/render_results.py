@@ -3183,9 +3183,9 @@ def headline(documents: dict[str, dict], page: Path) -> str:
         for key in TEAMSTER_MAPS:
             table = table_of(doc, key)
             cells = [r for r in table.rows if r[0] == "plastic-model"]
-            ended = table.headers.index("mean of ended")
+            ended, theirs = table.headers.index("mean of ended"), table.headers.index("thesis")
             ours.append(f"{key} " + " / ".join(r[ended] for r in cells))
-            thesis.append(f"{key} " + " / ".join(r[table.headers.index("thesis")] for r in cells))
+            thesis.append(f"{key} " + " / ".join(r[theirs] for r in cells))
         rows.append(
             [
                 "PLASTIC-Model knowing the three teams on the navigation maps, per team (Tables 4.5-4.7, the row "

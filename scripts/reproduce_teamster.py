@@ -54,8 +54,15 @@ REFERENCE = {
 
 
 def _cell(values) -> str:
-    s = summarise_sample(values)
-    return f"{s.mean:.1f} [{s.ci_low:.1f}, {s.ci_high:.1f}]" if s.n > 1 else f"{s.mean:.1f}"
+    return _cells(summarise_sample(values), markdown=False)[0]
+
+
+def _cells(s, markdown: bool) -> list[str]:
+    """A sample's mean and interval: one cell for the terminal; two for the pipe tables, which
+    render_results.py reads (the interval beside its mean)."""
+    if markdown:
+        return [f"{s.mean:.2f}", f"[{s.ci_low:.2f}, {s.ci_high:.2f}]"]
+    return [f"{s.mean:.1f} [{s.ci_low:.1f}, {s.ci_high:.1f}]" if s.n > 1 else f"{s.mean:.1f}"]
 
 
 def part_a(trials: int, seed: int) -> dict[str, list[int]]:
@@ -115,16 +122,11 @@ def part_c(map_name: str, episodes: int, seed: int, markdown: bool = False) -> l
                 )
             )
             ended = returns > -world.episode_cap
-            s = summarise_sample(returns)
             rows.append(
                 [
                     name,
                     team,
-                    *(
-                        [f"{s.mean:.2f}", f"[{s.ci_low:.2f}, {s.ci_high:.2f}]"]
-                        if markdown
-                        else [_cell(returns)]
-                    ),
+                    *_cells(summarise_sample(returns), markdown),
                     f"{ended.mean():.2f}",
                     f"{returns[ended].mean():.2f}" if ended.any() else "-",
                     f"{THESIS_MAPS.get(map_name, {}).get(name, ('-',) * 3)[k]}",
@@ -231,10 +233,7 @@ def main() -> None:
     if args.markdown:
         rows = []
         for name, values in counts.items():
-            s = summarise_sample(values)
-            rows.append(
-                [name, f"{s.mean:.2f}", f"[{s.ci_low:.2f}, {s.ci_high:.2f}]", str(REFERENCE.get(name, "-"))]
-            )
+            rows.append([name, *_cells(summarise_sample(values), True), str(REFERENCE.get(name, "-"))])
         print(
             f"Part A: prey captures per 500 steps with the teammate-aware team ({args.trials} runs of seed "
             f"{args.seed} on, mean and 95 % percentile-bootstrap interval over the runs)"
