@@ -1652,31 +1652,36 @@ def _reward_cell(values: Sequence[float]) -> dict:
     return {"mean": s.mean, "ci": [s.ci_low, s.ci_high], "n": s.n, "values": [float(v) for v in values]}
 
 
-def teamster_maps_study_extract(outputs: dict[str, str]) -> dict:
-    """The ``teamster MAP --json`` summaries (one per lane or map) as one document per map: per agent its curves
-    (the mean episode reward of each evaluation), after-learning matrix and, with a changed phase, the per-trial
-    robustness measure; the seconds per trial are timing."""
+def teamster_study_extract(outputs: dict[str, str]) -> dict:
+    """The ``teamster DOMAIN --json`` summaries (one per lane or map) as one document per domain (under ``maps``,
+    pursuit included): per agent its curves (each evaluation's mean episode reward on a map, captures per 500 steps
+    on pursuit), after-learning matrix and, with a changed phase, that phase's curve, the per-trial robustness
+    measure and a learned model's fit to the changed rules; the seconds per trial are timing."""
     maps, seconds = {}, {}
     for key, text in outputs.items():
         result = json.loads(text)
-        config = result["config"]
-        entry = maps.setdefault(config["domain"], {"config": config, "agents": {}})
+        config, domain = result["config"], result["domain"]
+        entry = maps.setdefault(domain, {"config": config, "agents": {}})
         if entry["config"] != config:
-            sys.exit(f"teamster maps study: {key} ran another protocol: {config} vs {entry['config']}")
+            sys.exit(f"teamster study: {key} ran another protocol: {config} vs {entry['config']}")
         for agent, summary in result["agents"].items():
-            seconds.setdefault(config["domain"], {})[agent] = summary["seconds"]
+            metric = summary["metric"]
+            seconds.setdefault(domain, {})[agent] = summary["seconds"]
             cells = {
                 "trials": summary["trials"],
                 "curves": {
-                    t: [{"step": p["step"], **p["reward"]} for p in c] for t, c in summary["curves"].items()
+                    t: [{"step": p["step"], **p[metric]} for p in c] for t, c in summary["curves"].items()
                 },
                 "after": {
-                    learned: {t: cell["reward"] for t, cell in evals.items()}
+                    learned: {t: cell[metric] for t, cell in evals.items()}
                     for learned, evals in summary["after"].items()
                 },
             }
             if "changed_after" in summary:
+                cells["changed"] = [{"step": p["step"], **p[metric]} for p in summary["changed"]]
                 cells["changed_after"] = _reward_cell(summary["changed_after"])
+            if "changed_fit" in summary:
+                cells["changed_fit"] = summary["changed_fit"]
             entry["agents"][agent] = cells
     for entry in maps.values():
         entry["agents"] = {a: entry["agents"][a] for a in TEAMSTER_ORDER if a in entry["agents"]}
@@ -1684,15 +1689,15 @@ def teamster_maps_study_extract(outputs: dict[str, str]) -> dict:
 
 
 def _map_cells(data: dict) -> list[tuple[str, str, str, dict]]:
-    """Every cell of a maps study that a check compares: (map, agent, label, cell)."""
+    """Every cell of a sequential-teams study that a check compares: (domain, agent, label, cell)."""
     cells = []
     for name, entry in data["maps"].items():
         for agent, summary in entry["agents"].items():
-            cells += [(name, agent, f"end of {t}", summary["curves"][t][-1]) for t in MAP_TEAMS]
+            cells += [(name, agent, f"end of {t}", curve[-1]) for t, curve in summary["curves"].items()]
             cells += [
-                (name, agent, f"after {learned} / eval {t}", summary["after"][learned][t])
-                for learned in summary["after"]
-                for t in MAP_TEAMS
+                (name, agent, f"after {learned} / eval {t}", cell)
+                for learned, evals in summary["after"].items()
+                for t, cell in evals.items()
             ]
             if "changed_after" in summary:
                 cells.append((name, agent, "changed environment", summary["changed_after"]))
@@ -1783,24 +1788,177 @@ def teamster_exact_maps_tables(data: dict) -> list[Table]:
     return [*tables, _map_seconds_table(data)]
 
 
-def teamster_maps_study_compare(published: dict, check: dict) -> list[str]:
-    """As :func:`teamster_t5000_compare`, on a maps study's cells (curve ends, the after-learning matrix, the
-    changed environment's measure): Welch per cell on the per-trial values, Holm over every cell; claims keep their
-    verdicts."""
-    ours, theirs = _map_cells(published), _map_cells(check)
-    if [c[:3] for c in ours] != [c[:3] for c in theirs]:
-        return ["the check ran other maps, agents or teams than the published run"]
-    failures = cells_that_differ(
-        [
-            (f"{name} {agent} {label}", a, b)
-            for (name, agent, label, a), (*_, b) in zip(ours, theirs, strict=True)
-        ]
-    )
-    if "ntu" in published["maps"]:
-        for mine, other in zip(teamster_ntu_claims(published), teamster_ntu_claims(check), strict=True):
+def teamster_study_compare(
+    claims: Callable[[dict], list[list[str]]] | None = None,
+) -> Callable[[dict, dict], list[str]]:
+    """As :func:`teamster_t5000_compare`, on a sequential-teams study's cells (curve ends, the after-learning
+    matrix, the changed environment's measure): Welch per cell on the per-trial values, Holm over every cell; the
+    ``claims`` keep their verdicts."""
+
+    def compare(published: dict, check: dict) -> list[str]:
+        ours, theirs = _map_cells(published), _map_cells(check)
+        if [c[:3] for c in ours] != [c[:3] for c in theirs]:
+            return ["the check ran other domains, agents or teams than the published run"]
+        failures = cells_that_differ(
+            [
+                (f"{name} {agent} {label}", a, b)
+                for (name, agent, label, a), (*_, b) in zip(ours, theirs, strict=True)
+            ]
+        )
+        for mine, other in zip(
+            claims(published) if claims else (), claims(check) if claims else (), strict=True
+        ):
             if mine[-1] != other[-1]:
                 failures.append(f"claim '{mine[0][:60]}': {mine[-1]} -> {other[-1]}")
-    return failures
+        return failures
+
+    return compare
+
+
+TEAMSTER_CHANGED = (
+    "--trials",
+    "12",
+    "--steps",
+    "500",
+    "--eval-steps",
+    "50",
+    "--points",
+    "5",
+    "--changed",
+    "0.5",
+)
+"""Part B2: 12 trials at T = 500 per team, 50-step evaluations at every 20 %, then predator moves fail w.p. 0.5."""
+TEAMSTER_MIRROR = (
+    "--trials",
+    "8",
+    "--steps",
+    "500",
+    "--eval-steps",
+    "50",
+    "--points",
+    "5",
+    "--changed",
+    "mirror",
+)
+TEAMSTER_MIRROR += ("--changed-steps", "2500")
+"""Part B3: 8 trials at T = 500 per team, then 2,500 steps with the ad hoc agent's moves mirrored."""
+
+
+def _pursuit_changed_claims(data: dict, rivals: Sequence[str]) -> list[list[str]]:
+    """Sec. 4.1.4's robustness claim on the pre-stated measure (each trial's mean evaluation after learning began
+    in the changed environment): TEAMSTER scores more than each of ``rivals``, Welch p < 0.05."""
+    from embodied_adhoc.experiments.stats import welch_test
+
+    agents = data["maps"]["pursuit"]["agents"]
+    ours = agents["teamster"]["changed_after"]
+    rows = []
+    for rival in rivals:
+        theirs = agents[rival]["changed_after"]
+        t, p = welch_test(ours["values"], theirs["values"])
+        rows.append(
+            [
+                f"Sec. 4.1.4: in the changed environment TEAMSTER scores more than {rival}",
+                f"{ours['mean']:.1f} vs {theirs['mean']:.1f}, Welch t = {t:.2f}, p = {p:.2g}",
+                "yes" if ours["mean"] > theirs["mean"] and p < 0.05 else "no",
+            ]
+        )
+    return rows
+
+
+def teamster_changed_claims(data: dict) -> list[list[str]]:
+    return _pursuit_changed_claims(data, ("plastic-model",))
+
+
+def teamster_mirror_claims(data: dict) -> list[list[str]]:
+    return _pursuit_changed_claims(data, ("plastic-model", "learns-team"))
+
+
+def _pursuit_study_tables(data: dict, claims: Callable[[dict], list[list[str]]]) -> list[Table]:
+    """The changed-environment studies on pursuit: the curves' ends and the pre-stated measure per agent, the
+    changed phase's curve, Welch's test between every two agents on the measure, the learned environment model's
+    fit to the changed rules, the claims and the seconds per trial."""
+    from embodied_adhoc.experiments.stats import compare_pairs
+
+    agents = data["maps"]["pursuit"]["agents"]
+    teams = list(next(iter(agents.values()))["curves"])
+    end = [
+        [
+            agent,
+            *(x for t in teams for x in _bracket(summary["curves"][t][-1])),
+            *_bracket(summary["changed_after"]),
+        ]
+        for agent, summary in agents.items()
+    ]
+    end_headers = ["agent", *(h for t in teams for h in (f"end of {t}", "95 % CI"))]
+    steps = [p["step"] for p in next(iter(agents.values()))["changed"]]
+    changed = [
+        [agent, *(x for p in summary["changed"] for x in _bracket(p))] for agent, summary in agents.items()
+    ]
+    pairs = [
+        [f"{c.first} vs {c.second}", f"{c.statistic:.2f}", f"{c.p_value:.2g}", f"{c.improvement:.2f}"]
+        for c in compare_pairs(
+            {a: s["changed_after"]["values"] for a, s in agents.items()}, "changed", lower_is_better=False
+        )
+    ]
+    fit = [
+        [agent, *(f"{p['share']['mean']:.2f}" for p in summary["changed_fit"])]
+        for agent, summary in agents.items()
+        if "changed_fit" in summary
+    ]
+    tables = [
+        Table("end", "", [*end_headers, "changed environment, after learning began", "95 % CI"], end),
+        Table("changed", "", ["agent", *(h for s in steps for h in (f"{s} steps", "95 % CI"))], changed),
+        Table("pairs", "", ["a vs b", "Welch t", "p", "P(a scores more)"], pairs),
+    ]
+    if fit:
+        fit_steps = [p["step"] for p in next(s for s in agents.values() if "changed_fit" in s)["changed_fit"]]
+        tables.append(Table("fit", "", ["agent", *(f"{s} steps" for s in fit_steps)], fit))
+    return [
+        *tables,
+        Table("claims", "", ["claim", "measured", "holds"], claims(data)),
+        _map_seconds_table(data),
+    ]
+
+
+def teamster_changed_tables(data: dict) -> list[Table]:
+    return _pursuit_study_tables(data, teamster_changed_claims)
+
+
+def teamster_mirror_tables(data: dict) -> list[Table]:
+    return _pursuit_study_tables(data, teamster_mirror_claims)
+
+
+def _study_summary(data: dict, domain: str) -> dict:
+    """A study's agents in the shape of :func:`embodied_adhoc.experiments.domains.teamster.summarise`, which its
+    plots read."""
+    out = {}
+    for agent, entry in data["maps"][domain]["agents"].items():
+        metric = "per_500" if domain == "pursuit" else "reward"
+        summary = {
+            "metric": metric,
+            "curves": {t: [{"step": p["step"], metric: p} for p in c] for t, c in entry["curves"].items()},
+        }
+        if "changed" in entry:
+            summary["changed"] = [{"step": p["step"], metric: p} for p in entry["changed"]]
+        if "changed_fit" in entry:
+            summary["changed_fit"] = entry["changed_fit"]
+        out[agent] = summary
+    return out
+
+
+def teamster_curves_plot(domain: str) -> Callable[[dict, Path], object]:
+    def plot(data: dict, path: Path) -> object:
+        from embodied_adhoc.experiments.domains.teamster import plot_curves
+
+        return plot_curves(_study_summary(data, domain), path)
+
+    return plot
+
+
+def teamster_changed_plot(data: dict, path: Path) -> object:
+    from embodied_adhoc.experiments.domains.teamster import plot_changed
+
+    return plot_changed(_study_summary(data, "pursuit"), path)
 
 
 SIDE_BY_SIDE_MODELS = (
@@ -2320,6 +2478,79 @@ FIGURES = {
             parallel=True,
         ),
         Figure(
+            "teamster-changed",
+            "TEAMSTER Part B2: 12 trials at T = 500 per team and a changed environment (predator moves fail w.p. 0.5)",
+            {
+                agent: [
+                    ".venv/bin/embodied-adhoc",
+                    "teamster",
+                    "pursuit",
+                    "--agents",
+                    agent,
+                    *TEAMSTER_CHANGED,
+                    "--out",
+                    "{out}",
+                    "--json",
+                    "--quiet",
+                ]
+                for agent in ("teamster", "plastic-model")
+            },  # fmt: skip
+            teamster_study_extract,
+            teamster_changed_tables,
+            teamster_study_compare(teamster_changed_claims),
+            ("docs/teamster.md",),
+            notes="Seed 0, Table 4.1's pursuit UCT (100 iterations, depth 5), one thread per agent. Captures per 500 "
+            "steps of 50-step evaluations (learning paused; each capture moves a cell by 10), mean over 12 trials "
+            "with the 95 % percentile-bootstrap interval. The pre-stated measure of the changed environment is each "
+            "trial's mean over that phase's evaluations after learning began (100-500 steps); Welch's test and "
+            "P(a scores more) (rliable's probability of improvement) run on those per-trial values. Seconds per "
+            "trial: timing (the two agents ran at once).",
+            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
+            "every cell, family-wise level 0.05) and the claim keeps its verdict",
+            timing_tables=("seconds",),
+            plot=("docs/images/teamster-curves-t500.png", teamster_curves_plot("pursuit")),
+            parallel=True,
+        ),
+        Figure(
+            "teamster-mirror",
+            "TEAMSTER Part B3: the mirrored environment, 8 trials of four agents",
+            {
+                lane: [
+                    ".venv/bin/embodied-adhoc",
+                    "teamster",
+                    "pursuit",
+                    "--agents",
+                    agents,
+                    *TEAMSTER_MIRROR,
+                    "--out",
+                    "{out}",
+                    "--json",
+                    "--quiet",
+                ]
+                for lane, agents in (
+                    ("teamster", "teamster"),
+                    ("the-others", "plastic-model,learns-team,plastic-policy"),
+                )
+            },  # fmt: skip
+            teamster_study_extract,
+            teamster_mirror_tables,
+            teamster_study_compare(teamster_mirror_claims),
+            ("docs/teamster.md",),
+            notes="Seed 0, Table 4.1's pursuit UCT, one thread per lane. Captures per 500 steps of 50-step evaluations "
+            "(learning paused; each capture moves a cell by 10), mean over 8 trials with the 95 % "
+            "percentile-bootstrap interval; the changed phase (2,500 steps with the first team, the ad hoc agent's "
+            "moves mirrored) is evaluated every 500 steps. The pre-stated measure is each trial's mean over that "
+            "phase's evaluations after learning began (500-2,500 steps); Welch's test and P(a scores more) "
+            "(rliable's probability of improvement) run on those per-trial values. The fit is the learned "
+            "environment model's share of agent 0's moves predicted under the mirrored rules (256 random states), "
+            "mean over trials. Seconds per trial: timing (the two lanes ran at once).",
+            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
+            "every cell, family-wise level 0.05) and every claim keeps its verdict",
+            timing_tables=("seconds",),
+            plot=("docs/images/teamster-mirror-changed.png", teamster_changed_plot),
+            parallel=True,
+        ),
+        Figure(
             "teamster-ntu",
             "TEAMSTER on ntu: two trials of seven agents at T = 500 per team and a changed environment",
             {
@@ -2337,9 +2568,9 @@ FIGURES = {
                 ]
                 for lane, agents in TEAMSTER_NTU_LANES.items()
             },  # fmt: skip
-            teamster_maps_study_extract,
+            teamster_study_extract,
             teamster_ntu_tables,
-            teamster_maps_study_compare,
+            teamster_study_compare(teamster_ntu_claims),
             ("docs/teamster.md",),
             notes="Seed 0, Table 4.1's ntu UCT (100 iterations, depth 10), one thread per lane. Mean episode reward "
             "of 8-episode evaluations (learning paused) before and every 100 steps, mean over 2 trials with the 95 % "
@@ -2351,6 +2582,7 @@ FIGURES = {
             checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
             "every cell, family-wise level 0.05) and the claim keeps its verdict",
             timing_tables=("seconds",),
+            plot=("docs/images/teamster-ntu-curves.png", teamster_curves_plot("ntu")),
             parallel=True,
         ),
         Figure(
@@ -2369,9 +2601,9 @@ FIGURES = {
                 ]
                 for name in TEAMSTER_EXACT_MAPS
             },  # fmt: skip
-            teamster_maps_study_extract,
+            teamster_study_extract,
             teamster_exact_maps_tables,
-            teamster_maps_study_compare,
+            teamster_study_compare(),
             ("docs/teamster.md",),
             notes="Seed 0, Table 4.1's UCT (isr 300 iterations to depth 50, pentagon 300 to depth 25), one thread per "
             "map. Mean episode reward of 4-episode evaluations (learning paused) at 0, 100 and 200 steps, mean over "
@@ -2591,22 +2823,6 @@ UNRUN_HISTORY = "docs/changelog.md"
 UNRUN = {
     entry.name: entry
     for entry in (
-        Unrun(
-            "teamster-changed",
-            "TEAMSTER Part B: 12 trials at T = 500 per team and a changed environment (predator moves fail w.p. 0.5)",
-            "embodied-adhoc teamster pursuit --agents A --trials K --steps 500 --eval-steps 50 --points 5 "
-            "--changed 0.5 --out runs/teamster-study-t500 (A = teamster, plastic-model; K = 1..12)",
-            "24 trials of 19,200-step schedules; TEAMSTER about 10.6 ms per step on one thread: CPU hours",
-            STATISTICAL,
-        ),
-        Unrun(
-            "teamster-mirror",
-            "TEAMSTER Part C: the mirrored environment (8 trials per agent)",
-            "embodied-adhoc teamster pursuit ... --out runs/teamster-mirror-t500, summarised by "
-            "experiments.domains.teamster.summarise",
-            "8 trials per agent at T = 500 and 2,500 steps in the mirrored environment: CPU hours",
-            STATISTICAL,
-        ),
         Unrun(
             "atlpo-teams",
             "ATLPO: are the teams distinguishable? The Bayes-optimal posterior against the classifier",
