@@ -1572,8 +1572,8 @@ TEAMSTER_NTU = (
     "0.25",
 )
 TEAMSTER_EXACT_MAPS = ("isr", "pentagon")
-TEAMSTER_EXACT = ("--agents", "learns-team,plastic-model,original", "--trials", "2", "--steps", "200")
-TEAMSTER_EXACT += ("--points", "2", "--eval-episodes", "4")
+TEAMSTER_EXACT_AGENTS = "learns-team,plastic-model,original"
+TEAMSTER_EXACT = ("--trials", "2", "--steps", "200", "--points", "2", "--eval-episodes", "4")
 """isr and pentagon with the agents that plan in the exact environment: two trials of T = 200 per team."""
 # Tables 4.5-4.7 as printed: per (after learning, agent) the mean and spread on tau_1, tau_2, tau_3; the original
 # teammate and random have one row each.
@@ -1815,6 +1815,27 @@ def teamster_study_compare(
     return compare
 
 
+TEAMSTER_CHECKED = (
+    "no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over every cell, "
+    "family-wise level 0.05)"
+)
+"""What the second-kernel check of a TEAMSTER study asserts (:func:`cells_that_differ`)."""
+
+
+def teamster_commands(
+    domain: str | None, lanes: dict[str, str], protocol: Sequence[str]
+) -> dict[str, list[str]]:
+    """One ``teamster DOMAIN --agents AGENTS PROTOCOL --json`` command per lane (``domain`` None: the lane's key is
+    the domain)."""
+    return {
+        key: [
+            ".venv/bin/embodied-adhoc", "teamster", domain or key, "--agents", agents, *protocol,
+            "--out", "{out}", "--json", "--quiet",
+        ]
+        for key, agents in lanes.items()
+    }  # fmt: skip
+
+
 TEAMSTER_CHANGED = (
     "--trials",
     "12",
@@ -1842,6 +1863,7 @@ TEAMSTER_MIRROR = (
 )
 TEAMSTER_MIRROR += ("--changed-steps", "2500")
 """Part B3: 8 trials at T = 500 per team, then 2,500 steps with the ad hoc agent's moves mirrored."""
+TEAMSTER_MIRROR_LANES = {"teamster": "teamster", "the-others": "plastic-model,learns-team,plastic-policy"}
 
 
 def _pursuit_changed_claims(data: dict, rivals: Sequence[str]) -> list[list[str]]:
@@ -2446,21 +2468,7 @@ FIGURES = {
         Figure(
             "teamster-t5000",
             "TEAMSTER Part D: the thesis's protocol on pursuit, 8 trials of seven agents at T = 5000 per team",
-            {
-                lane: [
-                    ".venv/bin/embodied-adhoc",
-                    "teamster",
-                    "pursuit",
-                    "--agents",
-                    agents,
-                    *TEAMSTER_T5000,
-                    "--out",
-                    "{out}",
-                    "--json",
-                    "--quiet",
-                ]
-                for lane, agents in TEAMSTER_LANES.items()
-            },  # fmt: skip
+            teamster_commands("pursuit", TEAMSTER_LANES, TEAMSTER_T5000),
             teamster_t5000_extract,
             teamster_t5000_tables,
             teamster_t5000_compare,
@@ -2471,8 +2479,7 @@ FIGURES = {
             "compare. The original teammate's and random's rows are after all three teams (they learn nothing). The "
             "claims' Welch tests run on the per-trial values. Seconds per trial are each agent's mean wall seconds "
             "(timing: its lane shared the host with the other lane).",
-            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
-            "every cell, family-wise level 0.05) and every claim keeps its verdict",
+            checked=TEAMSTER_CHECKED + " and every claim keeps its verdict",
             timing_tables=("seconds",),
             plot=("docs/images/teamster-curves-t5000.png", teamster_t5000_plot),
             parallel=True,
@@ -2480,21 +2487,7 @@ FIGURES = {
         Figure(
             "teamster-changed",
             "TEAMSTER Part B2: 12 trials at T = 500 per team and a changed environment (predator moves fail w.p. 0.5)",
-            {
-                agent: [
-                    ".venv/bin/embodied-adhoc",
-                    "teamster",
-                    "pursuit",
-                    "--agents",
-                    agent,
-                    *TEAMSTER_CHANGED,
-                    "--out",
-                    "{out}",
-                    "--json",
-                    "--quiet",
-                ]
-                for agent in ("teamster", "plastic-model")
-            },  # fmt: skip
+            teamster_commands("pursuit", {a: a for a in ("teamster", "plastic-model")}, TEAMSTER_CHANGED),
             teamster_study_extract,
             teamster_changed_tables,
             teamster_study_compare(teamster_changed_claims),
@@ -2505,8 +2498,7 @@ FIGURES = {
             "trial's mean over that phase's evaluations after learning began (100-500 steps); Welch's test and "
             "P(a scores more) (rliable's probability of improvement) run on those per-trial values. Seconds per "
             "trial: timing (the two agents ran at once).",
-            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
-            "every cell, family-wise level 0.05) and the claim keeps its verdict",
+            checked=TEAMSTER_CHECKED + " and the claim keeps its verdict",
             timing_tables=("seconds",),
             plot=("docs/images/teamster-curves-t500.png", teamster_curves_plot("pursuit")),
             parallel=True,
@@ -2514,24 +2506,7 @@ FIGURES = {
         Figure(
             "teamster-mirror",
             "TEAMSTER Part B3: the mirrored environment, 8 trials of four agents",
-            {
-                lane: [
-                    ".venv/bin/embodied-adhoc",
-                    "teamster",
-                    "pursuit",
-                    "--agents",
-                    agents,
-                    *TEAMSTER_MIRROR,
-                    "--out",
-                    "{out}",
-                    "--json",
-                    "--quiet",
-                ]
-                for lane, agents in (
-                    ("teamster", "teamster"),
-                    ("the-others", "plastic-model,learns-team,plastic-policy"),
-                )
-            },  # fmt: skip
+            teamster_commands("pursuit", TEAMSTER_MIRROR_LANES, TEAMSTER_MIRROR),
             teamster_study_extract,
             teamster_mirror_tables,
             teamster_study_compare(teamster_mirror_claims),
@@ -2544,8 +2519,7 @@ FIGURES = {
             "(rliable's probability of improvement) run on those per-trial values. The fit is the learned "
             "environment model's share of agent 0's moves predicted under the mirrored rules (256 random states), "
             "mean over trials. Seconds per trial: timing (the two lanes ran at once).",
-            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
-            "every cell, family-wise level 0.05) and every claim keeps its verdict",
+            checked=TEAMSTER_CHECKED + " and every claim keeps its verdict",
             timing_tables=("seconds",),
             plot=("docs/images/teamster-mirror-changed.png", teamster_changed_plot),
             parallel=True,
@@ -2553,21 +2527,7 @@ FIGURES = {
         Figure(
             "teamster-ntu",
             "TEAMSTER on ntu: two trials of seven agents at T = 500 per team and a changed environment",
-            {
-                lane: [
-                    ".venv/bin/embodied-adhoc",
-                    "teamster",
-                    "ntu",
-                    "--agents",
-                    agents,
-                    *TEAMSTER_NTU,
-                    "--out",
-                    "{out}",
-                    "--json",
-                    "--quiet",
-                ]
-                for lane, agents in TEAMSTER_NTU_LANES.items()
-            },  # fmt: skip
+            teamster_commands("ntu", TEAMSTER_NTU_LANES, TEAMSTER_NTU),
             teamster_study_extract,
             teamster_ntu_tables,
             teamster_study_compare(teamster_ntu_claims),
@@ -2579,8 +2539,7 @@ FIGURES = {
             "evaluations after learning began there. The thesis's Table 4.5 ran 8 trials of T = 100,000 per team, "
             "mean ± its spread. The original teammate's and random's rows are after all three teams (they learn "
             "nothing). Seconds per trial are each agent's mean wall seconds (timing: its lane shared the host).",
-            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
-            "every cell, family-wise level 0.05) and the claim keeps its verdict",
+            checked=TEAMSTER_CHECKED + " and the claim keeps its verdict",
             timing_tables=("seconds",),
             plot=("docs/images/teamster-ntu-curves.png", teamster_curves_plot("ntu")),
             parallel=True,
@@ -2588,19 +2547,9 @@ FIGURES = {
         Figure(
             "teamster-isr-pentagon",
             "TEAMSTER on isr and pentagon: the exact-environment agents, two trials at T = 200 per team",
-            {
-                name: [
-                    ".venv/bin/embodied-adhoc",
-                    "teamster",
-                    name,
-                    *TEAMSTER_EXACT,
-                    "--out",
-                    "{out}",
-                    "--json",
-                    "--quiet",
-                ]
-                for name in TEAMSTER_EXACT_MAPS
-            },  # fmt: skip
+            teamster_commands(
+                None, dict.fromkeys(TEAMSTER_EXACT_MAPS, TEAMSTER_EXACT_AGENTS), TEAMSTER_EXACT
+            ),
             teamster_study_extract,
             teamster_exact_maps_tables,
             teamster_study_compare(),
@@ -2611,8 +2560,7 @@ FIGURES = {
             "thesis's Tables 4.6 and 4.7 ran 8 trials of T = 100,000 (isr) and 125,000 (pentagon) per team, mean ± "
             "its spread. The original teammate's rows are after all three teams. Seconds per trial: timing (the two "
             "maps ran at once).",
-            checked="no cell differs from the published run (Welch's test on the per-trial values, Holm-adjusted over "
-            "every cell, family-wise level 0.05)",
+            checked=TEAMSTER_CHECKED,
             timing_tables=("seconds",),
             parallel=True,
         ),
