@@ -165,12 +165,11 @@ def teams(args: Args) -> dict:
             ClassifierConfig(channels=train[view].observations.shape[2], environments=3, view=view)
         )
         train_classifier(model, train[view], ClassifierTraining(iterations=args.iterations, seed=args.seed))
-        out[f"classifier_view{view}_held_out"] = [
-            round(r["accuracy"], 3) for r in per_step_scores(model, test[view])[:SHOWN]
-        ]
-        out[f"classifier_view{view}_training"] = [
-            round(r["accuracy"], 3) for r in per_step_scores(model, train[view])[:SHOWN]
-        ]
+        for split, data in (("held_out", test[view]), ("training", train[view])):
+            scores = per_step_scores(model, data)[:SHOWN]
+            out[f"classifier_view{view}_{split}"] = [round(r["accuracy"], 3) for r in scores]
+            # the episodes behind each accuracy: what a comparison of two runs' accuracies weighs them by
+            out[f"classifier_view{view}_{split}_episodes"] = [r["episodes"] for r in scores]
     # the classifier's step t has seen t transitions; the oracle's verdict t-1 comes after t transitions
     live = [[v[t - 1] for v in verdicts if v[t - 1] is not None] for t in range(1, SHOWN)]
     out["oracle_full_state_held_out"] = [round(1 / 3, 3)] + [round(float(np.mean(v)), 3) for v in live]
