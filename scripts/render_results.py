@@ -1810,7 +1810,7 @@ def teamster_study_compare(
             claims(published) if claims else (), claims(check) if claims else (), strict=True
         ):
             if mine[-1] != other[-1]:
-                failures.append(f"claim '{mine[0][:60]}': {mine[-1]} -> {other[-1]}")
+                failures.append(f"claim '{mine[0]}': {mine[-1]} -> {other[-1]}")
         return failures
 
     return compare
@@ -2127,7 +2127,7 @@ def atlpo_teams_compare(published: dict, check: dict) -> list[str]:
     ]
     for mine, other in zip(atlpo_teams_claims(published), atlpo_teams_claims(check), strict=True):
         if mine[-1] != other[-1]:
-            failures.append(f"claim '{mine[0][:60]}': {mine[-1]} -> {other[-1]}")
+            failures.append(f"claim '{mine[0]}': {mine[-1]} -> {other[-1]}")
     return failures
 
 

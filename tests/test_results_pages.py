@@ -1027,3 +1027,151 @@ def test_the_teamster_study_merges_its_lanes_sets_the_thesis_beside_each_cell_an
     other = json.loads(lanes["the-others"]) | {"config": {"steps": 20}}
     with pytest.raises(SystemExit, match="lane the-others ran another protocol"):
         figure.extract({**lanes, "the-others": json.dumps(other)})
+
+
+def study_lane(domain, agents, shift: float = 0.0, changed: dict | None = None) -> str:
+    """A ``teamster DOMAIN --json`` summary of ``agents`` (pursuit's captures per 500 or a map's reward), every
+    trial scoring the agent's index plus ``shift``; ``changed``: agent -> its changed-phase score."""
+    module = load_script()
+    metric = "per_500" if domain == "pursuit" else "reward"
+    teams = module.TEAMSTER_TEAMS if domain == "pursuit" else module.MAP_TEAMS
+
+    def cell(value: float) -> dict:
+        return {
+            metric: {
+                "mean": value,
+                "ci": [value - 1, value + 1],
+                "n": 3,
+                "values": [value - 1, value, value + 1],
+            }
+        }
+
+    summary = {}
+    for agent in agents:
+        score = 10.0 * module.TEAMSTER_ORDER.index(agent) + shift
+        summary[agent] = {
+            "trials": 3,
+            "metric": metric,
+            "curves": {t: [{"step": s, **cell(score + s / 500)} for s in (0, 500)] for t in teams},
+            "after": {learned: {t: cell(score) for t in teams} for learned in teams},
+            "seconds": 12.5,
+        }
+        if changed is not None:
+            value = changed[agent]
+            summary[agent]["changed"] = [{"step": s, **cell(value)} for s in (0, 500, 1000)]
+            summary[agent]["changed_after"] = [value - 1, value, value + 1]
+    return json.dumps({"domain": domain, "config": {"steps": 500, "domain": domain}, "agents": summary})
+
+
+def test_the_mirror_study_tests_the_robustness_claim_on_the_changed_phase_and_holds_each_cell_to_its_run():
+    module = load_script()
+    figure = module.FIGURES["teamster-mirror"]
+    scores = {"teamster": 60.0, "plastic-model": 5.0, "learns-team": 4.0, "plastic-policy": 15.0}
+    lanes = {
+        "teamster": study_lane("pursuit", ["teamster"], changed=scores),
+        "the-others": study_lane(
+            "pursuit", ["plastic-model", "learns-team", "plastic-policy"], changed=scores
+        ),
+    }
+    data = figure.extract(lanes)
+    assert list(data["maps"]["pursuit"]["agents"]) == [
+        "plastic-policy",
+        "teamster",
+        "plastic-model",
+        "learns-team",
+    ]
+    tables = {t.key: t for t in figure.tables(data)}
+    (row,) = [r for r in tables["end"].rows if r[0] == "teamster"]
+    assert row[-2:] == ["60.0", "[59.0, 61.0]"]  # the pre-stated measure and its interval
+    assert [r[-1] for r in tables["claims"].rows] == ["yes", "yes"]
+    assert any(r[0] == "teamster vs plastic-model" for r in tables["pairs"].rows)
+    assert figure.compare(data, data) == []
+    # TEAMSTER no better than PLASTIC-Model in the changed phase: the cell moves and the claim's verdict flips
+    worse = dict(scores, teamster=5.0)
+    moved = figure.extract({**lanes, "teamster": study_lane("pursuit", ["teamster"], changed=worse)})
+    failures = figure.compare(data, moved)
+    assert any(
+        f.startswith("pursuit teamster changed environment: 5.00 against the published 60.00")
+        for f in failures
+    )
+    assert any(
+        f
+        == "claim 'Sec. 4.1.4: in the changed environment TEAMSTER scores more than plastic-model': yes -> no"
+        for f in failures
+    )
+    with pytest.raises(SystemExit, match="teamster study: the-others ran another protocol"):
+        other = json.loads(lanes["the-others"]) | {"config": {"steps": 20, "domain": "pursuit"}}
+        figure.extract({**lanes, "the-others": json.dumps(other)})
+
+
+def test_the_ntu_study_sets_table_4_5_beside_each_cell_and_tests_the_exact_environment_claim():
+    module = load_script()
+    figure = module.FIGURES["teamster-ntu"]
+    lanes = {
+        key: study_lane("ntu", agents.split(","), 50.0) for key, agents in module.TEAMSTER_NTU_LANES.items()
+    }
+    data = figure.extract(lanes)
+    tables = {t.key: t for t in figure.tables(data)}
+    (row,) = [r for r in tables["after"].rows if r[:2] == ["selfish", "learns-team"]]
+    assert row[2:5] == ["110.0", "[109.0, 111.0]", "97.92 ± 0.40"]  # ours, our interval, Table 4.5's cell
+    assert [r[:2] for r in tables["after"].rows[:2]] == [["-", "original"], ["-", "random"]]
+    # the original teammate scores 50, PLASTIC-Model 90 and Learns Team 110: both reach 95 % of it
+    assert tables["claims"].rows[0][-1] == "yes"
+    assert figure.compare(data, data) == []
+    # Learns Team at 15 (the lane that runs it moved by -95) is below 95 % of the original: the verdict flips
+    (first, _), (second, agents) = module.TEAMSTER_NTU_LANES.items()
+    lower = figure.extract(
+        {
+            first: study_lane("ntu", module.TEAMSTER_NTU_LANES[first].split(","), -45.0),
+            **{second: lanes[second]},
+        }
+    )
+    assert figure.tables(lower)[2].rows[0][-1] == "no"
+    assert any(
+        f.startswith("claim 'Sec. 4.1.4: on ntu") and f.endswith("yes -> no")
+        for f in figure.compare(data, lower)
+    )
+
+
+def atlpo_teams_run(domain: str, accuracy: float, views=(5, 9), episodes: int = 96) -> str:
+    steps = 12
+    run = {"what": "teams", "domain": domain, "train_episodes_per_team": 256, "iterations": 600}
+    run["oracle_full_state_held_out"] = [0.333] + [0.9] * (steps - 1)
+    run["episodes_reaching_step"] = [episodes] * steps
+    for view in views:
+        run[f"classifier_view{view}_held_out"] = [accuracy] * steps
+        run[f"classifier_view{view}_held_out_episodes"] = [episodes] * steps
+        run[f"classifier_view{view}_training"] = [0.8] * steps
+        run[f"classifier_view{view}_training_episodes"] = [768] * steps
+    return json.dumps(run)
+
+
+def test_the_team_identifiability_figure_reads_each_accuracy_and_holds_it_to_the_published_run_by_fisher():
+    module = load_script()
+    figure = module.FIGURES["atlpo-teams"]
+    outputs = {
+        "foraging": atlpo_teams_run("foraging", 0.35),
+        "pursuit": atlpo_teams_run("pursuit", 0.4),
+        "foraging-10x": atlpo_teams_run("foraging", 0.64, views=(5,)),
+    }
+    data = figure.extract(outputs)
+    (accuracy, claims) = figure.tables(data)
+    labels = [row[0] for row in accuracy.rows]
+    assert labels[0] == "LBF, oracle (full state, exact team models)"
+    # the third run's row names the settings it ran with (here the library's, as the fake run says)
+    assert (
+        labels[-1] == "LBF, classifier on 5x5, 256 episodes per team and 600 iterations, held out (training)"
+    )
+    assert accuracy.rows[1][1:3] == ["0.35 (0.80)", "0.35 (0.80)"]  # held out (training)
+    assert [row[-1] for row in claims.rows] == ["yes", "yes", "yes", "yes"]
+    assert figure.compare(data, data) == []
+    # 0.35 -> 0.45 on 96 episodes is within chance of one another once Holm adjusts; 0.35 -> 0.9 is not
+    near = figure.extract({**outputs, "foraging": atlpo_teams_run("foraging", 0.45)})
+    assert figure.compare(data, near) == []
+    far = figure.extract({**outputs, "foraging": atlpo_teams_run("foraging", 0.9)})
+    failures = figure.compare(data, far)
+    assert any(
+        f.startswith("LBF, classifier on 5x5, held out (training) t=10: 0.90 against the published 0.35")
+        for f in failures
+    )
+    assert any(f.startswith("claim 'the classifier on ATLPO's 5x5 window") for f in failures)
