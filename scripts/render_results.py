@@ -1837,32 +1837,11 @@ def teamster_commands(
     }  # fmt: skip
 
 
-TEAMSTER_CHANGED = (
-    "--trials",
-    "12",
-    "--steps",
-    "500",
-    "--eval-steps",
-    "50",
-    "--points",
-    "5",
-    "--changed",
-    "0.5",
-)
+TEAMSTER_T500 = ("--steps", "500", "--eval-steps", "50", "--points", "5")
+"""Parts B2, B3 and the Mixed team: T = 500 per team, 50-step evaluations at every 20 %."""
+TEAMSTER_CHANGED = ("--trials", "12", *TEAMSTER_T500, "--changed", "0.5")
 """Part B2: 12 trials at T = 500 per team, 50-step evaluations at every 20 %, then predator moves fail w.p. 0.5."""
-TEAMSTER_MIRROR = (
-    "--trials",
-    "8",
-    "--steps",
-    "500",
-    "--eval-steps",
-    "50",
-    "--points",
-    "5",
-    "--changed",
-    "mirror",
-)
-TEAMSTER_MIRROR += ("--changed-steps", "2500")
+TEAMSTER_MIRROR = ("--trials", "8", *TEAMSTER_T500, "--changed", "mirror", "--changed-steps", "2500")
 """Part B3: 8 trials at T = 500 per team, then 2,500 steps with the ad hoc agent's moves mirrored."""
 TEAMSTER_MIRROR_LANES = {"teamster": "teamster", "the-others": "plastic-model,learns-team,plastic-policy"}
 
@@ -1949,6 +1928,86 @@ def teamster_changed_tables(data: dict) -> list[Table]:
 
 def teamster_mirror_tables(data: dict) -> list[Table]:
     return _pursuit_study_tables(data, teamster_mirror_claims)
+
+
+TEAMSTER_MIXED = ("--trials", "8", *TEAMSTER_T500, "--mixed-steps", "1500")
+"""Section 4.1.5's Mixed team at a tenth of the thesis's scale: 8 trials, T = 500 per team, then three times T with
+the Mixed team, evaluated every 100 steps."""
+TEAMSTER_MIXED_LANES = {"teamster": "teamster", "the-others": "plastic-model,plastic-policy"}
+MIXED_EARLY = 6
+"""The thesis's "first six evaluation checkpoints" of the Mixed phase, where TEAMSTER "hints of a better
+performance" than PLASTIC-Policy."""
+
+
+def _mixed_early(summary: dict) -> list[float]:
+    """Each trial's mean over the Mixed phase's first :data:`MIXED_EARLY` evaluations after learning began."""
+    points = summary["curves"]["mixed"][1 : 1 + MIXED_EARLY]
+    trials = len(points[0]["values"])
+    return [sum(p["values"][k] for p in points) / len(points) for k in range(trials)]
+
+
+def teamster_mixed_claims(data: dict) -> list[list[str]]:
+    """Fig. 4.12's reading (section 4.1.5): PLASTIC-Model learns most stably, TEAMSTER leads PLASTIC-Policy early,
+    and by the end every agent reaches the same level."""
+    from embodied_adhoc.experiments.stats import welch_test
+
+    agents = data["maps"]["pursuit"]["agents"]
+    mixed = {a: s["curves"]["mixed"][1:] for a, s in agents.items()}
+    widths = {a: sum(p["ci"][1] - p["ci"][0] for p in c) / len(c) for a, c in mixed.items()}
+    early = {a: _mixed_early(s) for a, s in agents.items()}
+    t, p = welch_test(early["teamster"], early["plastic-policy"])
+    means = {a: sum(v) / len(v) for a, v in early.items()}
+    last = {a: c[-1] for a, c in mixed.items()}
+    pairs = [(a, b) for i, a in enumerate(last) for b in list(last)[i + 1 :]]
+    ends = {(a, b): welch_test(last[a]["values"], last[b]["values"])[1] for a, b in pairs}
+    # two constant samples have no Welch test: they differ exactly when their means do
+    ends = {
+        pair: (1.0 if last[pair[0]]["mean"] == last[pair[1]]["mean"] else 0.0) if math.isnan(pv) else pv
+        for pair, pv in ends.items()
+    }
+    return [
+        [
+            "Fig. 4.12: PLASTIC-Model learns the Mixed team most stably (the narrowest mean 95 % interval over the "
+            "phase's evaluations)",
+            ", ".join(f"{a} {w:.1f}" for a, w in widths.items()),
+            "yes" if min(widths, key=widths.get) == "plastic-model" else "no",
+        ],
+        [
+            f"Fig. 4.12: over the Mixed phase's first {MIXED_EARLY} evaluations TEAMSTER scores more than "
+            "PLASTIC-Policy",
+            f"{means['teamster']:.1f} vs {means['plastic-policy']:.1f}, Welch t = {t:.2f}, p = {p:.2g}",
+            "yes" if means["teamster"] > means["plastic-policy"] and p < 0.05 else "no",
+        ],
+        [
+            "Fig. 4.12: by the end of the Mixed phase every agent reaches the same level (no pair differs at its last "
+            "evaluation, Welch p >= 0.05)",
+            ", ".join(f"{a} {last[a]['mean']:.1f}" for a in last)
+            + "; p "
+            + ", ".join(f"{pv:.2g}" for pv in ends.values()),
+            "yes" if all(pv >= 0.05 for pv in ends.values()) else "no",
+        ],
+    ]
+
+
+def teamster_mixed_tables(data: dict) -> list[Table]:
+    agents = data["maps"]["pursuit"]["agents"]
+    teams = list(next(iter(agents.values()))["curves"])
+    end = [
+        [agent, *(x for t in teams for x in _bracket(summary["curves"][t][-1]))]
+        for agent, summary in agents.items()
+    ]
+    steps = [p["step"] for p in next(iter(agents.values()))["curves"]["mixed"]]
+    shown = [i for i, step in enumerate(steps) if step % 300 == 0]
+    mixed = [
+        [agent, *(x for i in shown for x in _bracket(summary["curves"]["mixed"][i]))]
+        for agent, summary in agents.items()
+    ]
+    return [
+        Table("end", "", ["agent", *(h for t in teams for h in (f"end of {t}", "95 % CI"))], end),
+        Table("mixed", "", ["agent", *(h for i in shown for h in (f"{steps[i]} steps", "95 % CI"))], mixed),
+        Table("claims", "", ["claim", "measured", "holds"], teamster_mixed_claims(data)),
+        _map_seconds_table(data),
+    ]
 
 
 def _study_summary(data: dict, domain: str) -> dict:
@@ -2695,6 +2754,27 @@ FIGURES = {
             parallel=True,
         ),
         Figure(
+            "teamster-mixed",
+            "TEAMSTER section 4.1.5: the Mixed team at a tenth of the thesis's scale (8 trials, T = 500 per team, "
+            "1,500 Mixed steps)",
+            teamster_commands("pursuit", TEAMSTER_MIXED_LANES, TEAMSTER_MIXED),
+            teamster_study_extract,
+            teamster_mixed_tables,
+            teamster_study_compare(teamster_mixed_claims),
+            ("docs/teamster.md",),
+            notes="Seed 0, Table 4.1's pursuit UCT, one thread per lane. After the three teams (T = 500 each, the "
+            "library they build kept), each agent plays the Mixed team (one teammate-aware, one greedy, one "
+            "probabilistic-destinations seat) for 1,500 steps, three times T as in the thesis (15,000 after T = "
+            "5,000). Captures per 500 steps of 50-step evaluations every 100 steps (learning paused; each capture "
+            "moves a cell by 10), mean over 8 trials with the 95 % percentile-bootstrap interval; the Mixed table "
+            "shows every third evaluation, the claims read all of them. Seconds per trial: timing (the two lanes ran "
+            "at once).",
+            checked=TEAMSTER_CHECKED + " and every claim keeps its verdict",
+            timing_tables=("seconds",),
+            plot=("docs/images/teamster-mixed-curves.png", teamster_curves_plot("pursuit")),
+            parallel=True,
+        ),
+        Figure(
             "teamster-ntu",
             "TEAMSTER on ntu: two trials of seven agents at T = 500 per team and a changed environment",
             teamster_commands("ntu", TEAMSTER_NTU_LANES, TEAMSTER_NTU),
@@ -2941,16 +3021,6 @@ UNRUN_HISTORY = "docs/changelog.md"
 UNRUN = {
     entry.name: entry
     for entry in (
-        Unrun(
-            "teamster-changed",
-            "TEAMSTER Part B2: 12 trials at T = 500 per team and a changed environment (predator moves fail w.p. 0.5)",
-            "embodied-adhoc teamster pursuit --agents A --trials 12 --steps 500 --eval-steps 50 --points 5 --changed "
-            "0.5 --out DIR --json (A = teamster, plastic-model; `scripts/render_results.py run teamster-changed` runs "
-            "both)",
-            "24 trials (12 per agent) of 2,000 interaction steps and their 50-step evaluations: about 12 CPU "
-            "minutes for TEAMSTER's and 8 for PLASTIC-Model's on this host, per kernel",
-            STATISTICAL,
-        ),
         Unrun(
             "atlpo-chapter6",
             "ATLPO: the chapter-6 table and the held-out teammates",
