@@ -2788,7 +2788,9 @@ FIGURES = {
             "after the three teams, every move fails w.p. 0.25; its column is each trial's mean over the "
             "evaluations after learning began there. The thesis's Table 4.5 ran 8 trials of T = 100,000 per team, "
             "mean ± its spread. The original teammate's and random's rows are after all three teams (they learn "
-            "nothing). Seconds per trial are each agent's mean wall seconds (timing: its lane shared the host).",
+            "nothing). Seconds per trial are each agent's mean wall seconds (timing: its lane shared the host). With "
+            "two trials per cell the check's Welch tests detect only large shifts; the claim's verdict is the "
+            "sharper check.",
             checked=TEAMSTER_CHECKED + " and the claim keeps its verdict",
             timing_tables=("seconds",),
             plot=("docs/images/teamster-ntu-curves.png", teamster_curves_plot("ntu")),
@@ -2809,7 +2811,7 @@ FIGURES = {
             "2 trials with the 95 % percentile-bootstrap interval (over two trials it spans their two values). The "
             "thesis's Tables 4.6 and 4.7 ran 8 trials of T = 100,000 (isr) and 125,000 (pentagon) per team, mean ± "
             "its spread. The original teammate's rows are after all three teams. Seconds per trial: timing (the two "
-            "maps ran at once).",
+            "maps ran at once). With two trials per cell the check's Welch tests detect only large shifts.",
             checked=TEAMSTER_CHECKED,
             timing_tables=("seconds",),
             parallel=True,
