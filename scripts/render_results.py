@@ -45,6 +45,7 @@ import ast
 import datetime as dt
 import hashlib
 import importlib.util
+import itertools
 import json
 import math
 import os
@@ -1457,36 +1458,46 @@ def teamster_claims(data: dict) -> list[list[str]]:
     return rows
 
 
-def teamster_t5000_tables(data: dict) -> list[Table]:
-    agents = data["agents"]
-    end = [
-        [agent, *(x for t in TEAMSTER_TEAMS for x in _bracket(entry["curves"][t][-1]))]
+def _end_rows(agents: dict, teams: Sequence[str]) -> tuple[list[str], list[list[str]]]:
+    """The headers and rows (agent, then each team's curve end with its interval) of a study's end table."""
+    headers = ["agent", *(h for t in teams for h in (f"end of {t}", "95 % CI"))]
+    rows = [
+        [agent, *(x for t in teams for x in _bracket(entry["curves"][t][-1]))]
         for agent, entry in agents.items()
     ]
-    team_headers = [h for t in TEAMSTER_TEAMS for h in (f"end of {t}", "95 % CI")]
-    after_rows = []
-    for (learned, agent), thesis in THESIS_TABLE_4_4.items():
-        ours = agents[agent]["after"][TEAMSTER_TEAMS[-1] if learned == "-" else learned]
-        after_rows.append(
+    return headers, rows
+
+
+def _after_table(key: str, caption: str, agents: dict, thesis: dict, teams: Sequence[str]) -> Table:
+    """A thesis table's layout (Tables 4.4-4.7): per (after learning, agent) row of ``thesis``, each team's cell with
+    its interval beside the thesis's; an agent that learns nothing ("-") reads its row after the last team."""
+    rows = []
+    for (learned, agent), cells in thesis.items():
+        if agent not in agents:
+            continue
+        ours = agents[agent]["after"][teams[-1] if learned == "-" else learned]
+        rows.append(
             [
                 learned,
                 agent,
                 *(
                     x
-                    for team, (mean, spread) in zip(TEAMSTER_TEAMS, thesis, strict=True)
+                    for team, (mean, spread) in zip(teams, cells, strict=True)
                     for x in (*_bracket(ours[team]), f"{mean:.2f} ± {spread:.2f}")
                 ),
             ]
         )
-    after_headers = [
-        "after learning",
-        "agent",
-        *(h for t in TEAMSTER_TEAMS for h in (f"eval {t}", "95 % CI", "thesis")),
-    ]
+    headers = ["after learning", "agent", *(h for t in teams for h in (f"eval {t}", "95 % CI", "thesis"))]
+    return Table(key, caption, headers, rows)
+
+
+def teamster_t5000_tables(data: dict) -> list[Table]:
+    agents = data["agents"]
+    end_headers, end = _end_rows(agents, TEAMSTER_TEAMS)
     seconds = data["timing"]["wall_seconds_per_trial"]
     return [
-        Table("end", "", ["agent", *team_headers], end),
-        Table("after", "", after_headers, after_rows),
+        Table("end", "", end_headers, end),
+        _after_table("after", "", agents, THESIS_TABLE_4_4, TEAMSTER_TEAMS),
         Table("claims", "", ["claim", "measured", "holds"], teamster_claims(data)),
         Table("seconds", "", ["agent", "wall seconds per trial"], [[a, f"{seconds[a]:.0f}"] for a in agents]),
     ]
@@ -1496,36 +1507,45 @@ def teamster_t5000_plot(data: dict, path: Path) -> object:
     """Fig. 4.7's layout: captures per 500 steps against interaction steps, one panel per team, CI bands."""
     from embodied_adhoc.experiments.domains.teamster import plot_curves
 
-    summary = {
-        agent: {
-            "metric": "per_500",
-            "curves": {t: [{"step": p["step"], "per_500": p} for p in c] for t, c in entry["curves"].items()},
-        }
-        for agent, entry in data["agents"].items()
-    }
-    return plot_curves(summary, path)
+    return plot_curves(_study_summary(data["agents"], "per_500"), path)
 
 
 TEAMSTER_CHECK_ALPHA = 0.05
 """The family-wise level of the second-kernel check of Part D's cells (Welch per cell, Holm over all cells)."""
 
 
+def cells_welch_p(first: dict, second: dict) -> float:
+    """Welch's p between two cells' per-trial ``values``; two samples without variance (every trial alike) differ
+    exactly when their means do (p 0 or 1)."""
+    from embodied_adhoc.experiments.stats import welch_test
+
+    p = welch_test(first["values"], second["values"])[1]
+    return (1.0 if first["mean"] == second["mean"] else 0.0) if math.isnan(p) else p
+
+
 def cells_that_differ(cells: Sequence[tuple[str, dict, dict]]) -> list[str]:
     """The cells ``(label, published, check)`` whose per-trial ``values`` differ between two runs: Welch's test per
     cell, Holm-adjusted over every cell, at family-wise level :data:`TEAMSTER_CHECK_ALPHA`."""
-    from embodied_adhoc.experiments.stats import holm_adjusted, welch_test
+    from embodied_adhoc.experiments.stats import holm_adjusted
 
-    pvalues = [welch_test(ours["values"], theirs["values"])[1] for _, ours, theirs in cells]
-    # a cell whose trials all scored alike in both runs has no variance: equal means pass, unequal ones fail
-    pvalues = [
-        (1.0 if ours["mean"] == theirs["mean"] else 0.0) if math.isnan(p) else p
-        for p, (_, ours, theirs) in zip(pvalues, cells, strict=True)
-    ]
+    pvalues = [cells_welch_p(ours, theirs) for _, ours, theirs in cells]
     return [
         f"{label}: {theirs['mean']:.2f} against the published {ours['mean']:.2f} (Welch p {p:.2g}, "
         f"Holm-adjusted over {len(cells)} cells {adjusted:.2g})"
         for (label, ours, theirs), p, adjusted in zip(cells, pvalues, holm_adjusted(pvalues), strict=True)
         if adjusted < TEAMSTER_CHECK_ALPHA
+    ]
+
+
+def verdicts_that_change(
+    ours: list[list[str]], theirs: list[list[str]], width: int | None = None
+) -> list[str]:
+    """A failure per claim row (claim, measured, verdict) whose verdict differs between two runs, named by the
+    claim (its first ``width`` characters where given)."""
+    return [
+        f"claim '{mine[0][:width]}': {mine[-1]} -> {other[-1]}"
+        for mine, other in zip(ours, theirs, strict=True)
+        if mine[-1] != other[-1]
     ]
 
 
@@ -1546,10 +1566,7 @@ def teamster_t5000_compare(published: dict, check: dict) -> list[str]:
             for t in TEAMSTER_TEAMS
         ]
     failures = cells_that_differ([(f"{agent} {label}", ours, theirs) for agent, label, ours, theirs in cells])
-    for ours, theirs in zip(teamster_claims(published), teamster_claims(check), strict=True):
-        if ours[-1] != theirs[-1]:
-            failures.append(f"claim '{ours[0][:60]}': {ours[-1]} -> {theirs[-1]}")
-    return failures
+    return failures + verdicts_that_change(teamster_claims(published), teamster_claims(check), 60)
 
 
 MAP_TEAMS = ("altruistic", "selfish", "weighted-altruistic")
@@ -1646,18 +1663,13 @@ THESIS_MAP_TABLES = {name: _thesis_map_table(text) for name, text in _THESIS_MAP
 trials, per evaluation team."""
 
 
-def _reward_cell(values: Sequence[float]) -> dict:
-    from embodied_adhoc.experiments.stats import summarise_sample
-
-    s = summarise_sample(values)
-    return {"mean": s.mean, "ci": [s.ci_low, s.ci_high], "n": s.n, "values": [float(v) for v in values]}
-
-
 def teamster_study_extract(outputs: dict[str, str]) -> dict:
     """The ``teamster DOMAIN --json`` summaries (one per lane or map) as one document per domain (under ``maps``,
     pursuit included): per agent its curves (each evaluation's mean episode reward on a map, captures per 500 steps
     on pursuit), after-learning matrix and, with a changed phase, that phase's curve, the per-trial robustness
     measure and a learned model's fit to the changed rules; the seconds per trial are timing."""
+    from embodied_adhoc.experiments.domains.teamster import trial_cell
+
     maps, seconds = {}, {}
     for key, text in outputs.items():
         result = json.loads(text)
@@ -1680,7 +1692,7 @@ def teamster_study_extract(outputs: dict[str, str]) -> dict:
             }
             if "changed_after" in summary:
                 cells["changed"] = [{"step": p["step"], **p[metric]} for p in summary["changed"]]
-                cells["changed_after"] = _reward_cell(summary["changed_after"])
+                cells["changed_after"] = trial_cell(summary["changed_after"], 1.0)
             if "changed_fit" in summary:
                 cells["changed_fit"] = summary["changed_fit"]
             entry["agents"][agent] = cells
@@ -1725,45 +1737,25 @@ def teamster_ntu_claims(data: dict) -> list[list[str]]:
     ]
 
 
+def _with_changed(headers: list[str], rows: list[list[str]], agents: dict, label: str) -> list[str]:
+    """Append the changed environment's measure and its interval to an end table (in place); its headers."""
+    for row, summary in zip(rows, agents.values(), strict=True):
+        row += _bracket(summary["changed_after"])
+    return [*headers, label, "95 % CI"]
+
+
 def _map_study_tables(name: str, entry: dict, prefix: str) -> list[Table]:
-    agents, thesis = entry["agents"], THESIS_MAP_TABLES[name]
-    changed = any("changed_after" in a for a in agents.values())
-    end_headers = ["agent", *(h for t in MAP_TEAMS for h in (f"end of {t}", "95 % CI"))]
-    end_headers += ["changed environment", "95 % CI"] if changed else []
-    end = [
-        [
-            agent,
-            *(x for t in MAP_TEAMS for x in _bracket(summary["curves"][t][-1])),
-            *(_bracket(summary["changed_after"]) if changed else ()),
-        ]
-        for agent, summary in agents.items()
-    ]
-    after_rows = []
-    for (learned, agent), cells in thesis.items():
-        if agent not in agents:
-            continue
-        ours = agents[agent]["after"][MAP_TEAMS[-1] if learned == "-" else learned]
-        after_rows.append(
-            [
-                learned,
-                agent,
-                *(
-                    x
-                    for team, (mean, spread) in zip(MAP_TEAMS, cells, strict=True)
-                    for x in (*_bracket(ours[team]), f"{mean:.2f} ± {spread:.2f}")
-                ),
-            ]
-        )
-    after_headers = [
-        "after learning",
-        "agent",
-        *(h for t in MAP_TEAMS for h in (f"eval {t}", "95 % CI", "thesis")),
-    ]
+    agents = entry["agents"]
+    end_headers, end = _end_rows(agents, MAP_TEAMS)
+    if any("changed_after" in a for a in agents.values()):
+        end_headers = _with_changed(end_headers, end, agents, "changed environment")
+    caption = f"{name}: after learning each team (Table 4.{5 + TEAMSTER_MAPS.index(name)})"
     return [
-        Table(f"{prefix}end", f"{name}: mean episode reward at the end of each interaction", end_headers, end),
-        Table(f"{prefix}after", f"{name}: after learning each team (Table 4.{5 + TEAMSTER_MAPS.index(name)})",
-              after_headers, after_rows),
-    ]  # fmt: skip
+        Table(
+            f"{prefix}end", f"{name}: mean episode reward at the end of each interaction", end_headers, end
+        ),
+        _after_table(f"{prefix}after", caption, agents, THESIS_MAP_TABLES[name], MAP_TEAMS),
+    ]
 
 
 def _map_seconds_table(data: dict) -> Table:
@@ -1806,12 +1798,7 @@ def teamster_study_compare(
                 for (name, agent, label, a), (*_, b) in zip(ours, theirs, strict=True)
             ]
         )
-        for mine, other in zip(
-            claims(published) if claims else (), claims(check) if claims else (), strict=True
-        ):
-            if mine[-1] != other[-1]:
-                failures.append(f"claim '{mine[0]}': {mine[-1]} -> {other[-1]}")
-        return failures
+        return failures + (verdicts_that_change(claims(published), claims(check)) if claims else [])
 
     return compare
 
@@ -1882,16 +1869,8 @@ def _pursuit_study_tables(data: dict, claims: Callable[[dict], list[list[str]]])
     from embodied_adhoc.experiments.stats import compare_pairs
 
     agents = data["maps"]["pursuit"]["agents"]
-    teams = list(next(iter(agents.values()))["curves"])
-    end = [
-        [
-            agent,
-            *(x for t in teams for x in _bracket(summary["curves"][t][-1])),
-            *_bracket(summary["changed_after"]),
-        ]
-        for agent, summary in agents.items()
-    ]
-    end_headers = ["agent", *(h for t in teams for h in (f"end of {t}", "95 % CI"))]
+    end_headers, end = _end_rows(agents, list(next(iter(agents.values()))["curves"]))
+    end_headers = _with_changed(end_headers, end, agents, "changed environment, after learning began")
     steps = [p["step"] for p in next(iter(agents.values()))["changed"]]
     changed = [
         [agent, *(x for p in summary["changed"] for x in _bracket(p))] for agent, summary in agents.items()
@@ -1908,7 +1887,7 @@ def _pursuit_study_tables(data: dict, claims: Callable[[dict], list[list[str]]])
         if "changed_fit" in summary
     ]
     tables = [
-        Table("end", "", [*end_headers, "changed environment, after learning began", "95 % CI"], end),
+        Table("end", "", end_headers, end),
         Table("changed", "", ["agent", *(h for s in steps for h in (f"{s} steps", "95 % CI"))], changed),
         Table("pairs", "", ["a vs b", "Welch t", "p", "P(a scores more)"], pairs),
     ]
@@ -1958,13 +1937,7 @@ def teamster_mixed_claims(data: dict) -> list[list[str]]:
     t, p = welch_test(early["teamster"], early["plastic-policy"])
     means = {a: sum(v) / len(v) for a, v in early.items()}
     last = {a: c[-1] for a, c in mixed.items()}
-    pairs = [(a, b) for i, a in enumerate(last) for b in list(last)[i + 1 :]]
-    ends = {(a, b): welch_test(last[a]["values"], last[b]["values"])[1] for a, b in pairs}
-    # two constant samples have no Welch test: they differ exactly when their means do
-    ends = {
-        pair: (1.0 if last[pair[0]]["mean"] == last[pair[1]]["mean"] else 0.0) if math.isnan(pv) else pv
-        for pair, pv in ends.items()
-    }
+    ends = {(a, b): cells_welch_p(last[a], last[b]) for a, b in itertools.combinations(last, 2)}
     return [
         [
             "Fig. 4.12: PLASTIC-Model learns the Mixed team most stably (the narrowest mean 95 % interval over the "
@@ -1991,11 +1964,7 @@ def teamster_mixed_claims(data: dict) -> list[list[str]]:
 
 def teamster_mixed_tables(data: dict) -> list[Table]:
     agents = data["maps"]["pursuit"]["agents"]
-    teams = list(next(iter(agents.values()))["curves"])
-    end = [
-        [agent, *(x for t in teams for x in _bracket(summary["curves"][t][-1]))]
-        for agent, summary in agents.items()
-    ]
+    end_headers, end = _end_rows(agents, list(next(iter(agents.values()))["curves"]))
     steps = [p["step"] for p in next(iter(agents.values()))["curves"]["mixed"]]
     shown = [i for i, step in enumerate(steps) if step % 300 == 0]
     mixed = [
@@ -2003,19 +1972,18 @@ def teamster_mixed_tables(data: dict) -> list[Table]:
         for agent, summary in agents.items()
     ]
     return [
-        Table("end", "", ["agent", *(h for t in teams for h in (f"end of {t}", "95 % CI"))], end),
+        Table("end", "", end_headers, end),
         Table("mixed", "", ["agent", *(h for i in shown for h in (f"{steps[i]} steps", "95 % CI"))], mixed),
         Table("claims", "", ["claim", "measured", "holds"], teamster_mixed_claims(data)),
         _map_seconds_table(data),
     ]
 
 
-def _study_summary(data: dict, domain: str) -> dict:
+def _study_summary(agents: dict, metric: str) -> dict:
     """A study's agents in the shape of :func:`embodied_adhoc.experiments.domains.teamster.summarise`, which its
-    plots read."""
+    plots read (``metric``: per_500 on pursuit, reward on a map)."""
     out = {}
-    for agent, entry in data["maps"][domain]["agents"].items():
-        metric = "per_500" if domain == "pursuit" else "reward"
+    for agent, entry in agents.items():
         summary = {
             "metric": metric,
             "curves": {t: [{"step": p["step"], metric: p} for p in c] for t, c in entry["curves"].items()},
@@ -2032,7 +2000,8 @@ def teamster_curves_plot(domain: str) -> Callable[[dict, Path], object]:
     def plot(data: dict, path: Path) -> object:
         from embodied_adhoc.experiments.domains.teamster import plot_curves
 
-        return plot_curves(_study_summary(data, domain), path)
+        agents = data["maps"][domain]["agents"]
+        return plot_curves(_study_summary(agents, "per_500" if domain == "pursuit" else "reward"), path)
 
     return plot
 
@@ -2040,7 +2009,7 @@ def teamster_curves_plot(domain: str) -> Callable[[dict, Path], object]:
 def teamster_changed_plot(data: dict, path: Path) -> object:
     from embodied_adhoc.experiments.domains.teamster import plot_changed
 
-    return plot_changed(_study_summary(data, "pursuit"), path)
+    return plot_changed(_study_summary(data["maps"]["pursuit"]["agents"], "per_500"), path)
 
 
 ATLPO_TEAMS_COLUMNS = (1, 2, 3, 4, 6, 8, 10)
@@ -2184,10 +2153,7 @@ def atlpo_teams_compare(published: dict, check: dict) -> list[str]:
         for (label, ours, theirs, p), q in zip(cells, adjusted, strict=True)
         if q < 0.05
     ]
-    for mine, other in zip(atlpo_teams_claims(published), atlpo_teams_claims(check), strict=True):
-        if mine[-1] != other[-1]:
-            failures.append(f"claim '{mine[0]}': {mine[-1]} -> {other[-1]}")
-    return failures
+    return failures + verdicts_that_change(atlpo_teams_claims(published), atlpo_teams_claims(check))
 
 
 SIDE_BY_SIDE_MODELS = (

@@ -21,7 +21,7 @@ from embodied_adhoc.experiments.tables import format_table
 PER = 500  # captures are reported per 500 steps (the PLASTIC reference's unit)
 
 
-def _cell(values, scale: float) -> dict:
+def trial_cell(values, scale: float) -> dict:
     """Mean, 95 % percentile-bootstrap CI and count of per-trial ``values`` times ``scale``, and the scaled values
     themselves (what Welch tests between agents and pooled summaries read)."""
     scaled = np.asarray(values, dtype=float) * scale
@@ -55,8 +55,8 @@ def summarise(records: list[dict]) -> dict:
 
         def cells(values, scale=scale, navigation=navigation) -> dict:
             if navigation:
-                return {"reward": _cell(values, 1.0)}
-            return {"captures": _cell(values, 1.0), "per_500": _cell(values, scale)}
+                return {"reward": trial_cell(values, 1.0)}
+            return {"captures": trial_cell(values, 1.0), "per_500": trial_cell(values, scale)}
 
         entry: dict = {
             "trials": len(mine),
@@ -90,8 +90,8 @@ def summarise(records: list[dict]) -> dict:
             entry["changed_fit"] = [
                 {
                     "step": int(fit[0, i, 0]),
-                    "share": _cell(fit[:, i, 1], 1.0),
-                    "probability": _cell(fit[:, i, 2], 1.0),
+                    "share": trial_cell(fit[:, i, 1], 1.0),
+                    "probability": trial_cell(fit[:, i, 2], 1.0),
                 }
                 for i in range(fit.shape[1])
             ]
@@ -169,7 +169,7 @@ def changed_table(summary: dict, markdown: bool = False) -> str:
     changed = {agent: entry["changed_after"] for agent, entry in summary.items() if "changed_after" in entry}
     if not changed:
         return ""
-    rows = [[agent, str(len(v)), _fmt(_cell(v, 1.0))] for agent, v in changed.items()]
+    rows = [[agent, str(len(v)), _fmt(trial_cell(v, 1.0))] for agent, v in changed.items()]
     pairs = [
         [
             f"{c.first} vs {c.second}",
